@@ -1,0 +1,152 @@
+"""Analytic minimum-time (and minimum-energy) lower bounds for a point-to-point move.
+
+For fixed end configurations (q_s, q_g), with Δq = q_g − q_s:
+* velocity:      T ≥ max_i |Δq_i| / v_i            (v_i: the limit in the direction of motion)
+* rest to rest:  T ≥ max_i T_i(|Δq_i|, v_i, a_i, j_i), the time-optimal 1-DOF profile with
+                 velocity, acceleration (and jerk) limits (equals Ruckig's independent minimum)
+* pump:          T ≥ V / Q_max, V = Σ swept oil volumes (piston area extending, annulus
+                 retracting, nothing for single-acting lowering; transformer flow credited)
+* energy:        E ≥ (ΔE_potential)⁺ / η            (load sensing, no recovery)
+For a redundant crane the ends are tip positions with the telescope free; every bound is
+minimised over the telescope at both ends (grid, then two zoomed refinements).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import Crane, UnreachableError
+
+
+def rest_to_rest_time(d, v, a, j=np.inf):
+    """Minimum time [s] to move a distance d ≥ 0 from rest to rest under |v|, |a|, |j| limits.
+
+    Vectorised over all arguments. With j = inf this is the bang-bang (trapezoid) profile."""
+    d, v, a, j = np.broadcast_arrays(*(np.asarray(x, float) for x in (d, v, a, j)))
+    d = np.abs(d)
+    inv_j = np.where(np.isfinite(j), 1.0 / j, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # accelerating from 0 to speed w: time and distance (symmetric S-curve or trapezoid)
+        def acc_phase(w):
+            reach_a = w >= a * a * inv_j   # the profile reaches full acceleration
+            t_full = w / a + a * inv_j
+            t_tri = 2.0 * np.sqrt(w * inv_j)
+            t = np.where(reach_a, t_full, t_tri)
+            return t, 0.5 * w * t
+        t_v, d_v = acc_phase(v)
+        cruise = d >= 2 * d_v
+        T_cruise = 2 * t_v + (d - 2 * d_v) / v
+        # peak speed w < v: solve d = 2·d_acc(w)
+        w1 = 0.5 * a * (-a * inv_j + np.sqrt((a * inv_j) ** 2 + 4 * d / a))   # w ≥ a²/j case
+        w2 = np.where(inv_j > 0, (d / (2.0 * np.sqrt(inv_j))) ** (2.0 / 3.0), np.inf)  # w < a²/j
+        w = np.where(w1 >= a * a * inv_j, w1, w2)
+        t_w, _ = acc_phase(w)
+        T = np.where(cruise, T_cruise, 2 * t_w)
+    return np.where(d == 0, 0.0, T)
+
+
+@dataclass
+class LowerBound:
+    """Lower bounds [s] (and [J]) for a move, each minimised over the redundancy at both ends.
+
+    ``combined_s`` = min over end configurations of max(rest-to-rest, pump) — tighter than the
+    max of the separate minima. ``tele_start`` / ``tele_goal`` are the telescope values [m] at
+    which ``combined_s`` is attained (None when the ends were joint configurations)."""
+    velocity_s: float
+    rest_to_rest_s: float
+    pump_s: float
+    combined_s: float
+    energy_J: float
+    tele_start: float | None
+    tele_goal: float | None
+
+    def as_dict(self):
+        return dict(self.__dict__)
+
+
+def _end_configs(crane: Crane, tip, q, tele):
+    """Candidate configurations for one end: the joint vector ``q`` if given (fixed), else the
+    IK of ``tip`` (r, z, slew) for each telescope value in ``tele`` (unreachable ones dropped)."""
+    if q is not None:
+        q = np.asarray(q, float)
+        if q.shape != (crane.n,):
+            raise ValueError(f"a joint configuration needs {crane.n} values, got {q.tolist()}")
+        return q[None, :], np.array([np.nan])
+    tip = np.asarray(tip, float)
+    if tip.shape != (3,):
+        raise ValueError(f"a tip is (r, z, slew), got {tip.tolist()}")
+    qq, reason = crane.ik_batch(np.tile(tip, (len(tele), 1)), tele)
+    ok = reason == ""
+    if not ok.any():
+        raise UnreachableError(f"{crane.spec.id}: tip (r={tip[0]:.3f} m, z={tip[1]:.3f} m, "
+                               f"slew={tip[2]:.3f} rad) is unreachable for every telescope "
+                               f"value: {reason[len(reason) // 2]}")
+    return qq[ok], np.asarray(tele, float)[ok]
+
+
+def _pair_bounds(crane: Crane, qs, qg):
+    """Bounds for all pairs: arrays (Ns, Ng) of velocity, r2r, pump times and energy."""
+    L = crane.limit_arrays()
+    spec = crane.spec
+    dq = qg[None, :, :] - qs[:, None, :]
+    v = np.where(dq >= 0, L["qd_max"], -L["qd_min"])
+    T_vel = np.max(np.abs(dq) / v, axis=-1)
+    T_r2r = np.max(rest_to_rest_time(dq, v, L["qdd_max"], L["qddd_max"]), axis=-1)
+    xs, _ = crane.stroke(qs)
+    xg, _ = crane.stroke(qg)
+    dx = xg[None, :, :] - xs[:, None, :]
+    Aa = np.array([j.actuator.area_a for j in spec.joints])
+    Ab = np.array([j.actuator.area_b for j in spec.joints])
+    single = np.array([j.actuator.acting == "single" for j in spec.joints])
+    V = Aa * np.maximum(dx, 0) + np.where(single, 0.0, Ab * np.maximum(-dx, 0))
+    ht = spec.transformer
+    if ht is not None and ht.enabled:
+        s, t = spec.joint_index(ht.source_joint), spec.joint_index(ht.target_joint)
+        k = ht.ratio * Ab[s] / Aa[t]
+        V[..., t] = Aa[t] * np.maximum(dx[..., t] - k * dx[..., s], 0)
+        V[..., s] = Aa[s] * np.maximum(dx[..., s], 0)
+    T_pump = V.sum(axis=-1) / spec.pump.max_flow
+    es = crane.potential_energy(qs)
+    eg = crane.potential_energy(qg)
+    E = np.maximum(eg[None, :] - es[:, None], 0) / spec.pump.efficiency
+    return T_vel, T_r2r, T_pump, E
+
+
+def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
+                n_grid: int = 121, refine: int = 2) -> LowerBound:
+    """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
+    configurations ``q_start``/``q_goal``.
+
+    Free telescope values are searched on an ``n_grid`` grid at each free end, then ``refine``
+    times on a 5× finer grid around the best pair."""
+    if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
+        raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
+    tr = crane.tele_range
+    grid = np.linspace(*tr, n_grid) if tr else np.zeros(1)
+    best = dict(vel=np.inf, r2r=np.inf, pump=np.inf, comb=np.inf, E=np.inf)
+    arg = (np.nan, np.nan)
+    grids = (grid, grid)
+    step = (tr[1] - tr[0]) / (n_grid - 1) if tr else 0.0
+    for it in range(1 + (refine if tr else 0)):
+        qs, ts = _end_configs(crane, start, q_start, grids[0])
+        qg, tg = _end_configs(crane, goal, q_goal, grids[1])
+        Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg)
+        comb = np.maximum(Tr, Tp)
+        i, k = np.unravel_index(np.argmin(comb), comb.shape)
+        if comb[i, k] <= best["comb"]:
+            arg = (ts[i], tg[k])
+        best = dict(vel=min(best["vel"], Tv.min()), r2r=min(best["r2r"], Tr.min()),
+                    pump=min(best["pump"], Tp.min()), comb=min(best["comb"], comb.min()),
+                    E=min(best["E"], E.min()))
+        if tr:
+            grids = tuple(np.clip(np.linspace(c - 2 * step, c + 2 * step, 21), *tr)
+                          if not np.isnan(c) else grid for c in arg)
+            step /= 5
+
+    def none_if_nan(v):
+        return None if (not tr or np.isnan(v)) else float(v)
+    return LowerBound(velocity_s=float(best["vel"]), rest_to_rest_s=float(best["r2r"]),
+                      pump_s=float(best["pump"]), combined_s=float(best["comb"]),
+                      energy_J=float(best["E"]), tele_start=none_if_nan(arg[0]),
+                      tele_goal=none_if_nan(arg[1]))

@@ -1,0 +1,84 @@
+"""Hydraulics: actuator flows, chamber pressures, load-sensing pump (symbolic).
+
+Per actuator i with stroke rate ẋ and required force F = τ / (dx/dq) (virtual work):
+* pump flow drawn (direction-dependent areas): Q = A_a·ẋ⁺ + A_b·ẋ⁻ for double-acting,
+  Q = A_a·ẋ⁺ for single-acting (lowering returns oil to tank under gravity, draws nothing);
+* chamber pressures from the force, assuming ideal load-holding valves on the loaded side:
+  F ≥ 0: p_a = (F + A_b·p_t)/A_a, p_b = p_t;  F < 0: p_b = (A_a·p_t − F)/A_b, p_a = p_t;
+* load pressure seen by the LS line: the meter-in chamber's pressure (p_a extending, p_b
+  retracting), only while the actuator draws flow;
+* pump: load sensing p_pump = max(standby, max_active p_load + margin); constant pressure
+  p_pump = set pressure; pump power = p_pump·ΣQ / η (seed 002), energy = ∫ power dt.
+* hydraulic transformer (seed 002, optional): the rod side of the source cylinder is coupled to
+  the piston side of the target: the target moves by pump flow plus ratio·A_b,s·ẋ_s, so the pump
+  supplies Q_t = A_a,t·(ẋ_t − k·ẋ_s)⁺ with k = ratio·A_b,s/A_a,t; the source's rod side then
+  needs no pump flow; ideal units give p_b,s = ratio·p_a,t.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from ..spec import CraneSpec
+
+OUTPUTS = ("x", "xd", "force", "p_a", "p_b", "p_load", "q_act", "p_pump", "q_pump", "power",
+           "throttle_loss")
+
+
+def hydraulics(spec: CraneSpec, x, xd, force):
+    """Symbolic hydraulic quantities. x, xd, force: n-vectors (stroke [m|rad], rate, force
+    [N|N·m]). Returns a dict with the names of :data:`OUTPUTS` (vectors per actuator, scalars for
+    the pump)."""
+    pump = spec.pump
+    pt = pump.tank_pressure
+    n = spec.n
+    ht = spec.transformer if (spec.transformer and spec.transformer.enabled) else None
+    hs = spec.joint_index(ht.source_joint) if ht else -1
+    htg = spec.joint_index(ht.target_joint) if ht else -1
+    p_a, p_b, p_load, q_act = [], [], [], []
+    for i, j in enumerate(spec.joints):
+        act = j.actuator
+        Aa, Ab = act.area_a, act.area_b
+        F = force[i]
+        v = xd[i]
+        single = act.acting == "single"
+        if single:
+            pa = pt + ca.fmax(F, 0) / Aa
+            pb = ca.DM(pt)
+        else:
+            pa = ca.if_else(F >= 0, (F + Ab * pt) / Aa, pt)
+            pb = ca.if_else(F >= 0, pt, (Aa * pt - F) / Ab)
+        if i == htg:
+            k = ht.ratio * spec.joints[hs].actuator.area_b / Aa
+            Q = Aa * ca.fmax(v - k * xd[hs], 0)
+        elif i == hs:
+            Q = Aa * ca.fmax(v, 0)
+        elif single:
+            Q = Aa * ca.fmax(v, 0)
+        else:
+            Q = Aa * ca.fmax(v, 0) + Ab * ca.fmax(-v, 0)
+        pL = ca.if_else(v > 0, pa, ca.if_else(v < 0, pb, 0))
+        p_a.append(pa)
+        p_b.append(pb)
+        p_load.append(ca.if_else(Q > 0, pL, 0))
+        q_act.append(Q)
+    if ht is not None:
+        # coupled units: the source's rod side sits at ratio·(target piston pressure)
+        pbs = ht.ratio * p_a[htg]
+        Aa, Ab = spec.joints[hs].actuator.area_a, spec.joints[hs].actuator.area_b
+        p_b[hs] = pbs
+        p_a[hs] = ca.fmax((force[hs] + Ab * pbs) / Aa, pt)
+        p_load[hs] = ca.if_else(q_act[hs] > 0, p_a[hs], 0)
+    Qp = sum(q_act[1:], q_act[0])
+    if pump.kind == "load_sensing":
+        pmax = p_load[0]
+        for pl in p_load[1:]:
+            pmax = ca.fmax(pmax, pl)
+        p_pump = ca.fmax(pump.standby, ca.if_else(Qp > 0, pmax + pump.margin, 0))
+    else:
+        p_pump = ca.DM(pump.pressure) + 0 * Qp
+    power = p_pump * Qp / pump.efficiency
+    loss = sum(((p_pump - p_load[i]) * q_act[i] for i in range(1, n)),
+               (p_pump - p_load[0]) * q_act[0])
+    return dict(x=x, xd=xd, force=force, p_a=ca.vertcat(*p_a), p_b=ca.vertcat(*p_b),
+                p_load=ca.vertcat(*p_load), q_act=ca.vertcat(*q_act), p_pump=p_pump,
+                q_pump=Qp, power=power, throttle_loss=loss)

@@ -1,0 +1,491 @@
+"""Machine specifications: TOML -> validated, immutable dataclasses.
+
+A crane file (problems/cranes/*.toml) holds a ``[crane]`` table, one ``[[joint]]`` table per
+joint in chain order (DH row, limits, link inertia, actuator), ``[payload]``, ``[pump]`` and an
+optional ``[transformer]``. Every table carries a ``source`` string (provenance of its numbers).
+Units are SI; angles may also be written as strings such as ``"123deg"``.
+
+Loading validates everything and raises :class:`SpecError` naming the file, the field, the value
+and what is allowed. Unknown keys are errors (a typo must not silently fall back to a default).
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["SpecError", "DH", "Limits", "Actuator", "Joint", "Payload", "Pump", "Transformer",
+           "CraneSpec", "load_spec", "parse_spec", "parse_angle"]
+
+
+class SpecError(ValueError):
+    """A malformed or inconsistent machine specification."""
+
+    def __init__(self, file: str, field: str, value: Any, expected: str):
+        self.file, self.field, self.value, self.expected = file, field, value, expected
+        super().__init__(f"{file}: field '{field}' = {value!r}: {expected}")
+
+
+def parse_angle(value: Any) -> float:
+    """A number (SI: rad) or a string like ``"30deg"`` / ``"0.5rad"`` -> radians."""
+    if isinstance(value, bool):
+        raise ValueError("expected a number or an angle string like '30deg'")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if isinstance(value, str):
+        s = value.strip().lower()
+        for suffix, scale in (("deg", math.pi / 180.0), ("°", math.pi / 180.0), ("rad", 1.0)):
+            if s.endswith(suffix):
+                return float(s[: -len(suffix)].strip()) * scale
+        return float(s)
+    raise ValueError("expected a number or an angle string like '30deg'")
+
+
+# ----------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True)
+class DH:
+    """One standard DH row, A = Rot_z(theta)·Trans_z(d)·Trans_x(a)·Rot_x(alpha).
+
+    For a revolute joint ``theta`` is the offset added to q; for a prismatic one ``d`` is.
+    """
+    theta: float
+    d: float
+    a: float
+    alpha: float
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Joint limits. q: (min, max) [rad|m]; qd: (min, max) with min < 0 < max [rad/s|m/s];
+    qdd, qddd: symmetric magnitudes [rad/s², rad/s³] (qddd None = no jerk limit)."""
+    q: tuple[float, float]
+    qd: tuple[float, float]
+    qdd: float
+    qddd: float | None
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Hydraulic actuator of one joint; maps joint position q <-> stroke x.
+
+    kinds: ``triangle`` (cylinder between a pin on the parent link and one on the child link),
+    ``lever`` (cylinder pushing a two-lever linkage to the child link), ``telescope`` (x = (q -
+    q_ref)/ratio: chain-coupled sections), ``rotary`` (motor through a gear: x = ratio·q, motor
+    angle), ``rack`` (rack-and-pinion: x = radius·q).
+
+    Pins are 2-D points [m] in the plane of rotation of the joint, expressed in the parent's DH
+    frame (``base``, ``lever_pivot``) or in the child's frame before the DH twist, i.e. rotated
+    with the full DH angle (``rod``, ``lever_link``). area_a / area_b: piston and annulus areas
+    [m²] (or motor displacement [m³/rad] for rotary). flow_gain: valve flow at full command
+    [m³/s]; deadband: fraction of the command range with no flow.
+    """
+    kind: str
+    area_a: float
+    area_b: float
+    acting: str = "double"
+    stroke: float = math.inf
+    closed_length: float = 0.0
+    base: tuple[float, float] | None = None
+    rod: tuple[float, float] | None = None
+    lever_pivot: tuple[float, float] | None = None
+    lever_link: tuple[float, float] | None = None
+    lever_lengths: tuple[float, float] | None = None
+    lever_branch: int = 1
+    ratio: float = 1.0
+    q_ref: float = 0.0
+    radius: float = 0.0
+    flow_gain: float = math.inf
+    deadband: float = 0.0
+    max_speed: float | None = None
+    mass: float = 0.0
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    type: str                       # "revolute" | "prismatic"
+    dh: DH
+    limits: Limits
+    mass: float                     # link mass [kg]
+    com: tuple[float, float, float]  # centre of mass in the DH frame of this link [m]
+    inertia: tuple[float, float, float]  # principal inertia about the COM, frame axes [kg m²]
+    actuator: Actuator
+    source: str = ""
+
+    @property
+    def revolute(self) -> bool:
+        return self.type == "revolute"
+
+
+@dataclass(frozen=True)
+class Payload:
+    mass: float        # load in the grapple [kg]
+    tool_mass: float   # grapple + rotator, always carried [kg]
+    source: str = ""
+
+    @property
+    def total(self) -> float:
+        return self.mass + self.tool_mass
+
+
+@dataclass(frozen=True)
+class Pump:
+    """kind ``load_sensing``: p_pump = max(active load pressures) + margin (>= standby);
+    ``constant_pressure``: p_pump = pressure. Pressures [Pa], max_flow [m³/s]."""
+    kind: str
+    max_flow: float
+    efficiency: float
+    margin: float = 0.0
+    pressure: float = 0.0
+    standby: float = 0.0
+    max_pressure: float = math.inf
+    tank_pressure: float = 0.0
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class Transformer:
+    """Hydraulic transformer: the rod side of ``source_joint``'s cylinder feeds the piston side
+    of ``target_joint``'s cylinder (seed 002). ratio = displacement ratio (1 = equal units)."""
+    source_joint: str
+    target_joint: str
+    ratio: float = 1.0
+    efficiency: float = 1.0
+    enabled: bool = True
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class CraneSpec:
+    id: str
+    name: str
+    description: str
+    source: str
+    elbow: str                     # "up" | "down": IK branch, see model.kinematics
+    redundancy: str | None         # joint name used as the IK redundancy parameter
+    joints: tuple[Joint, ...]
+    payload: Payload
+    pump: Pump
+    transformer: Transformer | None
+    gravity: float = 9.81
+    path: str = "<memory>"
+    raw: dict = field(default_factory=dict, repr=False, compare=False)
+    text: str = field(default="", repr=False, compare=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    def joint_index(self, name: str) -> int:
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise KeyError(f"crane '{self.id}' has no joint '{name}' "
+                           f"(joints: {', '.join(self.joint_names)})") from None
+
+
+# ----------------------------------------------------------------------------- parsing
+class _Reader:
+    """Helper that reads typed fields out of a TOML table and reports precise errors."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def fail(self, fld: str, value: Any, expected: str):
+        raise SpecError(self.file, fld, value, expected)
+
+    def table(self, parent: dict, key: str, where: str, required=True) -> dict | None:
+        if key not in parent:
+            if required:
+                self.fail(f"{where}{key}", None, "missing table")
+            return None
+        v = parent[key]
+        if not isinstance(v, dict):
+            self.fail(f"{where}{key}", v, "expected a table")
+        return v
+
+    def keys(self, tbl: dict, allowed: set[str], where: str):
+        for k in tbl:
+            if k not in allowed:
+                self.fail(f"{where}{k}", tbl[k], f"unknown key; allowed: {', '.join(sorted(allowed))}")
+
+    def num(self, tbl: dict, key: str, where: str, default=None, lo=None, hi=None,
+            lo_open=False, angle=False) -> float:
+        fld = f"{where}{key}"
+        if key not in tbl:
+            if default is None:
+                self.fail(fld, None, "missing (required number)")
+            return default
+        raw = tbl[key]
+        try:
+            v = parse_angle(raw) if angle else _as_float(raw)
+        except ValueError:
+            self.fail(fld, raw, "expected a number" + (" or an angle like '30deg'" if angle else ""))
+        if not math.isfinite(v):
+            self.fail(fld, raw, "expected a finite number")
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            self.fail(fld, raw, f"must be {'>' if lo_open else '>='} {lo}")
+        if hi is not None and v > hi:
+            self.fail(fld, raw, f"must be <= {hi}")
+        return v
+
+    def vec(self, tbl: dict, key: str, where: str, n: int, default=None, angle=False):
+        fld = f"{where}{key}"
+        if key not in tbl:
+            if default is None:
+                self.fail(fld, None, f"missing (required list of {n} numbers)")
+            return default
+        raw = tbl[key]
+        if not isinstance(raw, list) or len(raw) != n:
+            self.fail(fld, raw, f"expected a list of {n} numbers")
+        out = []
+        for x in raw:
+            try:
+                v = parse_angle(x) if angle else _as_float(x)
+            except ValueError:
+                self.fail(fld, raw, f"expected a list of {n} numbers")
+            if not math.isfinite(v):
+                self.fail(fld, raw, "expected finite numbers")
+            out.append(v)
+        return tuple(out)
+
+    def text(self, tbl: dict, key: str, where: str, default=None, choices=None) -> str:
+        fld = f"{where}{key}"
+        if key not in tbl:
+            if default is None:
+                self.fail(fld, None, "missing (required string)")
+            return default
+        v = tbl[key]
+        if not isinstance(v, str):
+            self.fail(fld, v, "expected a string")
+        if choices is not None and v not in choices:
+            self.fail(fld, v, f"allowed: {', '.join(choices)}")
+        return v
+
+
+def _as_float(x: Any) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ValueError
+    return float(x)
+
+
+_JOINT_KEYS = {"name", "type", "dh", "limits", "mass", "com", "inertia", "actuator", "source"}
+_DH_KEYS = {"theta", "d", "a", "alpha"}
+_LIMIT_KEYS = {"q", "qd", "qdd", "qddd"}
+_ACT_KEYS = {"kind", "area_a", "area_b", "acting", "stroke", "closed_length", "base", "rod",
+             "lever_pivot", "lever_link", "lever_lengths", "lever_branch", "ratio", "q_ref",
+             "radius", "flow_gain", "deadband", "max_speed", "mass", "source"}
+_ACT_KINDS = ("triangle", "lever", "telescope", "rotary", "rack")
+
+
+def _parse_actuator(R: _Reader, tbl: dict, where: str, jtype: str) -> Actuator:
+    R.keys(tbl, _ACT_KEYS, where)
+    kind = R.text(tbl, "kind", where, choices=_ACT_KINDS)
+    if jtype == "prismatic" and kind != "telescope":
+        R.fail(f"{where}kind", kind, "a prismatic joint needs kind = 'telescope'")
+    if jtype == "revolute" and kind == "telescope":
+        R.fail(f"{where}kind", kind, "a revolute joint needs triangle, lever, rotary or rack")
+    acting = R.text(tbl, "acting", where, default="double", choices=("double", "single"))
+    area_a = R.num(tbl, "area_a", where, lo=0, lo_open=True)
+    area_b = R.num(tbl, "area_b", where, default=area_a if kind in ("rotary", "rack") else None,
+                   lo=0, lo_open=True)
+    if kind in ("triangle", "lever", "telescope") and area_b > area_a:
+        R.fail(f"{where}area_b", tbl.get("area_b"),
+               f"annulus area must not exceed the piston area area_a = {area_a}")
+    kw: dict[str, Any] = dict(kind=kind, area_a=area_a, area_b=area_b, acting=acting)
+    if kind in ("triangle", "lever"):
+        kw["base"] = R.vec(tbl, "base", where, 2)
+        kw["stroke"] = R.num(tbl, "stroke", where, lo=0, lo_open=True)
+        kw["closed_length"] = R.num(tbl, "closed_length", where, lo=0, lo_open=True)
+    if kind == "triangle":
+        kw["rod"] = R.vec(tbl, "rod", where, 2)
+    if kind == "lever":
+        kw["lever_pivot"] = R.vec(tbl, "lever_pivot", where, 2)
+        kw["lever_link"] = R.vec(tbl, "lever_link", where, 2)
+        kw["lever_lengths"] = R.vec(tbl, "lever_lengths", where, 2)
+        if min(kw["lever_lengths"]) <= 0:
+            R.fail(f"{where}lever_lengths", tbl["lever_lengths"], "lengths must be > 0")
+        br = tbl.get("lever_branch", 1)
+        if br not in (1, -1):
+            R.fail(f"{where}lever_branch", br, "allowed: 1 or -1")
+        kw["lever_branch"] = int(br)
+    if kind == "telescope":
+        kw["ratio"] = R.num(tbl, "ratio", where, default=1.0, lo=0, lo_open=True)
+        kw["q_ref"] = R.num(tbl, "q_ref", where, default=0.0)
+        kw["stroke"] = R.num(tbl, "stroke", where, lo=0, lo_open=True)
+    if kind == "rotary":
+        kw["ratio"] = R.num(tbl, "ratio", where, lo=0, lo_open=True)
+    if kind == "rack":
+        kw["radius"] = R.num(tbl, "radius", where, lo=0, lo_open=True)
+    if acting == "single" and kind not in ("triangle", "lever"):
+        R.fail(f"{where}acting", acting, "single-acting is only allowed for cylinders "
+                                          "(kind triangle or lever)")
+    kw["flow_gain"] = R.num(tbl, "flow_gain", where, lo=0, lo_open=True)
+    kw["deadband"] = R.num(tbl, "deadband", where, default=0.0, lo=0.0, hi=0.5)
+    ms = R.num(tbl, "max_speed", where, default=-1.0)
+    kw["max_speed"] = None if ms == -1.0 else ms
+    if kw["max_speed"] is not None and kw["max_speed"] <= 0:
+        R.fail(f"{where}max_speed", tbl["max_speed"], "must be > 0")
+    kw["mass"] = R.num(tbl, "mass", where, default=0.0, lo=0.0)
+    kw["source"] = R.text(tbl, "source", where)
+    return Actuator(**kw)
+
+
+def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
+    where = f"joint[{i}]."
+    if not isinstance(tbl, dict):
+        R.fail(f"joint[{i}]", tbl, "expected a table")
+    R.keys(tbl, _JOINT_KEYS, where)
+    name = R.text(tbl, "name", where)
+    if not name.isidentifier():
+        R.fail(f"{where}name", name, "a joint name must be an identifier (letters, digits, _)")
+    where = f"joint[{i}]({name})."
+    jtype = R.text(tbl, "type", where, choices=("revolute", "prismatic"))
+    dh_t = R.table(tbl, "dh", where)
+    R.keys(dh_t, _DH_KEYS, where + "dh.")
+    dh = DH(theta=R.num(dh_t, "theta", where + "dh.", default=0.0, angle=True),
+            d=R.num(dh_t, "d", where + "dh.", default=0.0),
+            a=R.num(dh_t, "a", where + "dh.", default=0.0),
+            alpha=R.num(dh_t, "alpha", where + "dh.", default=0.0, angle=True))
+    lt = R.table(tbl, "limits", where)
+    lw = where + "limits."
+    R.keys(lt, _LIMIT_KEYS, lw)
+    q = R.vec(lt, "q", lw, 2, angle=jtype == "revolute")
+    if not q[0] < q[1]:
+        R.fail(lw + "q", lt["q"], "q_min must be < q_max")
+    if jtype == "revolute" and q[1] - q[0] > 2 * math.pi + 1e-9:
+        R.fail(lw + "q", lt["q"], "a revolute range may span at most 2π")
+    qd_raw = lt.get("qd")
+    if isinstance(qd_raw, (int, float, str)) and not isinstance(qd_raw, bool):
+        v = R.num(lt, "qd", lw, lo=0, lo_open=True, angle=jtype == "revolute")
+        qd = (-v, v)
+    else:
+        qd = R.vec(lt, "qd", lw, 2, angle=jtype == "revolute")
+        if not (qd[0] < 0 < qd[1]):
+            R.fail(lw + "qd", lt["qd"], "expected [qd_min, qd_max] with qd_min < 0 < qd_max "
+                                          "(or one positive number for symmetric limits)")
+    qdd = R.num(lt, "qdd", lw, lo=0, lo_open=True, angle=jtype == "revolute")
+    qddd = R.num(lt, "qddd", lw, default=-1.0, angle=jtype == "revolute")
+    if qddd != -1.0 and qddd <= 0:
+        R.fail(lw + "qddd", lt["qddd"], "must be > 0 (omit for no jerk limit)")
+    limits = Limits(q=q, qd=qd, qdd=qdd, qddd=None if qddd == -1.0 else qddd)
+    mass = R.num(tbl, "mass", where, lo=0.0)
+    com = R.vec(tbl, "com", where, 3)
+    inertia = R.vec(tbl, "inertia", where, 3)
+    if min(inertia) < 0:
+        R.fail(where + "inertia", tbl["inertia"], "principal inertias must be >= 0")
+    ix, iy, iz = inertia
+    if ix > iy + iz + 1e-9 or iy > ix + iz + 1e-9 or iz > ix + iy + 1e-9:
+        R.fail(where + "inertia", tbl["inertia"], "violates the triangle inequality of a rigid "
+                                                 "body (each principal inertia <= sum of the others)")
+    at = R.table(tbl, "actuator", where)
+    act = _parse_actuator(R, at, where + "actuator.", jtype)
+    return Joint(name=name, type=jtype, dh=dh, limits=limits, mass=mass, com=com,
+                 inertia=inertia, actuator=act, source=R.text(tbl, "source", where))
+
+
+def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
+    """Validate a parsed TOML dict and build a :class:`CraneSpec`."""
+    R = _Reader(file)
+    R.keys(data, {"crane", "joint", "payload", "pump", "transformer"}, "")
+    ct = R.table(data, "crane", "")
+    R.keys(ct, {"id", "name", "description", "source", "elbow", "redundancy", "gravity"}, "crane.")
+    cid = R.text(ct, "id", "crane.")
+    joints_raw = data.get("joint")
+    if not isinstance(joints_raw, list) or len(joints_raw) < 3:
+        R.fail("joint", joints_raw, "expected at least three [[joint]] tables "
+                                    "(slew + two boom joints)")
+    joints = tuple(_parse_joint(R, jt, i) for i, jt in enumerate(joints_raw))
+    names = [j.name for j in joints]
+    for i, nm in enumerate(names):
+        if names.index(nm) != i:
+            R.fail(f"joint[{i}].name", nm, "joint names must be unique")
+    if joints[0].type != "revolute":
+        R.fail("joint[0].type", joints[0].type, "the first joint must be the revolute slew")
+    red = ct.get("redundancy")
+    if red is not None:
+        if red not in names:
+            R.fail("crane.redundancy", red, f"must name a joint: {', '.join(names)}")
+        if joints[names.index(red)].type != "prismatic":
+            R.fail("crane.redundancy", red, "the redundancy parameter must be a prismatic "
+                                            "(telescope) joint")
+    prism = [j.name for j in joints if j.type == "prismatic"]
+    if prism and red is None:
+        R.fail("crane.redundancy", None, f"required: name the telescope joint ({prism[0]})")
+    pt = R.table(data, "payload", "")
+    R.keys(pt, {"mass", "tool_mass", "source"}, "payload.")
+    payload = Payload(mass=R.num(pt, "mass", "payload.", lo=0.0),
+                      tool_mass=R.num(pt, "tool_mass", "payload.", default=0.0, lo=0.0),
+                      source=R.text(pt, "source", "payload."))
+    pu = R.table(data, "pump", "")
+    pw = "pump."
+    R.keys(pu, {"kind", "max_flow", "efficiency", "margin", "pressure", "standby",
+                "max_pressure", "tank_pressure", "source"}, pw)
+    kind = R.text(pu, "kind", pw, choices=("load_sensing", "constant_pressure"))
+    pump = Pump(kind=kind,
+                max_flow=R.num(pu, "max_flow", pw, lo=0, lo_open=True),
+                efficiency=R.num(pu, "efficiency", pw, lo=0, lo_open=True, hi=1.0),
+                margin=R.num(pu, "margin", pw, default=None if kind == "load_sensing" else 0.0,
+                             lo=0.0),
+                pressure=R.num(pu, "pressure", pw,
+                               default=None if kind == "constant_pressure" else 0.0, lo=0.0),
+                standby=R.num(pu, "standby", pw, default=0.0, lo=0.0),
+                max_pressure=R.num(pu, "max_pressure", pw, default=math.inf, lo=0, lo_open=True),
+                tank_pressure=R.num(pu, "tank_pressure", pw, default=0.0, lo=0.0),
+                source=R.text(pu, "source", pw))
+    if kind == "constant_pressure" and pump.pressure <= 0:
+        R.fail(pw + "pressure", pu.get("pressure"), "a constant-pressure pump needs pressure > 0")
+    transformer = None
+    tt = R.table(data, "transformer", "", required=False)
+    if tt is not None:
+        tw = "transformer."
+        R.keys(tt, {"source_joint", "target_joint", "ratio", "efficiency", "enabled", "source"}, tw)
+        sj = R.text(tt, "source_joint", tw)
+        tj = R.text(tt, "target_joint", tw)
+        for k, v in (("source_joint", sj), ("target_joint", tj)):
+            if v not in names:
+                R.fail(tw + k, v, f"must name a joint: {', '.join(names)}")
+        if sj == tj:
+            R.fail(tw + "target_joint", tj, "must differ from source_joint")
+        en = tt.get("enabled", True)
+        if not isinstance(en, bool):
+            R.fail(tw + "enabled", en, "expected true or false")
+        transformer = Transformer(source_joint=sj, target_joint=tj,
+                                  ratio=R.num(tt, "ratio", tw, default=1.0, lo=0, lo_open=True),
+                                  efficiency=R.num(tt, "efficiency", tw, default=1.0, lo=0,
+                                                   lo_open=True, hi=1.0),
+                                  enabled=en, source=R.text(tt, "source", tw))
+    spec = CraneSpec(
+        id=cid, name=R.text(ct, "name", "crane."),
+        description=R.text(ct, "description", "crane.", default=""),
+        source=R.text(ct, "source", "crane."),
+        elbow=R.text(ct, "elbow", "crane.", choices=("up", "down")),
+        redundancy=red, joints=joints, payload=payload, pump=pump, transformer=transformer,
+        gravity=R.num(ct, "gravity", "crane.", default=9.81, lo=0.0),
+        path=file, raw=data, text=text)
+    return spec
+
+
+def load_spec(path: str | Path) -> CraneSpec:
+    """Read and validate a crane TOML file. Raises :class:`SpecError` on any problem.
+
+    Geometric consistency (knuckle-boom structure, cylinder strokes covering the joint range)
+    is checked when the model is built: see :func:`planner.model.Crane`.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise SpecError(str(path), "<file>", None, f"cannot read file: {e.strerror}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SpecError(str(path), "<toml>", None, f"not valid TOML: {e}") from None
+    return parse_spec(data, str(path), text)

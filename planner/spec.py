@@ -313,7 +313,7 @@ def _parse_actuator(R: _Reader, tbl: dict, where: str, jtype: str) -> Actuator:
         if min(kw["lever_lengths"]) <= 0:
             R.fail(f"{where}lever_lengths", tbl["lever_lengths"], "lengths must be > 0")
         br = tbl.get("lever_branch", 1)
-        if br not in (1, -1):
+        if isinstance(br, bool) or br not in (1, -1):
             R.fail(f"{where}lever_branch", br, "allowed: 1 or -1")
         kw["lever_branch"] = int(br)
     if kind == "telescope":
@@ -329,10 +329,8 @@ def _parse_actuator(R: _Reader, tbl: dict, where: str, jtype: str) -> Actuator:
                                           "(kind triangle or lever)")
     kw["flow_gain"] = R.num(tbl, "flow_gain", where, lo=0, lo_open=True)
     kw["deadband"] = R.num(tbl, "deadband", where, default=0.0, lo=0.0, hi=0.5)
-    ms = R.num(tbl, "max_speed", where, default=-1.0)
-    kw["max_speed"] = None if ms == -1.0 else ms
-    if kw["max_speed"] is not None and kw["max_speed"] <= 0:
-        R.fail(f"{where}max_speed", tbl["max_speed"], "must be > 0")
+    kw["max_speed"] = (R.num(tbl, "max_speed", where, lo=0, lo_open=True)
+                       if "max_speed" in tbl else None)
     kw["mass"] = R.num(tbl, "mass", where, default=0.0, lo=0.0)
     kw["source"] = R.text(tbl, "source", where)
     return Actuator(**kw)
@@ -372,10 +370,10 @@ def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
             R.fail(lw + "qd", lt["qd"], "expected [qd_min, qd_max] with qd_min < 0 < qd_max "
                                           "(or one positive number for symmetric limits)")
     qdd = R.num(lt, "qdd", lw, lo=0, lo_open=True, angle=jtype == "revolute")
-    qddd = R.num(lt, "qddd", lw, default=-1.0, angle=jtype == "revolute")
-    if qddd != -1.0 and qddd <= 0:
+    qddd = R.num(lt, "qddd", lw, angle=jtype == "revolute") if "qddd" in lt else None
+    if qddd is not None and qddd <= 0:  # omitted: no jerk limit
         R.fail(lw + "qddd", lt["qddd"], "must be > 0 (omit for no jerk limit)")
-    limits = Limits(q=q, qd=qd, qdd=qdd, qddd=None if qddd == -1.0 else qddd)
+    limits = Limits(q=q, qd=qd, qdd=qdd, qddd=qddd)
     mass = R.num(tbl, "mass", where, lo=0.0)
     com = R.vec(tbl, "com", where, 3)
     inertia = R.vec(tbl, "inertia", where, 3)

@@ -144,9 +144,10 @@ class Crane:
             tol = 1e-3
             if np.min(x[:, i]) < lo - tol or np.max(x[:, i]) > hi + tol:
                 k = int(np.argmin(x[:, i])) if np.min(x[:, i]) < lo - tol else int(np.argmax(x[:, i]))
+                at = f"{math.degrees(qs[k, i]):.1f}°" if j.revolute else f"{qs[k, i]:.3f} m"
                 raise SpecError(spec.path, where + ".stroke", act.stroke,
                                 f"the joint range needs strokes {np.min(x[:, i]):.3f} .. "
-                                f"{np.max(x[:, i]):.3f} m (worst at {j.name} = {qs[k, i]:.3f}), "
+                                f"{np.max(x[:, i]):.3f} m (worst at {j.name} = {at}), "
                                 f"outside the cylinder's 0 .. {act.stroke} m")
             s = np.sign(dxdq[:, i])
             if np.any(np.abs(dxdq[:, i]) < 1e-4) or np.any(s != s[0]):

@@ -113,11 +113,11 @@ def planar_chain(spec: CraneSpec) -> PlanarChain:
         raise SpecError(spec.path, f"joint[0]({names[0]}).dh.alpha", spec.joints[0].dh.alpha,
                         "the boom axis must be horizontal (perpendicular to the slew axis)")
     if abs(abs(F[2][:3, 2] @ u) - 1.0) > 1e-9:
-        raise SpecError(spec.path, f"joint[2]({names[2]}).dh", spec.joints[1].dh,
-                        "the jib axis must be parallel to the boom axis")
+        raise SpecError(spec.path, f"joint[1]({names[1]}).dh.alpha", spec.joints[1].dh.alpha,
+                        "the jib axis must be parallel to the boom axis (alpha 0 or ±π)")
     if tele is not None and abs(F[3][:3, 2] @ u) > 1e-9:
-        raise SpecError(spec.path, f"joint[3]({names[3]}).dh", spec.joints[2].dh,
-                        "the telescope must slide in the plane of boom and jib")
+        raise SpecError(spec.path, f"joint[2]({names[2]}).dh.alpha", spec.joints[2].dh.alpha,
+                        "the telescope must slide in the plane of boom and jib (alpha ±π/2)")
     h = np.cross(u, ez)
     # orient h so that the tip at mid-range is in front of the slew axis
     qm = np.array([0.5 * (j.limits.q[0] + j.limits.q[1]) for j in spec.joints])
@@ -162,17 +162,14 @@ def _wrap_into(q: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return mid + (q - mid + np.pi) % (2 * np.pi) - np.pi
 
 
-def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True):
-    """Vectorised IK. Inputs broadcast; returns (q[N, n], reason[N]) with reason "" when the
-    configuration is reachable and inside all joint limits, else a readable explanation."""
-    r, z, slew, t = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float)) for v in (r, z, slew, t)))
+def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool):
+    """IK with the tip in front of the slew axis (ρ > 0) or folded behind it (ρ < 0)."""
     N = r.shape[0]
-    n = spec.n
-    q = np.full((N, n), np.nan)
+    q = np.full((N, spec.n), np.nan)
     reason = np.full(N, "", dtype=object)
     e = pc.lateral
     with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.sqrt(r * r - e * e)
+        rho = np.sqrt(r * r - e * e) * (-1.0 if behind else 1.0)
         bad = ~(r * r >= e * e)
         reason[bad] = f"out of reach: r closer to the slew axis than the lateral offset {abs(e):.3f} m"
         P = np.stack([rho, z], axis=1)
@@ -187,6 +184,8 @@ def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True):
                        (near, "out of reach: {D:.3f} m from the boom pivot, at least {m_:.3f} m")):
             for k in np.flatnonzero(m & (reason == "")):
                 reason[k] = txt.format(D=D[k], M=L1 + Lw[k], m_=abs(L1 - Lw[k]))
+        # law of cosines at the shoulder, elbow on the side fixed by the spec (eq. 7.1-7.6 of
+        # seed 000 in general form)
         cosb = np.clip((L1 * L1 + D * D - Lw * Lw) / (2 * L1 * D), -1.0, 1.0)
         beta = np.arccos(cosb)
         ang_E = np.arctan2(dP[:, 1], dP[:, 0]) + pc.elbow * beta
@@ -217,6 +216,24 @@ def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True):
                          f"(allowed {a:.2f}{unit} .. {b:.2f}{unit})")
         ok &= ~viol
     q[~ok] = np.nan
+    return q, reason
+
+
+def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True):
+    """Vectorised IK. Inputs broadcast; returns (q[N, n], reason[N]) with reason "" when the
+    configuration is reachable and inside all joint limits, else a readable explanation.
+
+    The tip in front of the slew axis is preferred; a tip folded behind it (slew turned by π)
+    is used only where the front solution fails."""
+    r, z, slew, t = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float))
+                                          for v in (r, z, slew, t)))
+    q, reason = _ik_one_side(spec, pc, r, z, slew, t, behind=False)
+    fail = np.flatnonzero(reason != "")
+    if fail.size:
+        qb, rb = _ik_one_side(spec, pc, r[fail], z[fail], slew[fail], t[fail], behind=True)
+        good = rb == ""
+        q[fail[good]] = qb[good]
+        reason[fail[good]] = ""
     lim = np.flatnonzero(np.char.startswith(reason.astype(str), "joint limit"))
     if _hint and lim.size:
         other = PlanarChain(**{**pc.__dict__, "elbow": -pc.elbow})

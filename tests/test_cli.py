@@ -1,0 +1,241 @@
+"""The ``crane-planner`` command line (planner/cli.py), run in-process through ``main``."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from planner.cli import main, parse_point
+
+ROOT = Path(__file__).resolve().parents[1]
+IDS = ["cat215b", "cranab850", "s100f", "umea-lab"]
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(capsys, *argv):
+    rc = main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+# ----------------------------------------------------------------------------- problems
+def test_problems_list_prints_the_ids(capsys):
+    rc, out, err = _run(capsys, "problems", "list")
+    assert rc == 0
+    lines = out.strip().splitlines()
+    assert [ln.split()[0] for ln in lines] == IDS
+    assert "slew, boom, jib, tele" in out
+    assert "swing, boom, stick" in out      # cat215b has no telescope
+
+
+def test_problems_list_json_stdout(capsys):
+    rc, out, err = _run(capsys, "problems", "list", "--json", "-")
+    assert rc == 0
+    rows = json.loads(out)                  # only JSON on stdout, no table
+    assert isinstance(rows, list)
+    assert [r["id"] for r in rows] == IDS
+    umea = rows[IDS.index("umea-lab")]
+    assert umea["joints"] == ["slew", "boom", "jib", "tele"]
+    assert umea["redundancy"] == "tele"
+    assert umea["pump"] == "load_sensing"
+
+
+def test_problems_list_json_without_value_means_stdout(capsys):
+    rc, out, _ = _run(capsys, "problems", "list", "--json")
+    assert rc == 0
+    assert [r["id"] for r in json.loads(out)] == IDS
+
+
+def test_problems_show_json(capsys):
+    rc, out, err = _run(capsys, "problems", "show", "s100f", "--json", "-")
+    assert rc == 0
+    d = json.loads(out)
+    toml = tomllib.loads((ROOT / "problems" / "cranes" / "s100f.toml").read_text("utf-8"))
+    assert d["id"] == "s100f"
+    assert [j["name"] for j in d["joints"]] == ["slew", "boom", "jib", "tele"]
+    assert d["pump"]["max_flow"] == toml["pump"]["max_flow"]
+    assert d["joints"][3]["type"] == "prismatic"
+    assert "raw" not in d and "text" not in d
+    assert d["transformer"] is not None     # s100f has a hydraulic transformer
+
+
+def test_problems_show_text(capsys):
+    rc, out, err = _run(capsys, "problems", "show", "umea-lab")
+    assert rc == 0
+    assert "[umea-lab]" in out
+    assert "umea-lab.toml" in out
+    for name in ("slew", "boom", "jib", "tele"):
+        assert f"  {name} " in out
+    assert "21 L/min" in out                # pump max_flow 3.5e-4 m³/s
+
+
+def test_problems_show_by_path(capsys):
+    p = ROOT / "problems" / "cranes" / "cranab850.toml"
+    rc, out, _ = _run(capsys, "problems", "show", str(p), "--json", "-")
+    assert rc == 0
+    assert json.loads(out)["id"] == "cranab850"
+
+
+def test_problems_show_plot_writes_png(capsys, tmp_path):
+    png = tmp_path / "ws.png"
+    rc, out, err = _run(capsys, "problems", "show", "umea-lab", "--plot", str(png))
+    assert rc == 0
+    data = png.read_bytes()
+    assert data[:8] == PNG_SIGNATURE
+    assert len(data) > 1000
+    assert f"workspace figure written to {png}" in out
+
+
+def test_problems_show_plot_keeps_json_stdout_clean(capsys, tmp_path):
+    png = tmp_path / "ws.png"
+    rc, out, err = _run(capsys, "problems", "show", "umea-lab", "--json", "-",
+                        "--plot", str(png))
+    assert rc == 0
+    assert json.loads(out)["id"] == "umea-lab"     # the plot note went to stderr
+    assert "workspace figure written" in err
+    assert png.read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_problems_show_unknown_crane(capsys):
+    rc, out, err = _run(capsys, "problems", "show", "nope")
+    assert rc == 2
+    assert out == ""
+    assert err.startswith("crane-planner: error: ")
+    assert "unknown crane 'nope'" in err
+    for cid in IDS:
+        assert cid in err
+
+
+def test_problems_show_invalid_toml_file(capsys, tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[crane\n", encoding="utf-8")
+    rc, out, err = _run(capsys, "problems", "show", str(p))
+    assert rc == 2
+    assert "not valid TOML" in err
+    assert str(p) in err
+
+
+# ----------------------------------------------------------------------------- bound
+def test_bound_json(capsys):
+    rc, out, err = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0,0",
+                        "--goal", "5.5,1.0,0", "--json", "-")
+    assert rc == 0
+    d = json.loads(out)
+    assert d["status"] == "ok"
+    assert d["crane"] == "cranab850"
+    assert d["start"] == [1.5, 1.0, 0.0] and d["goal"] == [5.5, 1.0, 0.0]
+    assert 0 < d["velocity_s"] <= d["combined_s"]
+    assert d["rest_to_rest_s"] <= d["combined_s"] + 1e-12
+    assert d["pump_s"] <= d["combined_s"] + 1e-12
+
+
+def test_bound_text(capsys):
+    rc, out, err = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0",
+                        "--goal", "5.5,1.0")
+    assert rc == 0
+    assert out.startswith("lower bounds for cranab850 (1.5, 1.0, 0.0) -> (5.5, 1.0, 0.0)")
+    assert "combined" in out
+
+
+def test_bound_unreachable_goal(capsys):
+    rc, out, err = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0,0",
+                        "--goal", "30,0,0", "--json", "-")
+    assert rc == 2
+    assert out == ""                        # no half result on stdout
+    assert err.startswith("crane-planner: error: ")
+    assert "unreachable" in err
+    assert "r=30.000" in err
+
+
+def test_bound_unknown_crane(capsys):
+    rc, _, err = _run(capsys, "bound", "nope", "--start", "1.5,1.0", "--goal", "5.5,1.0")
+    assert rc == 2
+    assert "unknown crane 'nope'" in err
+
+
+@pytest.mark.parametrize("bad", ["1,2,3,4", "a,b", "1", "1,2,xdeg", "1,nan,0", "inf,1"])
+def test_bound_malformed_point_is_a_usage_error(capsys, bad):
+    with pytest.raises(SystemExit) as ei:
+        main(["bound", "cranab850", "--start", bad, "--goal", "5.5,1.0,0"])
+    assert ei.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --start" in err
+    assert repr(bad) in err
+
+
+def test_bound_missing_goal_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as ei:
+        main(["bound", "cranab850", "--start", "1.5,1.0"])
+    assert ei.value.code == 2
+    assert "--goal" in capsys.readouterr().err
+
+
+def test_bound_json_to_file(capsys, tmp_path):
+    target = tmp_path / "sub" / "out.json"
+    rc, out, err = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0,0",
+                        "--goal", "5.5,1.0,0", "--json", str(target))
+    assert rc == 0
+    assert out == ""                        # --json FILE: nothing on stdout
+    d = json.loads(target.read_text("utf-8"))
+    assert d["status"] == "ok"
+    assert d["velocity_s"] <= d["combined_s"]
+
+
+def test_bound_goal_with_degrees(capsys):
+    rc, out, _ = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0,0",
+                      "--goal", "5.5,1.0,30deg", "--json", "-")
+    assert rc == 0
+    d = json.loads(out)
+    assert d["goal"] == pytest.approx([5.5, 1.0, 0.5235987755982988])
+    rc, out, _ = _run(capsys, "bound", "cranab850", "--start", "1.5,1.0,0",
+                      "--goal", "5.5,1.0,0", "--json", "-")
+    d0 = json.loads(out)
+    assert d["velocity_s"] > d0["velocity_s"]      # the extra 30° of slew takes time
+
+
+def test_parse_point():
+    assert parse_point("1.5, 1.0") == (1.5, 1.0, 0.0)
+    assert parse_point("1,-2,90deg") == pytest.approx((1.0, -2.0, 1.5707963267948966))
+    assert parse_point("1,2,0.5") == (1.0, 2.0, 0.5)
+
+
+# ----------------------------------------------------------------------------- demo
+def test_demo_writes_summary_and_figures(capsys, tmp_path):
+    out_dir = tmp_path / "demo"
+    rc, out, err = _run(capsys, "demo", "--out", str(out_dir))
+    assert rc == 0
+    summary = (out_dir / "summary.md").read_text("utf-8")
+    assert summary.startswith("# crane-planner demo")
+    pngs = sorted(p.name for p in out_dir.glob("workspace_*.png"))
+    assert pngs == [f"workspace_{cid}.png" for cid in IDS]
+    for name in pngs:
+        assert (out_dir / name).read_bytes()[:8] == PNG_SIGNATURE
+        assert f"]({name})" in summary
+    for move in ("A–B", "B–C", "A–C"):
+        assert f"| {move} |" in summary
+    assert f"demo written to {out_dir}/" in out
+
+
+# ----------------------------------------------------------------------------- entry points
+def test_python_m_planner_problems_list():
+    r = subprocess.run([sys.executable, "-m", "planner", "problems", "list"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert [ln.split()[0] for ln in r.stdout.strip().splitlines()] == IDS
+
+
+def test_python_m_planner_error_exit_status():
+    r = subprocess.run([sys.executable, "-m", "planner", "problems", "show", "nope"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert "unknown crane 'nope'" in r.stderr
+
+
+def test_no_command_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as ei:
+        main([])
+    assert ei.value.code == 2

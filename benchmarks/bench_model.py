@@ -71,13 +71,6 @@ def _at_fraction(crane, frac):
     return lim[:, 0] + frac * (lim[:, 1] - lim[:, 0])
 
 
-def _jit_active(crane, name):
-    """True when the numeric face ``name`` is a JIT-compiled copy (planner.model._jit returns
-    the symbolic function itself when the JIT is disabled or unavailable)."""
-    f = crane._compiled.get(name)
-    return None if f is None else f is not getattr(crane, f"f_{name}")
-
-
 def _stats(samples, scale=1.0, digits=3):
     s = [x * scale for x in samples]
     return dict(median=round(statistics.median(s), digits), min=round(min(s), digits),
@@ -144,7 +137,7 @@ def bench_crane(crane_id, rng, full=True):
     if full:
         first["tip"] = _first_call(lambda: crane.tip(q_mid))
         first["potential_energy"] = _first_call(lambda: crane.potential_energy(q_mid))
-    res["jit_active"] = {k: _jit_active(crane, k) for k in sorted(crane._compiled)}
+    res["jit_active"] = crane.numeric_status()
 
     res["kinematics_us"] = _time_kinematics(crane, q_mid)
     res["evaluate_ms"] = _time_evaluate(crane)
@@ -280,7 +273,7 @@ def markdown(report):
     nk = {c: r["kinematics_us"]["median"] for c, r in nj.items()}
     lines += [
         f"- Load average before / after the run (1 min): {m['loadavg_start'][0]} / "
-        f"{m['loadavg_end'][0]} on {m['cpu_count']} CPUs (the run itself adds ≈ 1; other "
+        f"{m['loadavg_end'][0]} on {m['cpu_count']} CPUs (the run itself adds up to ≈ 1; other "
         "processes on the host inflate the medians; the fastest repeats are in the JSON).",
         "",
         "Without JIT (CRANE_PLANNER_JIT=0, informational): kinematics µs (median) "

@@ -251,6 +251,8 @@ def evaluate(crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
             return
         idx = np.unravel_index(int(np.argmax(rel)), rel.shape)
         viol[kind] = float(rel[idx])
+        if viol[kind] <= 0.0:
+            return  # clean: no "worst" location to report
         j = names[idx[1]] if per_joint and rel.ndim == 2 else None
         worst[kind] = (float(t[idx[0]]), j, float(values[idx]), float(limits[idx] if
                                                                        np.ndim(limits) else limits))

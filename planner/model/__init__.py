@@ -11,8 +11,6 @@ arrays with the same leading shape; batches are evaluated by CasADi in one call 
 from __future__ import annotations
 
 import math
-import os
-import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -23,6 +21,7 @@ from ..spec import CraneSpec, SpecError, load_spec
 from .actuators import lever_pin, stroke_expr, stroke_range
 from .dynamics import lumped_links, potential_energy, rnea
 from .hydraulics import OUTPUTS, hydraulics
+from .numeric import Batched
 from .kinematics import (UnreachableError, cylindrical, ik_planar, joint_transforms,
                          planar_chain, tip_position)
 
@@ -38,29 +37,12 @@ def _batch(a, n):
     return a2, single
 
 
-def _jit(f: ca.Function) -> ca.Function:
-    """Compile a CasADi function to machine code with the system C compiler (≈4× faster batched
-    evaluation); fall back to CasADi's virtual machine when no compiler is available or when
-    CRANE_PLANNER_JIT=0. Both give identical results."""
-    if os.environ.get("CRANE_PLANNER_JIT", "1") == "0":
-        return f
-    try:
-        ins = f.sx_in()
-        return ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(),
-                           {"jit": True, "compiler": "shell",
-                            "jit_options": {"flags": ["-O2"], "verbose": False}})
-    except Exception as e:  # no compiler: the interpreted function is exact, only slower
-        warnings.warn(f"CasADi JIT unavailable ({type(e).__name__}); using the interpreter",
-                      RuntimeWarning, stacklevel=3)
-        return f
-
-
 class Crane:
     """Numeric and symbolic model of one machine spec (build once, evaluate many times).
 
     ``f_fk``, ``f_kin``, ``f_stroke``, ``f_id``, ``f_hyd`` are the symbolic CasADi functions
     (call them on SX/MX in an NLP); the numeric methods use compiled copies of the same
-    functions (see :func:`_jit`).
+    functions (see :mod:`planner.model.numeric`).
     """
 
     def __init__(self, spec: CraneSpec):
@@ -100,16 +82,21 @@ class Crane:
         hy = hydraulics(spec, x, xd, force)
         self.f_hyd = ca.Function("hydraulics", [q, qd, qdd, m], [hy[k] for k in OUTPUTS],
                                  ["q", "qd", "qdd", "payload"], list(OUTPUTS))
-        self._compiled: dict[str, ca.Function] = {}
+        self._batched: dict[str, Batched] = {}
         self._check_actuators()
         self._stroke_tables = self._make_stroke_tables()
 
-    def _num(self, name: str) -> ca.Function:
-        """Compiled numeric face of ``self.f_<name>`` (compiled once, on first use)."""
-        f = self._compiled.get(name)
-        if f is None:
-            f = self._compiled[name] = _jit(getattr(self, f"f_{name}"))
-        return f
+    def _eval(self, name: str, *args):
+        """Numeric face of ``self.f_<name>`` on N samples (compiled on first use): args are
+        (N, size) arrays or broadcastable; returns a list of (N, size_out) arrays."""
+        b = self._batched.get(name)
+        if b is None:
+            b = self._batched[name] = Batched(getattr(self, f"f_{name}"))
+        return b(*args)
+
+    def numeric_status(self) -> dict[str, bool]:
+        """Which numeric functions have been built so far, and whether each is compiled."""
+        return {k: b.compiled for k, b in sorted(self._batched.items())}
 
     # ------------------------------------------------------------------ construction helpers
     @classmethod
@@ -125,9 +112,9 @@ class Crane:
         """Cylinder strokes must cover the joint range; linkages must close; no dead point."""
         spec = self.spec
         grid = np.linspace(0, 1, 401)
-        qs = np.array([[lo + s * (hi - lo) for (lo, hi) in (j.limits.q for j in spec.joints)]
-                       for s in grid])
-        x, dxdq = (np.array(a).T for a in self._num("stroke")(qs.T))
+        lims = np.array([j.limits.q for j in spec.joints])
+        qs = lims[:, 0] + grid[:, None] * (lims[:, 1] - lims[:, 0])
+        x, dxdq = self._eval("stroke", qs)
         for i, j in enumerate(spec.joints):
             act = j.actuator
             where = f"joint[{i}]({j.name}).actuator"
@@ -159,49 +146,57 @@ class Crane:
         lims = np.array([j.limits.q for j in self.spec.joints])
         grid = np.linspace(0, 1, 2001)
         qs = lims[:, 0][None, :] + grid[:, None] * (lims[:, 1] - lims[:, 0])[None, :]
-        x, _ = self._num("stroke")(qs.T)
-        return qs, np.array(x).T
+        return qs, self._eval("stroke", qs)[0]
 
     # ------------------------------------------------------------------ numeric faces
+    def _q(self, q):
+        """(N, n) array and whether the input was a single configuration."""
+        return _batch(q, self.n)
+
+    @staticmethod
+    def _out(a, single):
+        return a[0] if single else a
+
     def fk(self, q):
         """Tip position (x, y, z) [m] in frame 0."""
-        qb, single = _batch(q, self.n)
-        out = np.array(self._num("fk")(qb.T)[0]).T
-        return out[0] if single else out
+        qb, single = self._q(q)
+        return self._out(self._eval("fk", qb)[0], single)
 
     def frame_origins(self, q):
         """Origins of DH frames 0..n [m], shape (n+1, 3) — for drawing the crane."""
-        return np.array(self.f_origins(np.asarray(q, float))).T
+        o = self._eval("origins", self._q(q)[0][:1])[0][0]
+        return o.reshape(self.n + 1, 3)
 
     def tip(self, q):
         """Tip (r, z, slew) [m, m, rad] — the CONTRACT coordinates."""
-        qb, single = _batch(q, self.n)
-        out = np.array(self._num("fk")(qb.T)[1]).T
-        return out[0] if single else out
+        qb, single = self._q(q)
+        return self._out(self._eval("fk", qb)[1], single)
 
     def jacobian(self, q, coords: str = "cyl"):
         """∂tip/∂q, shape (3, n) (or (N, 3, n)); coords 'cyl' = (r, z, slew), 'xyz'."""
-        qb, single = _batch(q, self.n)
+        qb, single = self._q(q)
         if coords == "cyl":
-            J = np.array(self._num("kin")(qb.T)[1])
+            J = self._eval("kin", qb)[1]
         elif coords == "xyz":
-            J = np.array(self._num("jac_xyz")(qb.T))
+            J = self._eval("jac_xyz", qb)[0]
         else:
             raise ValueError(f"coords must be 'cyl' or 'xyz', not {coords!r}")
-        J = J.reshape(3, qb.shape[0], self.n).transpose(1, 0, 2)
-        return J[0] if single else J
+        J = J.reshape(-1, self.n, 3).transpose(0, 2, 1)  # column-major vec -> (N, 3, n)
+        return self._out(J, single)
 
     def kinematics(self, q):
-        """One call: (tip cyl [3], Jacobian [3×n], strokes x [n], dx/dq [n])."""
-        r = self._num("kin")(np.asarray(q, float))
-        return (np.array(r[0]).ravel(), np.array(r[1]), np.array(r[2]).ravel(),
-                np.array(r[3]).ravel())
+        """FK + Jacobian + stroke map in one call: (tip (r, z, slew) [3], ∂tip/∂q [3×n],
+        strokes x [n], dx/dq [n]); a batch (N, n) gives arrays with a leading N."""
+        qb, single = self._q(q)
+        cyl, J, x, d = self._eval("kin", qb)
+        J = J.reshape(-1, self.n, 3).transpose(0, 2, 1)
+        return tuple(self._out(a, single) for a in (cyl, J, x, d))
 
     def stroke(self, q):
         """Actuator strokes x [m | rad] and dx/dq, each shaped like q."""
-        qb, single = _batch(q, self.n)
-        x, d = (np.array(a).T for a in self._num("stroke")(qb.T))
-        return (x[0], d[0]) if single else (x, d)
+        qb, single = self._q(q)
+        x, d = self._eval("stroke", qb)
+        return self._out(x, single), self._out(d, single)
 
     def joint_from_stroke(self, x):
         """Inverse stroke map x -> q (table look-up + Newton polish), shaped like x."""
@@ -209,41 +204,39 @@ class Crane:
         qs, xs = self._stroke_tables
         q = np.empty_like(xb)
         for i in range(self.n):
-            xi, qi = xs[:, i], qs[:, i]
-            order = np.argsort(xi)
-            q[:, i] = np.interp(xb[:, i], xi[order], qi[order])
+            order = np.argsort(xs[:, i])
+            q[:, i] = np.interp(xb[:, i], xs[order, i], qs[order, i])
         for _ in range(3):
-            xq, d = (np.array(a).T for a in self._num("stroke")(q.T))
+            xq, d = self._eval("stroke", q)
             q = q - (xq - xb) / d
-        return q[0] if single else q
+        return self._out(q, single)
+
+    def _payload(self, payload):
+        return self.spec.payload.total if payload is None else payload
 
     def inverse_dynamics(self, q, qd, qdd, payload=None):
         """Joint torques/forces [N·m | N] that realise (q, qd, qdd) with the given payload [kg]
         (default: the spec's load + tool)."""
-        qb, single = _batch(q, self.n)
-        m = self.spec.payload.total if payload is None else payload
-        t = np.array(self._num("id")(qb.T, _batch(qd, self.n)[0].T, _batch(qdd, self.n)[0].T, m)).T
-        return t[0] if single else t
+        qb, single = self._q(q)
+        t = self._eval("id", qb, self._q(qd)[0], self._q(qdd)[0], self._payload(payload))[0]
+        return self._out(t, single)
 
     def potential_energy(self, q, payload=None):
         """Gravitational potential energy [J] of links, actuators and payload (z = 0 at frame 0)."""
-        qb, single = _batch(q, self.n)
-        m = self.spec.payload.total if payload is None else payload
-        e = np.array(self._num("pe")(qb.T, m)).ravel()
-        return e[0] if single else e
+        qb, single = self._q(q)
+        e = self._eval("pe", qb, self._payload(payload))[0][:, 0]
+        return self._out(e, single)
 
     def hydraulics(self, q, qd, qdd, payload=None) -> dict:
         """Strokes, rates, forces, chamber pressures [Pa], flows [m³/s], pump pressure, flow,
         power [W] and throttling loss [W] for every sample (dict of arrays)."""
-        qb, single = _batch(q, self.n)
-        m = self.spec.payload.total if payload is None else payload
-        res = self._num("hyd")(qb.T, _batch(qd, self.n)[0].T, _batch(qdd, self.n)[0].T, m)
+        qb, single = self._q(q)
+        res = self._eval("hyd", qb, self._q(qd)[0], self._q(qdd)[0], self._payload(payload))
         out = {}
-        for k, v in zip(OUTPUTS, res):
-            a = np.array(v).T
+        for k, a in zip(OUTPUTS, res):
             if a.shape[1] == 1:
                 a = a[:, 0]
-            out[k] = a[0] if single else a
+            out[k] = self._out(a, single)
         return out
 
     # ------------------------------------------------------------------ inverse kinematics

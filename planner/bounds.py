@@ -85,6 +85,26 @@ def _end_configs(crane: Crane, tip, q, tele):
     return qq[ok], np.asarray(tele, float)[ok]
 
 
+def swept_volume(spec, dx):
+    """Oil volume [m³] the pump must deliver per actuator for stroke changes dx (last axis =
+    actuators): piston area extending, annulus retracting, nothing for single-acting lowering;
+    with an enabled transformer the target is credited ratio·A_b,s·Δx_s and the source's rod
+    side is filled by the transformer. A lower bound on ∫Q dt for any motion with that net dx."""
+    Aa = np.array([j.actuator.area_a for j in spec.joints])
+    Ab = np.array([j.actuator.area_b for j in spec.joints])
+    single = np.array([j.actuator.acting == "single" for j in spec.joints])
+    Ab_eff = np.where(single, 0.0, Ab)
+    V = np.where(dx > 0, Aa * dx, -Ab_eff * dx)
+    ht = spec.transformer
+    if ht is not None and ht.enabled:
+        s, t = spec.joint_index(ht.source_joint), spec.joint_index(ht.target_joint)
+        k = ht.ratio * Ab[s] / Aa[t]
+        V = V.copy()
+        V[..., t] = Aa[t] * np.maximum(dx[..., t] - k * dx[..., s], 0)
+        V[..., s] = Aa[s] * np.maximum(dx[..., s], 0)
+    return V
+
+
 def _pair_bounds(crane: Crane, qs, qg):
     """Bounds for all pairs: arrays (Ns, Ng) of velocity, r2r, pump times and energy."""
     L = crane.limit_arrays()
@@ -95,17 +115,7 @@ def _pair_bounds(crane: Crane, qs, qg):
     T_r2r = np.max(rest_to_rest_time(dq, v, L["qdd_max"], L["qddd_max"]), axis=-1)
     xs, _ = crane.stroke(qs)
     xg, _ = crane.stroke(qg)
-    dx = xg[None, :, :] - xs[:, None, :]
-    Aa = np.array([j.actuator.area_a for j in spec.joints])
-    Ab = np.array([j.actuator.area_b for j in spec.joints])
-    single = np.array([j.actuator.acting == "single" for j in spec.joints])
-    V = Aa * np.maximum(dx, 0) + np.where(single, 0.0, Ab * np.maximum(-dx, 0))
-    ht = spec.transformer
-    if ht is not None and ht.enabled:
-        s, t = spec.joint_index(ht.source_joint), spec.joint_index(ht.target_joint)
-        k = ht.ratio * Ab[s] / Aa[t]
-        V[..., t] = Aa[t] * np.maximum(dx[..., t] - k * dx[..., s], 0)
-        V[..., s] = Aa[s] * np.maximum(dx[..., s], 0)
+    V = swept_volume(spec, xg[None, :, :] - xs[:, None, :])
     T_pump = V.sum(axis=-1) / spec.pump.max_flow
     es = crane.potential_energy(qs)
     eg = crane.potential_energy(qg)

@@ -100,6 +100,91 @@ def cmd_bound(args):
               f"energy ≥ {lb.energy_J / 1e3:.2f} kJ")
 
 
+def _law_registry():
+    from .methods.laws import LAWS
+    reg = dict(LAWS)
+    try:
+        from .methods import laws_energy
+        reg.update(getattr(laws_energy, "LAWS", {}))
+    except ImportError:
+        pass
+    return reg
+
+
+def cmd_plan(args):
+    """Plan one move; JSON keys per DESIGN.md. Failures come back as a status with a reason."""
+    import time
+
+    from .bounds import lower_bound
+    from .model import Crane, UnreachableError
+    from .paths import Line
+    from .trajectory import evaluate
+    crane = Crane.from_id(args.crane)
+    method = args.method
+    out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
+               start=list(args.start), goal=list(args.goal))
+    t0 = time.perf_counter()
+    if args.path != "line":
+        raise CLIError(f"--path {args.path}: {method} follows a tip path; use --path line")
+    path = Line(args.start, args.goal)
+    if method == "dp":
+        from .methods.dp import dp
+        res = dp(crane, path, objective=args.objective, step=args.step, tele_step=args.tele_step,
+                 window=args.window, tip_speed=args.tip_speed, duration=args.duration)
+    else:
+        from .methods.laws import follow
+        if args.objective != "time":
+            raise CLIError(f"--objective {args.objective}: local laws follow the path at "
+                           "--tip-speed; use --method dp for energy")
+        res = follow(crane, path, _law_registry()[method.split(":", 1)[1]](),
+                     args.tip_speed or 1.0, rate=args.rate, tele0=args.tele0)
+    out["solve_time_s"] = time.perf_counter() - t0
+    try:
+        lb = lower_bound(crane, args.start, args.goal)
+    except UnreachableError as e:
+        lb = None
+        if res.ok:
+            raise CLIError(str(e)) from None
+    if not res.ok:
+        out.update(status=res.status, reason=res.reason)
+        _emit(args, out)
+        print(f"{method}: {res.status}: {res.reason}", file=sys.stderr)
+        return 3
+    ev = evaluate(crane, res.trajectory)
+    checked = set(ev.checked)
+    if lb is not None:
+        bound = (lb.combined_s if "acceleration" in checked else
+                 max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))
+    out.update(duration_s=ev.duration, energy_J=ev.energy_J,
+               peak_pump_flow_m3s=ev.peak_pump_flow, max_limit_violation=ev.max_limit_violation,
+               violations=ev.violations, checked_limits=sorted(checked),
+               lower_bound_s=bound if lb is not None else None,
+               lower_bounds=lb.as_dict() if lb is not None else None)
+    if args.out:
+        if not str(args.out).endswith(".csv"):
+            raise CLIError(f"--out {args.out}: write a trajectory CSV (.csv)")
+        res.trajectory.to_csv(args.out)
+    if args.plot:
+        from .plots import trajectory_figure
+        trajectory_figure(crane, ev, args.plot,
+                          f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s")
+    _emit(args, out)
+    if not args.json:
+        print(f"{crane.spec.id} {method} {args.objective}: {ev.duration:.3f} s, "
+              f"{ev.energy_J / 1e3:.2f} kJ, peak pump flow {ev.peak_pump_flow * 6e4:.1f} L/min, "
+              f"max limit violation {100 * ev.max_limit_violation:.3f} %"
+              + (f", lower bound {bound:.3f} s" if lb is not None else ""))
+    return 0
+
+
+def _method(text):
+    reg = _law_registry()
+    if text == "dp" or (text.startswith("law:") and text[4:] in reg):
+        return text
+    raise argparse.ArgumentTypeError(
+        f"unknown method {text!r}; available: dp, " + ", ".join(f"law:{k}" for k in reg))
+
+
 def cmd_demo(args):
     from tqdm import tqdm
 
@@ -158,6 +243,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     _json_arg(p)
     p.set_defaults(func=cmd_bound)
+    p = sub.add_parser("plan", help="plan one move (DP or a local law along a straight line)")
+    p.add_argument("crane")
+    p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
+    p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
+    p.add_argument("--method", type=_method, default="dp",
+                   help="dp or law:NAME (least_norm, max_velocity, max_lift, jla, q_optimal, "
+                        "p_optimal)")
+    p.add_argument("--objective", choices=("time", "energy"), default="time")
+    p.add_argument("--path", choices=("line", "free"), default="line")
+    p.add_argument("--tip-speed", type=float, help="commanded tip speed [m/s] (laws; DP energy)")
+    p.add_argument("--duration", type=float, help="move duration [s] (DP energy)")
+    p.add_argument("--step", type=float, default=0.01, help="DP stage spacing [m] (0.01)")
+    p.add_argument("--tele-step", type=float, default=0.01, help="DP telescope grid [m] (0.01)")
+    p.add_argument("--window", type=int, default=5, help="DP telescope steps per stage (5)")
+    p.add_argument("--rate", type=float, default=100.0, help="law control rate [Hz] (100)")
+    p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the trajectory CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")
+    _json_arg(p)
+    p.set_defaults(func=cmd_plan)
     p = sub.add_parser("demo", help="the main job: machines, workspaces, bounds")
     p.add_argument("--out", default="demo-output", help="output folder (default demo-output)")
     _json_arg(p)
@@ -169,14 +274,14 @@ def main(argv=None) -> int:
     from .model import UnreachableError
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
-    except (SpecError, UnreachableError, CLIError) as e:
+        rc = args.func(args)
+    except (SpecError, UnreachableError, CLIError, ValueError) as e:
         print(f"crane-planner: error: {e}", file=sys.stderr)
         return 2
     except KeyError as e:
         print(f"crane-planner: error: {e.args[0]}", file=sys.stderr)
         return 2
-    return 0
+    return rc or 0
 
 
 if __name__ == "__main__":

@@ -79,3 +79,42 @@ def workspace_figure(crane, path, n: int = 90):
     _save(fig, path)
     return dict(r_max=float(np.max(tip[:, 0])), z_min=float(np.min(tip[:, 1])),
                 z_max=float(np.max(tip[:, 1])))
+
+
+def trajectory_figure(crane, ev, path, title: str = ""):
+    """Joint positions, rates relative to their limits, the tip path in r–z, and pump flow /
+    power of an evaluated trajectory (an :class:`~planner.trajectory.Evaluation`)."""
+    L = crane.limit_arrays()
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7))
+    for i, name in enumerate(crane.names):
+        scale, unit = (180 / math.pi, "°") if crane.spec.joints[i].revolute else (1.0, " m")
+        ax[0, 0].plot(ev.t, ev.q[:, i] * scale, label=f"{name} [{unit.strip()}]")
+        lim = np.where(ev.qd[:, i] >= 0, L["qd_max"][i], -L["qd_min"][i])
+        ax[0, 1].plot(ev.t, ev.qd[:, i] / lim, label=name)
+    ax[0, 0].set_title("joint positions")
+    ax[0, 1].axhline(1, color="k", lw=0.8, ls="--")
+    ax[0, 1].axhline(-1, color="k", lw=0.8, ls="--")
+    ax[0, 1].set_title("joint rate / limit in the direction of motion")
+    ax[1, 0].plot(ev.tip[:, 0], ev.tip[:, 1], "k-")
+    ax[1, 0].plot(ev.tip[[0, -1], 0], ev.tip[[0, -1], 1], "ro")
+    ax[1, 0].set_aspect("equal", adjustable="datalim")
+    ax[1, 0].ticklabel_format(useOffset=False)
+    ax[1, 0].margins(0.15)
+    ax[1, 0].set_xlabel("r [m]")
+    ax[1, 0].set_ylabel("z [m]")
+    ax[1, 0].set_title("tip path")
+    ax[1, 1].plot(ev.t, ev.hyd["q_pump"] * 6e4, label="pump flow [L/min]")
+    ax[1, 1].axhline(crane.spec.pump.max_flow * 6e4, color="C0", ls="--", lw=0.8)
+    ax2 = ax[1, 1].twinx()
+    ax2.plot(ev.t, ev.hyd["power"] / 1e3, "C1", label="pump power [kW]")
+    ax2.set_ylabel("kW")
+    ax[1, 1].set_ylabel("L/min")
+    ax[1, 1].set_title(f"pump: {ev.energy_J / 1e3:.2f} kJ")
+    for a in (ax[0, 0], ax[0, 1], ax[1, 1]):
+        a.set_xlabel("t [s]")
+        a.grid(alpha=0.3)
+    ax[0, 0].legend(fontsize=8)
+    ax[0, 1].legend(fontsize=8)
+    fig.suptitle(title or f"{crane.spec.id}: {ev.duration:.3f} s", fontsize=11)
+    fig.tight_layout()
+    _save(fig, path)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["SpecError", "DH", "Limits", "Actuator", "Joint", "Payload", "Pump", "Transformer",
-           "CraneSpec", "load_spec", "parse_spec", "parse_angle"]
+           "LawParams", "CraneSpec", "load_spec", "parse_spec", "parse_angle"]
 
 
 class SpecError(ValueError):
@@ -159,6 +159,18 @@ class Transformer:
 
 
 @dataclass(frozen=True)
+class LawParams:
+    """Parameters of the local control laws (optional ``[laws]`` table).
+
+    weights: joint name -> weight of the max-velocity law's pseudo-inverse (seed 000:
+    w·θ̇max² roughly equal per joint); max_lift: the telescope-by-position circle (rc, zc [m],
+    rho_min, rho_max [m]) of seed 000's maximum-lifting-capacity law."""
+    weights: dict = field(default_factory=dict)
+    max_lift: dict = field(default_factory=dict)
+    source: str = ""
+
+
+@dataclass(frozen=True)
 class CraneSpec:
     id: str
     name: str
@@ -170,6 +182,7 @@ class CraneSpec:
     payload: Payload
     pump: Pump
     transformer: Transformer | None
+    laws: LawParams = field(default_factory=LawParams)
     gravity: float = 9.81
     path: str = "<memory>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -392,7 +405,7 @@ def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
 def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     """Validate a parsed TOML dict and build a :class:`CraneSpec`."""
     R = _Reader(file)
-    R.keys(data, {"crane", "joint", "payload", "pump", "transformer"}, "")
+    R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws"}, "")
     ct = R.table(data, "crane", "")
     R.keys(ct, {"id", "name", "description", "source", "elbow", "redundancy", "gravity"}, "crane.")
     cid = R.text(ct, "id", "crane.")
@@ -460,12 +473,35 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
                                   efficiency=R.num(tt, "efficiency", tw, default=1.0, lo=0,
                                                    lo_open=True, hi=1.0),
                                   enabled=en, source=R.text(tt, "source", tw))
+    laws = LawParams()
+    lt = R.table(data, "laws", "", required=False)
+    if lt is not None:
+        R.keys(lt, {"weights", "max_lift", "source"}, "laws.")
+        wt = R.table(lt, "weights", "laws.", required=False) or {}
+        weights = {}
+        for k in wt:
+            if k not in names:
+                R.fail(f"laws.weights.{k}", wt[k], f"must name a joint: {', '.join(names)}")
+            weights[k] = R.num(wt, k, "laws.weights.", lo=0, lo_open=True)
+        ml = R.table(lt, "max_lift", "laws.", required=False) or {}
+        R.keys(ml, {"rc", "zc", "rho_min", "rho_max"}, "laws.max_lift.")
+        max_lift = {k: R.num(ml, k, "laws.max_lift.") for k in ml}
+        if max_lift:
+            for k in ("rc", "zc", "rho_min", "rho_max"):
+                if k not in max_lift:
+                    R.fail(f"laws.max_lift.{k}", None, "missing (rc, zc, rho_min, rho_max)")
+            if not 0 <= max_lift["rho_min"] < max_lift["rho_max"]:
+                R.fail("laws.max_lift.rho_max", max_lift["rho_max"],
+                       "need 0 <= rho_min < rho_max")
+        laws = LawParams(weights=weights, max_lift=max_lift,
+                         source=R.text(lt, "source", "laws."))
     spec = CraneSpec(
         id=cid, name=R.text(ct, "name", "crane."),
         description=R.text(ct, "description", "crane.", default=""),
         source=R.text(ct, "source", "crane."),
         elbow=R.text(ct, "elbow", "crane.", choices=("up", "down")),
         redundancy=red, joints=joints, payload=payload, pump=pump, transformer=transformer,
+        laws=laws,
         gravity=R.num(ct, "gravity", "crane.", default=9.81, lo=0.0),
         path=file, raw=data, text=text)
     return spec

@@ -162,8 +162,10 @@ def _wrap_into(q: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return mid + (q - mid + np.pi) % (2 * np.pi) - np.pi
 
 
-def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool):
-    """IK with the tip in front of the slew axis (ρ > 0) or folded behind it (ρ < 0)."""
+def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool,
+                 explain: bool = True):
+    """IK with the tip in front of the slew axis (ρ > 0) or folded behind it (ρ < 0).
+    ``explain=False`` marks failures with a short constant text (no per-point formatting)."""
     N = r.shape[0]
     q = np.full((N, spec.n), np.nan)
     reason = np.full(N, "", dtype=object)
@@ -182,6 +184,9 @@ def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool):
         near = D < np.abs(L1 - Lw) - 1e-12
         for m, txt in ((far, "out of reach: {D:.3f} m from the boom pivot, at most {M:.3f} m"),
                        (near, "out of reach: {D:.3f} m from the boom pivot, at least {m_:.3f} m")):
+            if not explain:
+                reason[m & (reason == "")] = "out of reach"
+                continue
             for k in np.flatnonzero(m & (reason == "")):
                 reason[k] = txt.format(D=D[k], M=L1 + Lw[k], m_=abs(L1 - Lw[k]))
         # law of cosines at the shoulder, elbow on the side fixed by the spec (eq. 7.1-7.6 of
@@ -208,6 +213,10 @@ def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool):
         v = q[:, i]
         viol = ok & ((v < lo - 1e-9) | (v > hi + 1e-9))
         deg = jt.revolute
+        if not explain:
+            reason[viol] = "joint limit"
+            ok &= ~viol
+            continue
         for k in np.flatnonzero(viol):
             val = math.degrees(v[k]) if deg else v[k]
             a, b = (math.degrees(lo), math.degrees(hi)) if deg else (lo, hi)
@@ -219,23 +228,25 @@ def _ik_one_side(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, behind: bool):
     return q, reason
 
 
-def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True):
+def ik_planar(spec: CraneSpec, pc: PlanarChain, r, z, slew, t, _hint=True, explain=True):
     """Vectorised IK. Inputs broadcast; returns (q[N, n], reason[N]) with reason "" when the
     configuration is reachable and inside all joint limits, else a readable explanation.
 
     The tip in front of the slew axis is preferred; a tip folded behind it (slew turned by π)
-    is used only where the front solution fails."""
+    is used only where the front solution fails. ``explain=False`` skips formatting the
+    reasons (failures then say only "out of reach" / "joint limit"), for large grids."""
     r, z, slew, t = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float))
                                           for v in (r, z, slew, t)))
-    q, reason = _ik_one_side(spec, pc, r, z, slew, t, behind=False)
+    q, reason = _ik_one_side(spec, pc, r, z, slew, t, behind=False, explain=explain)
     fail = np.flatnonzero(reason != "")
     if fail.size:
-        qb, rb = _ik_one_side(spec, pc, r[fail], z[fail], slew[fail], t[fail], behind=True)
+        qb, rb = _ik_one_side(spec, pc, r[fail], z[fail], slew[fail], t[fail], behind=True,
+                              explain=explain)
         good = rb == ""
         q[fail[good]] = qb[good]
         reason[fail[good]] = ""
     lim = np.flatnonzero(np.char.startswith(reason.astype(str), "joint limit"))
-    if _hint and lim.size:
+    if _hint and explain and lim.size:
         other = PlanarChain(**{**pc.__dict__, "elbow": -pc.elbow})
         _, r2 = ik_planar(spec, other, r[lim], z[lim], slew[lim], t[lim], _hint=False)
         for k, rr in zip(lim, r2):

@@ -1,0 +1,1 @@
+"""Planning methods: local laws, Bellman DP, NLP, TOPP-RA, Ruckig. Each returns a Trajectory."""

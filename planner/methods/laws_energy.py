@@ -90,14 +90,26 @@ def cylinder_setup(crane, ht: bool | None = None) -> dict:
                 A_ext=A_ext, A_ret=A_ret, A_ref=float(np.max(Aa)))
 
 
-def jla_gradient(x, x_lo, x_hi, zone: float = ZONE):
-    """∂H/∂x of the Chan–Dubey criterion (1/m), rows zeroed while the cylinder is more than
-    ``zone`` of its stroke away from both ends; ±inf-safe (clipped just inside the range)."""
+def _chan_dubey_slope(s):
+    """dH/ds of 1/(4 s (1 − s)) on the normalised stroke s ∈ (0, 1)."""
+    return (2 * s - 1) / (4 * s ** 2 * (1 - s) ** 2)
+
+
+def jla_gradient(x, x_lo, x_hi, zone: float = ZONE, continuous: bool = True):
+    """∂H/∂x of the Chan–Dubey criterion [1/m], rows zeroed while the cylinder is more than
+    ``zone`` of its stroke away from both ends (clipped just inside the range).
+
+    ``continuous`` (default) subtracts the gradient's value at the zone edge, so the row grows
+    from 0 at 15 % instead of jumping to ∓10.8/S there: with the seed's literal zeroing the jump
+    kicks the null-space rate on and off when a cylinder sits at the zone edge (observed on s100f
+    as a 2-step limit cycle of the telescope rate). ``continuous=False`` gives the literal rule."""
     S = x_hi - x_lo
-    xc = np.clip(x, x_lo + 1e-6 * S, x_hi - 1e-6 * S)
-    g = S ** 2 * (2 * xc - x_hi - x_lo) / (4 * (x_hi - xc) ** 2 * (xc - x_lo) ** 2)
-    near = np.minimum(xc - x_lo, x_hi - xc) <= zone * S
-    return np.where(near, g, 0.0)
+    s = np.clip((x - x_lo) / S, 1e-6, 1 - 1e-6)
+    g = _chan_dubey_slope(s)
+    if continuous:
+        g = g - np.sign(g) * abs(_chan_dubey_slope(zone))
+    near = np.minimum(s, 1 - s) <= zone
+    return np.where(near, g / S, 0.0)
 
 
 def jla_criterion(x, x_lo, x_hi):

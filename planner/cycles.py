@@ -34,11 +34,11 @@ PAUSE_S = 3.0        # seed 002: pause at the reversal of section 1 and between 
 
 # ASSUMED start tips (r, z, slew) [m, m, rad] and the telescope [m] the laws start with.
 START = {
-    "h": (2.5, 1.0, 0.0),
-    "v": (2.5, -1.5, 0.0),
-    "d": (2.0, -1.0, 0.0),
+    "h": (3.0, 0.0, 0.0),    # out to r = 9.0 m at the pillar-base height
+    "v": (4.0, -1.5, 0.0),   # preliminary out to r = 7.0 m, then z = -1.5 .. 4.5 m
+    "d": (2.5, -1.0, 0.0),   # preliminary out to r = 5.5 m, then to (8.5, 2.0) m
 }
-START_TELE = {"h": 1.2, "v": 0.6, "d": 0.8}
+START_TELE = {"h": 1.2, "v": 1.0, "d": 1.2}
 START_REASON = (
     "assumed (seed 002 gives no start positions): chosen on the s100f workspace so that every "
     "straight section stays where the boom and jib are well inside their ranges and the "

@@ -260,16 +260,25 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
            rate: float = 100.0, gain: float = 5.0, max_time: float | None = None) -> LawResult:
     """Drive the tip along ``path`` at ``tip_speed`` [m/s] with ``law`` at ``rate`` [Hz].
 
-    Start configuration: ``q0``, else the IK of the path start with ``tele0`` (default: what the
-    law requires, else the middle of the telescope range). ``gain`` [1/s] corrects drift from
-    the reference point. Stops at the end of the path (last step shortened to land on it)."""
+    Start configuration: ``q0``, else the IK of the path start with ``tele0``; without
+    ``tele0`` the law's preferred telescope (max-lift: d3(ρ); others: mid-range), or — when that
+    is unreachable — the nearest reachable value (seed 000 does not state its start telescope).
+    ``gain`` [1/s] corrects drift from the reference point. Stops at the end of the path (last
+    step shortened to land on it)."""
     t_start = _time.perf_counter()
     if tip_speed <= 0:
         raise ValueError(f"tip_speed must be > 0 m/s, got {tip_speed}")
     start = path.tip(np.array([0.0]))[0]
     if q0 is None:
-        tele = tele0 if tele0 is not None else law.start_tele(crane, start)
-        q, reason = crane.ik_batch(start[None, :], crane._tele_default(tele))
+        tele = crane._tele_default(tele0 if tele0 is not None else law.start_tele(crane, start))
+        q, reason = crane.ik_batch(start[None, :], tele)
+        if reason[0] and tele0 is None and crane.tele_range is not None:
+            grid = np.linspace(*crane.tele_range, 281)
+            qs, rs = crane.ik_batch(np.tile(start, (len(grid), 1)), grid)
+            ok = np.flatnonzero(rs == "")
+            if ok.size:
+                k = ok[np.argmin(np.abs(grid[ok] - tele))]
+                q, reason = qs[k:k + 1], rs[k:k + 1]
         if reason[0]:
             return LawResult("unreachable", f"start tip (r={start[0]:.3f} m, z={start[1]:.3f} m,"
                              f" slew={start[2]:.3f} rad) is unreachable: {reason[0]}",
@@ -318,6 +327,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
                       limits=("position", "velocity"),
                       meta=dict(law=law.name, tip_speed=tip_speed, rate_hz=rate,
+                                start_q=Qs[0].tolist(),
                                 min_beta=float(min(betas)), mean_beta=float(np.mean(betas)),
                                 path=path.name, path_length_m=path.length))
     return LawResult("ok", trajectory=traj, duration_s=t, min_beta=float(min(betas)),

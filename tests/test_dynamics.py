@@ -35,10 +35,14 @@ def test_static_holding_torque_by_hand():
     crane = _variant("cranab850", _no_actuator_mass)
     q = np.array([0.0, math.pi / 2, 0.0, 0.0])
     tau = crane.inverse_dynamics(q, np.zeros(4), np.zeros(4))
-    m_pay = 500.0 + 250.0
-    # boom COM 2.7 m, jib COM 5.4 + 1.2, tele COM 7.9 − 0.8, payload at 7.9 m from the pivot
-    boom = G * (420 * 2.7 + 260 * 6.6 + 110 * 7.1 + m_pay * 7.9)
-    jib = G * (260 * 1.2 + 110 * 1.7 + m_pay * 2.5)
+    J = crane.spec.joints
+    d1, d2 = J[1].dh.a, J[3].dh.d
+    m_pay = crane.spec.payload.total
+    mb, mj, mt = J[1].mass, J[2].mass, J[3].mass
+    cb, cj, ct = -J[1].com[0], J[2].com[2], -J[3].com[2]  # distances along the straight boom
+    # boom COM cb from the pivot, jib COM d1 + cj, tele COM d1 + d2 − ct, payload at d1 + d2
+    boom = G * (mb * cb + mj * (d1 + cj) + mt * (d1 + d2 - ct) + m_pay * (d1 + d2))
+    jib = G * (mj * cj + mt * (d2 - ct) + m_pay * d2)
     # θ1 grows downward (from the vertical): the actuator holds against gravity with τ < 0
     np.testing.assert_allclose(tau, [0.0, -boom, -jib, 0.0], atol=1e-6)
 

@@ -66,7 +66,8 @@ def test_umea_fk_matches_table_I():
 
 def test_cranab850_fk_matches_seed_000_formula():
     crane = Crane.from_id("cranab850")
-    d0, d1, d2 = 0.55, 5.4, 2.5
+    J = crane.spec.joints
+    d0, d1, d2 = J[0].dh.d, J[1].dh.a, J[3].dh.d  # the fitted lengths, in the seed's formula
     for q in random_configs(crane, 50, seed=3):
         _, t1, t2, d3 = q
         r = d1 * math.sin(t1) + (d2 + d3) * math.sin(t1 + t2)

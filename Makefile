@@ -21,6 +21,8 @@ test: install
 
 bench: install
 	$(BIN)/python benchmarks/bench_model.py
+	$(BIN)/python benchmarks/bench_dp_laws.py
+	$(BIN)/python benchmarks/seed000_tables.py
 
 clean:
 	rm -rf $(VENV) demo-output build *.egg-info

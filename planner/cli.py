@@ -124,13 +124,33 @@ def cmd_plan(args):
     out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
                start=list(args.start), goal=list(args.goal))
     t0 = time.perf_counter()
-    if args.path != "line":
-        raise CLIError(f"--path {args.path}: {method} follows a tip path; use --path line")
-    path = Line(args.start, args.goal)
-    if method == "dp":
+    if method == "ruckig":
+        if args.objective != "time":
+            raise CLIError("--method ruckig plans the fastest jerk-limited joint move; "
+                           "use --objective time")
+        from .methods.smoothing import rest_to_rest
+        lb0 = lower_bound(crane, args.start, args.goal)  # ends at the bound's best telescope
+        res = rest_to_rest(crane, crane.ik(args.start, lb0.tele_start),
+                           crane.ik(args.goal, lb0.tele_goal))
+        path = None
+    elif args.path != "line":
+        raise CLIError(f"--path {args.path}: {method} follows a tip path; use --path line "
+                       "(free paths: --method ruckig)")
+    else:
+        path = Line(args.start, args.goal)
+    if method == "ruckig":
+        pass
+    elif method in ("dp", "topp"):
+        if method == "topp" and args.objective != "time":
+            raise CLIError("--method topp retimes for minimum time (or a fixed --duration); "
+                           "for energy use --method dp --objective energy")
         from .methods.dp import dp
-        res = dp(crane, path, objective=args.objective, step=args.step, tele_step=args.tele_step,
-                 window=args.window, tip_speed=args.tip_speed, duration=args.duration)
+        res = dp(crane, path, objective=args.objective if method == "dp" else "time",
+                 step=args.step, tele_step=args.tele_step, window=args.window,
+                 tip_speed=args.tip_speed, duration=args.duration)
+        if method == "topp" and res.ok:
+            from .methods.topp import retime
+            res = retime(crane, res.path_q, duration=args.duration)
     else:
         from .methods.laws import follow
         if args.objective != "time":
@@ -170,19 +190,24 @@ def cmd_plan(args):
                           f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s")
     _emit(args, out)
     if not args.json:
+        loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
         print(f"{crane.spec.id} {method} {args.objective}: {ev.duration:.3f} s, "
               f"{ev.energy_J / 1e3:.2f} kJ, peak pump flow {ev.peak_pump_flow * 6e4:.1f} L/min, "
-              f"max limit violation {100 * ev.max_limit_violation:.3f} %"
-              + (f", lower bound {bound:.3f} s" if lb is not None else ""))
+              f"max violation of the {len(checked)} limit kinds it respects "
+              f"{100 * ev.max_limit_violation:.3f} %"
+              + (f", lower bound {bound:.3f} s" if lb is not None else "")
+              + ("".join(f"\n  not respected by {method}: {k} exceeded by {100 * v:.1f} %"
+                         for k, v in loose.items())))
     return 0
 
 
 def _method(text):
     reg = _law_registry()
-    if text == "dp" or (text.startswith("law:") and text[4:] in reg):
+    if text in ("dp", "topp", "ruckig") or (text.startswith("law:") and text[4:] in reg):
         return text
     raise argparse.ArgumentTypeError(
-        f"unknown method {text!r}; available: dp, " + ", ".join(f"law:{k}" for k in reg))
+        f"unknown method {text!r}; available: dp, topp, ruckig, "
+        + ", ".join(f"law:{k}" for k in reg))
 
 
 def cmd_demo(args):
@@ -270,13 +295,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     _json_arg(p)
     p.set_defaults(func=cmd_bound)
-    p = sub.add_parser("plan", help="plan one move (DP or a local law along a straight line)")
+    p = sub.add_parser("plan", help="plan one move (DP, DP + TOPP-RA, Ruckig, or a local law)")
     p.add_argument("crane")
     p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--method", type=_method, default="dp",
-                   help="dp or law:NAME (least_norm, max_velocity, max_lift, jla, q_optimal, "
-                        "p_optimal)")
+                   help="dp (Bellman along the line), topp (the DP path retimed with "
+                        "acceleration and pump limits), ruckig (jerk-limited joint move, free "
+                        "path), or law:NAME (least_norm, max_velocity, max_lift, jla, "
+                        "q_optimal, p_optimal)")
     p.add_argument("--objective", choices=("time", "energy"), default="time")
     p.add_argument("--path", choices=("line", "free"), default="line")
     p.add_argument("--tip-speed", type=float, help="commanded tip speed [m/s] (laws; DP energy)")

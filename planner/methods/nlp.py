@@ -1,0 +1,300 @@
+"""Point-to-point moves as CasADi NLPs (IPOPT), built once and solved many times.
+
+Transcription: N intervals of equal length h = T/N; every joint is a triple integrator with
+piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so acceleration and jerk
+limits hold everywhere by construction; velocity, position, the pump flow and (path mode) the
+tip path are imposed at the nodes and the interval midpoints. Velocity is quadratic on an
+interval, so its extremum lies at most h/4 from a check point and exceeds it by at most
+j_max·h²/32: the checked velocity is tightened by exactly that, and the limit holds everywhere.
+Ends: tip positions (the redundancy is free at both ends) at rest (q̇ = q̈ = 0).
+
+Pump flow without abs/max (anchors.md): per check point and actuator a slack s ≥ A_a·ẋ,
+s ≥ −A_b·ẋ (single-acting: s ≥ A_a·ẋ), s ≥ 0, and Σ s ≤ (1 − pump_margin)·Q_max; the flow is
+nonlinear in q between check points, the 0.5 % default margin covers that (measured overshoot
+≤ 0.15 % at N = 30).
+
+Energy (load sensing) as a smooth upper bound of the true pump power: a pump-pressure slack
+p ≥ margin + F_i/A_a and p ≥ margin − F_i/A_b for every actuator (p ≥ standby), power p·Σs/η,
+integrated by the trapezoid rule. It is conservative where an idle actuator carries the highest
+load; the result is always judged by :func:`~planner.trajectory.evaluate` with the exact model.
+
+Objectives: "time" (free T), "energy" (T ≤ T_max given), "blend" (T + λ·E). Paths: "free" or
+"line" (tip on the straight line between the ends at every node).
+"""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..bounds import lower_bound
+from ..paths import tip_to_xyz
+from ..trajectory import Trajectory
+from .smoothing import rest_to_rest
+
+STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+@dataclass
+class NLPResult:
+    status: str                 # "ok" or a short code: "infeasible", "max_iter", "error", ...
+    reason: str = ""
+    trajectory: Trajectory | None = None
+    duration_s: float = float("nan")
+    energy_model_J: float = float("nan")  # the NLP's own (conservative) energy estimate
+    iterations: int = 0
+    solve_time_s: float = 0.0
+    ipopt_status: str = ""
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def ok(self):
+        return self.status == "ok"
+
+
+class MoveNLP:
+    """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
+
+    objective: "time" | "energy" | "blend"; path: "free" | "line"; N intervals."""
+
+    def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
+                 pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
+                 ipopt_options: dict | None = None):
+        if objective not in ("time", "energy", "blend"):
+            raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
+        if path not in ("free", "line"):
+            raise ValueError(f"path must be 'free' or 'line', not {path!r}")
+        self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
+        spec = crane.spec
+        n = crane.n
+        L = crane.limit_arrays()
+        self.L = L
+        jmax = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 1e3)
+        # ---------------------------------------------------------------- variables
+        X = ca.SX.sym("X", 3 * n, N + 1)  # [q; qd; qdd] per node
+        U = ca.SX.sym("U", n, N)          # jerk per interval
+        T = ca.SX.sym("T")
+        P = ca.SX.sym("P", 3 + 3 + 3)     # start xyz, goal xyz, T_max, lambda, payload
+        pa, pb, Tmax, lam, payload = P[0:3], P[3:6], P[6], P[7], P[8]
+        h = T / N
+        w, lbw, ubw = [], [], []
+        g, lbg, ubg = [], [], []
+
+        def add_w(v, lo, hi):
+            w.append(ca.vec(v))
+            lbw.extend(np.broadcast_to(lo, v.shape).ravel(order="F").tolist())
+            ubw.extend(np.broadcast_to(hi, v.shape).ravel(order="F").tolist())
+
+        def add_g(e, lo, hi):
+            e = ca.vec(e)
+            g.append(e)
+            lbg.extend(np.broadcast_to(lo, (e.shape[0],)).tolist())
+            ubg.extend(np.broadcast_to(hi, (e.shape[0],)).tolist())
+
+        big = 1e3
+        xlo = np.concatenate([L["q_min"], L["qd_min"], -L["qdd_max"]])
+        xhi = np.concatenate([L["q_max"], L["qd_max"], L["qdd_max"]])
+        add_w(X, np.tile(xlo[:, None], (1, N + 1)), np.tile(xhi[:, None], (1, N + 1)))
+        add_w(U, np.tile(-jmax[:, None], (1, N)), np.tile(jmax[:, None], (1, N)))
+        add_w(T, 1e-3, big)
+        self._nx = 3 * n * (N + 1)
+        self._nu = n * N
+        # ---------------------------------------------------------------- dynamics (exact)
+        for k in range(N):
+            q, v, a = X[:n, k], X[n:2 * n, k], X[2 * n:, k]
+            j = U[:, k]
+            nxt = ca.vertcat(q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j,
+                             v + h * a + h ** 2 / 2 * j, a + h * j)
+            add_g(X[:, k + 1] - nxt, 0.0, 0.0)
+        # ---------------------------------------------------------------- ends at rest
+        fk = crane.f_fk
+        add_g(fk(X[:n, 0])[0] - pa, 0.0, 0.0)
+        add_g(fk(X[:n, N])[0] - pb, 0.0, 0.0)
+        add_g(X[n:, 0], 0.0, 0.0)
+        add_g(X[n:, N], 0.0, 0.0)
+        # ---------------------------------------------------------------- check points
+        pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
+        mids = []
+        for k in range(N):
+            q, v, a, j = X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k]
+            hh = h / 2
+            mids.append((q + hh * v + hh ** 2 / 2 * a + hh ** 3 / 6 * j,
+                         v + hh * a + hh ** 2 / 2 * j, a + hh * j))
+        gap = jmax * h ** 2 / 32  # largest velocity overshoot between check points
+        for q, v, a in mids:
+            add_g(q, L["q_min"], L["q_max"])
+        for q, v, a in pts + mids:
+            add_g(v + gap, -ca.inf, L["qd_max"])
+            add_g(v - gap, L["qd_min"], ca.inf)
+        if path == "line":
+            d = pb - pa
+            dn = d / ca.norm_2(d)
+            # two unit vectors perpendicular to the line (robust for any direction)
+            helper = ca.if_else(ca.fabs(dn[2]) < 0.9, ca.DM([0, 0, 1]), ca.DM([1, 0, 0]))
+            e1 = ca.cross(dn, helper)
+            e1 = e1 / ca.norm_2(e1)
+            e2 = ca.cross(dn, e1)
+            # at the nodes only: per interval the n jerks leave n − 2 free directions (progress
+            # and redundancy); also imposing the midpoints would fix the motion completely
+            for q, _, _ in pts[1:-1]:
+                r = fk(q)[0] - pa
+                add_g(ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0)
+                add_g(ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
+        acts = spec.joints
+        Aa = np.array([j.actuator.area_a for j in acts])
+        Ab = np.array([0.0 if j.actuator.acting == "single" else j.actuator.area_b for j in acts])
+        energy = 0
+        need_energy = objective in ("energy", "blend")
+        if pump or need_energy:
+            checks = pts + mids if pump else pts
+            powers = []
+            for idx, (q, v, a) in enumerate(checks):
+                _, dxdq = crane.f_stroke(q)
+                xd = dxdq * v
+                s = ca.SX.sym(f"s{idx}", n)
+                add_w(s, 0.0, big)
+                add_g(s - Aa * xd, 0.0, ca.inf)
+                add_g(s + Ab * xd, 0.0, ca.inf)
+                if pump:
+                    add_g(ca.sum1(s), -ca.inf, (1 - pump_margin) * spec.pump.max_flow)
+                if need_energy and idx <= N:
+                    F = crane.f_id(q, v, a, payload) / dxdq
+                    p = ca.SX.sym(f"p{idx}")
+                    lo_p = spec.pump.standby if spec.pump.kind == "load_sensing" else 0.0
+                    add_w(p, lo_p, 1e9)
+                    if spec.pump.kind == "load_sensing":
+                        add_g(p - spec.pump.margin - F / Aa, 0.0, ca.inf)
+                        dbl = Ab > 0
+                        if dbl.any():
+                            add_g(p - spec.pump.margin + F[np.flatnonzero(dbl)] / Ab[dbl],
+                                  0.0, ca.inf)
+                    else:
+                        add_g(p, spec.pump.pressure, spec.pump.pressure)
+                    powers.append(p * ca.sum1(s) / spec.pump.efficiency)
+            if need_energy:
+                energy = h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
+        # ε·∫j² dt: joints that do not decide the time would otherwise be free (a flat,
+        # non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
+        smooth = reg * h * ca.sumsqr(U)
+        if objective == "time":
+            f = T + smooth
+        elif objective == "energy":
+            add_g(T - Tmax, -ca.inf, 0.0)
+            f = energy * 1e-5 + smooth
+        else:
+            f = T + lam * energy + smooth
+        wv = ca.vertcat(*w)
+        self._energy_fn = ca.Function("E", [wv, P], [energy])
+        opts = {"expand": True, "print_time": False,
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
+                          "acceptable_tol": 1e-5, "mu_strategy": "adaptive"}}
+        if ipopt_options:
+            opts["ipopt"].update(ipopt_options)
+        self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": P, "f": f,
+                                                  "g": ca.vertcat(*g)}, opts)
+        self.lbw, self.ubw = np.array(lbw), np.array(ubw)
+        self.lbg, self.ubg = np.array(lbg), np.array(ubg)
+        self.nw = wv.shape[0]
+        self._last = None
+
+    # ------------------------------------------------------------------------ guesses
+    def guess_from(self, traj) -> np.ndarray:
+        """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
+        n, N = self.crane.n, self.N
+        t = np.linspace(traj.t[0], traj.t[-1], N + 1)
+        q, qd, qdd, _ = traj.sample(t)
+        X = np.vstack([q.T, qd.T, qdd.T])
+        h = (t[-1] - t[0]) / N
+        U = np.diff(qdd, axis=0).T / h
+        w0 = np.zeros(self.nw)
+        w0[:self._nx] = X.ravel(order="F")
+        w0[self._nx:self._nx + self._nu] = U.ravel(order="F")
+        w0[self._nx + self._nu] = traj.duration
+        rest = self._nx + self._nu + 1
+        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])
+        return w0
+
+    def default_guess(self, start, goal):
+        """Free path: Ruckig rest-to-rest between the ends at the lower bound's best telescope
+        values, slowed to the pump bound when the pump limits. Line: a coarse DP along the line
+        retimed by TOPP-RA (velocity, acceleration, pump)."""
+        crane = self.crane
+        lb = lower_bound(crane, start, goal)
+        if self.path == "line":
+            from ..paths import Line
+            from .dp import dp
+            from .topp import retime
+            d = dp(crane, Line(start, goal), step=0.05, tele_step=0.05, window=3)
+            if not d.ok:
+                raise ValueError(d.reason)
+            t = retime(crane, d.path_q, gridpoints=100)
+            if not t.ok:
+                raise ValueError(t.reason)
+            return self.guess_from(t.trajectory), lb
+        r = rest_to_rest(crane, crane.ik(start, lb.tele_start), crane.ik(goal, lb.tele_goal))
+        tr = r.trajectory
+        k = max(1.0, 1.05 * lb.combined_s / max(tr.duration, 1e-9))
+        if k > 1.0:
+            tr = Trajectory(tr.t * k, tr.q, tr.qd / k, tr.qdd / k ** 2,
+                            joint_names=tr.joint_names)
+        return self.guess_from(tr), lb
+
+    # ------------------------------------------------------------------------ solve
+    def solve(self, start, goal, *, T_max: float | None = None, lam: float = 0.0,
+              payload: float | None = None, w0=None) -> NLPResult:
+        """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
+        [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`)."""
+        t0 = _time.perf_counter()
+        crane = self.crane
+        if self.objective == "energy" and T_max is None:
+            raise ValueError("objective 'energy' needs T_max [s]")
+        try:
+            guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
+        except ValueError as e:  # unreachable end
+            return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+        if T_max is not None and self.objective == "energy":
+            T0 = guess[self._nx + self._nu]
+            if T_max > T0:  # start from the guess slowed down to the budget
+                k = T_max / T0
+                g = guess.copy()
+                X = g[:self._nx].reshape(3 * crane.n, self.N + 1, order="F")
+                X[crane.n:2 * crane.n] /= k
+                X[2 * crane.n:] /= k ** 2
+                g[:self._nx] = X.ravel(order="F")
+                g[self._nx:self._nx + self._nu] /= k ** 3
+                g[self._nx + self._nu] = T_max
+                guess = g
+        m = crane.spec.payload.total if payload is None else payload
+        P = np.concatenate([tip_to_xyz(np.asarray(start, float)),
+                            tip_to_xyz(np.asarray(goal, float)),
+                            [T_max if T_max is not None else 0.0, lam, m]])
+        try:
+            sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
+                              ubg=self.ubg)
+        except RuntimeError as e:
+            return NLPResult("error", f"IPOPT failed: {e}", solve_time_s=_time.perf_counter() - t0)
+        st = self.solver.stats()
+        ist = st.get("return_status", "")
+        w = np.array(sol["x"]).ravel()
+        if ist not in STATUS_OK:
+            code = {"Infeasible_Problem_Detected": "infeasible",
+                    "Maximum_Iterations_Exceeded": "max_iter",
+                    "Restoration_Failed": "restoration_failed"}.get(ist, "failed")
+            return NLPResult(code, f"IPOPT: {ist}", iterations=st.get("iter_count", 0),
+                             ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
+        n, N = crane.n, self.N
+        X = w[:self._nx].reshape(3 * n, N + 1, order="F")
+        T = float(w[self._nx + self._nu])
+        t = np.linspace(0.0, T, N + 1)
+        traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
+                          method="nlp", objective=self.objective,
+                          limits=("position", "velocity", "acceleration", "jerk")
+                          + (("pump_flow",) if self.pump else ()),
+                          meta=dict(N=N, path=self.path, ipopt_status=ist))
+        self._last = w
+        E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
+        return NLPResult("ok", trajectory=traj, duration_s=T, energy_model_J=E,
+                         iterations=st.get("iter_count", 0), ipopt_status=ist,
+                         solve_time_s=_time.perf_counter() - t0)

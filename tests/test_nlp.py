@@ -1,0 +1,55 @@
+"""CasADi NLP: minimum time against the analytic bound, limits judged by evaluate(), line mode."""
+import numpy as np
+import pytest
+
+from planner import Crane
+from planner.bounds import lower_bound
+from planner.methods.nlp import MoveNLP
+from planner.paths import tip_to_xyz
+from planner.trajectory import evaluate
+
+
+@pytest.fixture(scope="module")
+def s100f():
+    return Crane.from_id("s100f")
+
+
+@pytest.mark.parametrize("cid,a,b", [("s100f", (6.0, -1.0, 0.0), (3.0, 2.5, 1.5)),
+                                     ("s100f", (7.0, 0.0, 0.0), (4.0, 0.0, 0.0)),
+                                     ("umea-lab", (3.0, 1.8, 0.0), (2.5, 3.0, -0.5))])
+def test_minimum_time_is_near_but_never_below_the_bound(cid, a, b):
+    crane = Crane.from_id(cid)
+    nlp = MoveNLP(crane, "time", "free", N=30)
+    r = nlp.solve(a, b)
+    assert r.ok, r.reason
+    lb = lower_bound(crane, a, b)
+    assert lb.combined_s - 1e-6 <= r.duration_s <= 1.05 * lb.combined_s
+    ev = evaluate(crane, r.trajectory)
+    assert ev.max_limit_violation <= 1e-3, ev
+    np.testing.assert_allclose(crane.tip(r.trajectory.q[[0, -1]]), [a, b], atol=1e-6)
+    np.testing.assert_allclose(r.trajectory.qd[[0, -1]], 0.0, atol=1e-7)
+
+
+def test_line_mode_keeps_the_tip_on_the_line(s100f):
+    a, b = (6.0, -1.0, 0.0), (4.0, 1.0, 0.0)
+    r = MoveNLP(s100f, "time", "line", N=30).solve(a, b)
+    assert r.ok, r.reason
+    ev = evaluate(s100f, r.trajectory)
+    assert ev.max_limit_violation <= 1e-3
+    P, A = tip_to_xyz(ev.tip), tip_to_xyz(np.array(a))
+    u = tip_to_xyz(np.array(b)) - A
+    u /= np.linalg.norm(u)
+    R = P - A
+    assert np.linalg.norm(R - np.outer(R @ u, u), axis=1).max() < 2e-3
+
+
+def test_build_once_solve_many(s100f):
+    nlp = MoveNLP(s100f, "time", "free", N=20)
+    r1 = nlp.solve((6.0, -1.0, 0.0), (3.0, 2.5, 1.5))
+    r2 = nlp.solve((5.0, 0.5, 0.3), (7.0, -1.0, -0.5))
+    assert r1.ok and r2.ok and r1.duration_s != r2.duration_s
+
+
+def test_unreachable_end_is_a_status(s100f):
+    r = MoveNLP(s100f, "time", "free", N=20).solve((30.0, 0.0, 0.0), (5.0, 0.0, 0.0))
+    assert r.status == "unreachable" and "unreachable" in r.reason

@@ -5,11 +5,11 @@ line; section 1 pauses 3 s at the reversal, section 2 reverses at once; 3 s betw
 per-axis tip speed 0.5 or 1 m/s, the fast cycles halve the motion times (same path; the rests and
 pauses keep their length); the vertical and diagonal cycles start with a preliminary move.
 
-| cycle | motion (per-axis speed v)                          | times at 0.5 m/s [s]                |
-| ----- | -------------------------------------------------- | ----------------------------------- |
-| h     | r: +6 m, −6 m, +6 m, −6 m                          | out 5–17, 35–47; in 20–32, 47–59    |
-| v     | preliminary r +3 m; z: +6 m, −6 m, +6 m, −6 m      | prelim 5–11; up 11–23, 41–53; down 26–38, 53–65 |
-| d     | preliminary r +3 m; (r, z): +3/+3 m, −3/−3 m, …    | prelim 5–11; out 11–17, 29–35; in 20–26, 35–41 |
+| cycle | motion (per-axis speed v)                  | times at 0.5 m/s [s]                   |
+| ----- | ------------------------------------------ | -------------------------------------- |
+| h     | r: +6, −6, +6, −6 m                        | out 5–17, 35–47; in 20–32, 47–59       |
+| v     | prelim. r +3 m; z: +6, −6, +6, −6 m        | pre 5–11; up 11–23, 41–53; down 26–38, 53–65 |
+| d     | prelim. r +3 m; (r, z): +3/+3, −3/−3 m, …  | pre 5–11; out 11–17, 29–35; in 20–26, 35–41 |
 
 The preliminary moves' length and direction are not given by the seed: ASSUMED +3 m in r (a 6 s
 move at 0.5 m/s fills the 5–11 s slot of the table for both the v and the d cycle).
@@ -23,7 +23,7 @@ inside its limits for the whole cycle at both speeds, with and without the trans
 """
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 

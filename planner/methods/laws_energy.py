@@ -12,15 +12,17 @@ joints (boom, jib, telescope; the slew is passed straight through as in :mod:`.l
 * ``u* = J_u⁺ v + (I − J_u⁺ J_u) z`` (least-norm cylinder rates plus a null-space term);
 * ``z = k_JLA · Tᵀ∇H_JLA`` (every law): the Chan–Dubey criterion on the strokes
   ``H = Σ (x_max − x_min)² / (4 (x_max − x)(x − x_min))`` with a gradient row zeroed while the
-  cylinder is more than 15 % of its stroke away from both ends; k_JLA < 0 (descent);
+  cylinder is more than 15 % of its stroke away from both ends (by default shifted to start
+  from 0 at the zone edge, see :func:`jla_gradient`); k_JLA < 0 (descent); the stroke range is
+  the joint limits mapped to strokes (they bind just inside the cylinders' physical ends);
 * Q-optimal adds ``K_Q ∇H_Q``: H_Q = Σ A_i·|u*_i| is the pump flow, its gradient
   ``A_i·sign(u*_i)`` with direction-dependent areas (piston extending, annulus retracting; 0 for
   the single-acting lift retracting — lowering is free — and, with the transformer, 0 for the jib
   retracting, whose rod side the transformer feeds); ``K_Q = k_Q·diag(|u*_prev|)``. Together
   ``K_Q∇H_Q = k_Q·A_i·u*_prev,i`` — the seed's ``k_Q·diag(q̇)·[A1, A2, A3]``;
 * P-optimal adds ``K_P ∇H_P``: ``∇H_P,i = (p_i/p_ref)^n·A_i·sign(u*_i)``, p_i the cylinder's
-  load pressure from the model (``crane.hydraulics`` at the current q with the previous rates,
-  q̈ = 0: p_a extending, p_b retracting), p_ref = 10 MPa so the gains are O(1);
+  load pressure from the model (``crane.hydraulics`` at the current q with the previous —
+  filtered — rates, q̈ = 0: p_a extending, p_b retracting), p_ref = 10 MPa so the gains are O(1);
   ``K_P = k_P·diag(|u*_prev|)``. With n = 1, H_P is Σ p_i·Q_i, the hydraulic power of the
   cylinders; a larger n weights the highest-pressure cylinder (which sets the load-sensing pump
   pressure) more;
@@ -90,7 +92,8 @@ def cylinder_setup(crane, ht: bool | None = None) -> dict:
         if tr is None:  # the seed's coupling: jib rod side -> lift piston side
             src, tgt, ratio = crane.chain.jib, crane.chain.boom, 1.0
         else:
-            src, tgt = crane.spec.joint_index(tr.source_joint), crane.spec.joint_index(tr.target_joint)
+            src = crane.spec.joint_index(tr.source_joint)
+            tgt = crane.spec.joint_index(tr.target_joint)
             ratio = tr.ratio
         src, tgt = int(np.flatnonzero(P == src)[0]), int(np.flatnonzero(P == tgt)[0])
         k = ratio * Ab[src] / Aa[tgt]

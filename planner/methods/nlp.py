@@ -13,10 +13,12 @@ s ≥ −A_b·ẋ (single-acting: s ≥ A_a·ẋ), s ≥ 0, and Σ s ≤ (1 − 
 nonlinear in q between check points, the 0.5 % default margin covers that (measured overshoot
 ≤ 0.15 % at N = 30).
 
-Energy (load sensing) as a smooth upper bound of the true pump power: a pump-pressure slack
-p ≥ margin + F_i/A_a and p ≥ margin − F_i/A_b for every actuator (p ≥ standby), power p·Σs/η,
-integrated by the trapezoid rule. It is conservative where an idle actuator carries the highest
-load; the result is always judged by :func:`~planner.trajectory.evaluate` with the exact model.
+Energy (load sensing) without max/abs: flows split by direction (s⁺ piston side extending, s⁻
+annulus retracting, as fractions of Q_max), a pump-pressure variable p [MPa] ≥ standby with
+(p − margin − p_meter-in,i)·s_i ≥ 0 for every actuator and direction — an actuator lifts the
+pump pressure only while it draws flow, as in the load-sensing model of the evaluator — and
+power p·Q/η integrated by the trapezoid rule. The result is judged by
+:func:`~planner.trajectory.evaluate` with the exact model.
 
 Objectives: "time" (free T), "energy" (T ≤ T_max given), "blend" (T + λ·E). Paths: "free" or
 "line" (tip on the straight line between the ends at every node).
@@ -144,7 +146,9 @@ class MoveNLP:
                 add_g(ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
         acts = spec.joints
         Aa = np.array([j.actuator.area_a for j in acts])
-        Ab = np.array([0.0 if j.actuator.acting == "single" else j.actuator.area_b for j in acts])
+        Ab = np.array([j.actuator.area_b for j in acts])
+        dbl = np.array([j.actuator.acting == "double" for j in acts])
+        Qm = spec.pump.max_flow
         energy = 0
         need_energy = objective in ("energy", "blend")
         if pump or need_energy:
@@ -153,26 +157,35 @@ class MoveNLP:
             for idx, (q, v, a) in enumerate(checks):
                 _, dxdq = crane.f_stroke(q)
                 xd = dxdq * v
-                s = ca.SX.sym(f"s{idx}", n)
-                add_w(s, 0.0, big)
-                add_g(s - Aa * xd, 0.0, ca.inf)
-                add_g(s + Ab * xd, 0.0, ca.inf)
+                # flows drawn from the pump as fractions of Q_max: extending (piston side) and
+                # retracting (annulus; none for a single-acting cylinder lowering)
+                sp = ca.SX.sym(f"sp{idx}", n)
+                add_w(sp, 0.0, 10.0)
+                add_g(Qm * sp - Aa * xd, 0.0, ca.inf)
+                flows = [sp]
+                if dbl.any():
+                    sm = ca.SX.sym(f"sm{idx}", int(dbl.sum()))
+                    add_w(sm, 0.0, 10.0)
+                    add_g(Qm * sm + Ab[dbl] * xd[np.flatnonzero(dbl)], 0.0, ca.inf)
+                    flows.append(sm)
+                total = sum(ca.sum1(f_) for f_ in flows)
                 if pump:
-                    add_g(ca.sum1(s), -ca.inf, (1 - pump_margin) * spec.pump.max_flow)
+                    add_g(total, -ca.inf, 1 - pump_margin)
                 if need_energy and idx <= N:
                     F = crane.f_id(q, v, a, payload) / dxdq
-                    p = ca.SX.sym(f"p{idx}")
-                    lo_p = spec.pump.standby if spec.pump.kind == "load_sensing" else 0.0
-                    add_w(p, lo_p, 1e9)
+                    p = ca.SX.sym(f"p{idx}")  # pump pressure [MPa]
                     if spec.pump.kind == "load_sensing":
-                        add_g(p - spec.pump.margin - F / Aa, 0.0, ca.inf)
-                        dbl = Ab > 0
+                        add_w(p, spec.pump.standby / 1e6, 1e3)
+                        mg = spec.pump.margin / 1e6
+                        # load sensing: an actuator raises the pump pressure only while it
+                        # draws flow — (p − margin − p_meter-in)·flow ≥ 0, flow ≥ 0
+                        add_g((p - mg - F / Aa / 1e6) * sp, 0.0, ca.inf)
                         if dbl.any():
-                            add_g(p - spec.pump.margin + F[np.flatnonzero(dbl)] / Ab[dbl],
-                                  0.0, ca.inf)
+                            k = np.flatnonzero(dbl)
+                            add_g((p - mg + F[k] / Ab[k] / 1e6) * sm, 0.0, ca.inf)
                     else:
-                        add_g(p, spec.pump.pressure, spec.pump.pressure)
-                    powers.append(p * ca.sum1(s) / spec.pump.efficiency)
+                        add_w(p, spec.pump.pressure / 1e6, spec.pump.pressure / 1e6)
+                    powers.append(p * 1e6 * Qm * total / spec.pump.efficiency)
             if need_energy:
                 energy = h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
         # ε·∫j² dt: joints that do not decide the time would otherwise be free (a flat,
@@ -213,7 +226,7 @@ class MoveNLP:
         w0[self._nx:self._nx + self._nu] = U.ravel(order="F")
         w0[self._nx + self._nu] = traj.duration
         rest = self._nx + self._nu + 1
-        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])
+        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
         return w0
 
     def default_guess(self, start, goal):

@@ -6,7 +6,9 @@ Per actuator i with stroke rate ẋ and required force F = τ / (dx/dq) (virtual
 * chamber pressures from the force, assuming ideal load-holding valves on the loaded side:
   F ≥ 0: p_a = (F + A_b·p_t)/A_a, p_b = p_t;  F < 0: p_b = (A_a·p_t − F)/A_b, p_a = p_t;
 * load pressure seen by the LS line: the meter-in chamber's pressure (p_a extending, p_b
-  retracting), only while the actuator draws flow;
+  retracting), only while the actuator draws flow — more than ACTIVE_FLOW·Q_max (10⁻⁴ of the
+  pump's maximum: a valve in its dead band passes nothing, and numerical crumbs of motion must
+  not switch the pump to another function's load pressure);
 * pump: load sensing p_pump = max(standby, max_active p_load + margin); constant pressure
   p_pump = set pressure; pump power = p_pump·ΣQ / η (seed 002), energy = ∫ power dt.
 * hydraulic transformer (seed 002, optional): the rod side of the source cylinder is coupled to
@@ -20,6 +22,8 @@ import casadi as ca
 
 from ..spec import CraneSpec
 
+ACTIVE_FLOW = 1e-4  # fraction of the pump's max flow below which a function counts as idle
+
 OUTPUTS = ("x", "xd", "force", "p_a", "p_b", "p_load", "q_act", "p_pump", "q_pump", "power",
            "throttle_loss")
 
@@ -30,6 +34,7 @@ def hydraulics(spec: CraneSpec, x, xd, force):
     the pump)."""
     pump = spec.pump
     pt = pump.tank_pressure
+    eps = ACTIVE_FLOW * pump.max_flow
     n = spec.n
     ht = spec.transformer if (spec.transformer and spec.transformer.enabled) else None
     hs = spec.joint_index(ht.source_joint) if ht else -1
@@ -59,7 +64,7 @@ def hydraulics(spec: CraneSpec, x, xd, force):
         pL = ca.if_else(v > 0, pa, ca.if_else(v < 0, pb, 0))
         p_a.append(pa)
         p_b.append(pb)
-        p_load.append(ca.if_else(Q > 0, pL, 0))
+        p_load.append(ca.if_else(Q > eps, pL, 0))
         q_act.append(Q)
     if ht is not None:
         # coupled units: the source's rod side sits at ratio·(target piston pressure)
@@ -67,13 +72,13 @@ def hydraulics(spec: CraneSpec, x, xd, force):
         Aa, Ab = spec.joints[hs].actuator.area_a, spec.joints[hs].actuator.area_b
         p_b[hs] = pbs
         p_a[hs] = ca.fmax((force[hs] + Ab * pbs) / Aa, pt)
-        p_load[hs] = ca.if_else(q_act[hs] > 0, p_a[hs], 0)
+        p_load[hs] = ca.if_else(q_act[hs] > eps, p_a[hs], 0)
     Qp = sum(q_act[1:], q_act[0])
     if pump.kind == "load_sensing":
         pmax = p_load[0]
         for pl in p_load[1:]:
             pmax = ca.fmax(pmax, pl)
-        p_pump = ca.fmax(pump.standby, ca.if_else(Qp > 0, pmax + pump.margin, 0))
+        p_pump = ca.fmax(pump.standby, ca.if_else(Qp > eps, pmax + pump.margin, 0))
     else:
         p_pump = ca.DM(pump.pressure) + 0 * Qp
     power = p_pump * Qp / pump.efficiency

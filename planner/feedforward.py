@@ -1,0 +1,442 @@
+"""Trajectory -> valve feed-forward commands, their kinematic replay, and seed 003's
+pressure-based progress estimate.
+
+Valve model (per actuator, the same one is used in both directions so that the round trip
+:func:`commands` -> :func:`predict_motion` is an exact inverse up to the hold approximation):
+
+* **pressure-compensated proportional valve**: the flow through the valve depends on the spool
+  command only, not on the load; ``flow_gain`` [m³/s] is the flow at full command (|u| = 1).
+* **dead band** ``deadband`` (fraction of the command range): |u| ≤ deadband gives no flow;
+  beyond it the flow rises linearly, Q = flow_gain·(|u| − deadband)/(1 − deadband). The
+  feed-forward compensates it: u = sign(ẋ)·(deadband + (1 − deadband)·Q/flow_gain) for Q > 0,
+  and u = 0 at rest (no jump to the dead-band edge while the actuator stands still).
+* **metered flow and area by direction**: the valve meters the flow of the chamber it feeds,
+  Q = A·|ẋ| with A = area_a (piston side) while extending (ẋ > 0) and A = area_b (annulus)
+  while retracting. For a *single-acting* cylinder (seed 002's lift cylinder) there is no
+  annulus connection: lowering is gravity driven and the valve meters the oil *leaving the
+  piston side* to tank, so A = area_a in both directions (only the sign of u changes). Rotary
+  drives use the motor displacement (area_a = area_b) and the motor angle as "stroke".
+* stroke rate ẋ = dx/dq·q̇ from the crane's stroke map (each actuator depends only on its own
+  joint, so dx/dq is diagonal and the map is one-to-one over the joint range).
+* The optional hydraulic transformer of s100f (disabled by default) is not modelled here: with
+  it enabled, part of the target cylinder's flow bypasses its valve, which a valve-level
+  feed-forward would have to account for separately.
+
+Commands are produced on a uniform grid at the control ``rate`` and held (zero-order hold) over
+each period [t_k, t_k + 1/rate). Two ways of choosing the held value:
+
+* ``hold="mean"`` (default): the command whose flow delivers exactly the stroke displacement of
+  its period, ẋ_k = (x(t_{k+1}) − x(t_k))·rate. A controller that replays the commands at the
+  same rate reproduces the planned joint positions exactly at every control instant (the
+  remaining error is the intra-period deviation, O(a·Δt²/8)).
+* ``hold="sample"``: the instantaneous stroke rate at t_k (the literal "sample and hold").
+  This lags the plan by about half a period: O(q̇·Δt/2) during the move, returning to ~0 at
+  the end of a rest-to-rest move.
+
+:func:`predict_motion` is the inverse: commands -> flows (inverting the dead band) -> stroke
+rates -> joint positions, integrated exactly per period (the held command gives a constant
+stroke rate, and q = joint_from_stroke(x)). It is purely kinematic: no pump sharing, no load
+dependence, no dynamics — the open-loop replay of a perfect pressure-compensated valve.
+
+:func:`progress_estimator` (seed 003): without joint sensors, pick the cylinder pressure
+difference ΔP = p_a − p_b that is most monotone along the planned motion and use it as the path
+parameter: q_j ≈ g_j(ΔP) (polynomial fits). Where ΔP is not monotone the estimate is ambiguous;
+those intervals are reported.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.polynomial import Polynomial
+
+from .trajectory import Trajectory, evaluate
+
+__all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
+           "valve_parameters", "ProgressEstimator", "progress_estimator"]
+
+REST_TOL = 1e-9  # |Q| ≤ REST_TOL·flow_gain counts as "at rest": u = 0, no dead-band jump
+
+
+# ----------------------------------------------------------------------------- valve data
+@dataclass(frozen=True)
+class ValveParameters:
+    """Per-actuator arrays (n,): metered areas by direction, flow gain, dead band."""
+    area_extend: np.ndarray   # [m² | m³/rad] area metered while ẋ > 0
+    area_retract: np.ndarray  # [m² | m³/rad] area metered while ẋ < 0
+    flow_gain: np.ndarray     # [m³/s] flow at |u| = 1
+    deadband: np.ndarray      # [-] fraction of the command range without flow
+    single: np.ndarray        # bool: single-acting
+
+
+def valve_parameters(crane) -> ValveParameters:
+    """Valve data of every actuator; raises ValueError naming a joint without a finite flow gain."""
+    ext, ret, gain, db, single = [], [], [], [], []
+    for j in crane.spec.joints:
+        a = j.actuator
+        if not (math.isfinite(a.flow_gain) and a.flow_gain > 0):
+            raise ValueError(f"crane '{crane.spec.id}': joint '{j.name}' has no finite valve "
+                             f"flow_gain ({a.flow_gain}); feed-forward commands need one")
+        if not 0.0 <= a.deadband < 1.0:
+            raise ValueError(f"crane '{crane.spec.id}': joint '{j.name}' deadband "
+                             f"{a.deadband} outside [0, 1)")
+        s = a.acting == "single"
+        ext.append(a.area_a)
+        # single-acting: lowering meters the oil leaving the piston side (see module doc)
+        ret.append(a.area_a if s else a.area_b)
+        gain.append(a.flow_gain)
+        db.append(a.deadband)
+        single.append(s)
+    return ValveParameters(np.array(ext), np.array(ret), np.array(gain), np.array(db),
+                           np.array(single))
+
+
+def _flow_to_command(xd, vp: ValveParameters):
+    """Stroke rates (N, n) -> (unclipped commands, signed valve flows)."""
+    area = np.where(xd > 0, vp.area_extend, vp.area_retract)
+    Q = area * np.abs(xd)
+    moving = Q > REST_TOL * vp.flow_gain
+    u = np.where(moving, np.sign(xd) * (vp.deadband + (1.0 - vp.deadband) * Q / vp.flow_gain),
+                 0.0)
+    return u, np.where(moving, np.sign(xd) * Q, 0.0)
+
+
+def _command_to_stroke_rate(u, vp: ValveParameters, flow_scale=1.0):
+    """Commands (N, n) -> stroke rates (N, n): saturation, dead band, area by direction."""
+    u = np.clip(u, -1.0, 1.0)
+    mag = np.maximum(np.abs(u) - vp.deadband, 0.0) / (1.0 - vp.deadband)
+    Q = np.asarray(flow_scale, float) * vp.flow_gain * mag
+    area = np.where(u > 0, vp.area_extend, vp.area_retract)
+    return np.sign(u) * Q / area
+
+
+# ----------------------------------------------------------------------------- commands
+@dataclass(frozen=True)
+class SaturationInterval:
+    """Commands of one joint clipped at ±1 over [t_start, t_end) (hold periods)."""
+    joint: str
+    t_start: float          # [s] first saturated control instant
+    t_end: float            # [s] end of the last saturated hold period
+    peak_command: float     # largest |u| before clipping (> 1)
+    peak_flow: float        # [m³/s] largest flow asked of the valve
+    flow_gain: float        # [m³/s] what the valve delivers at |u| = 1
+
+    @property
+    def excess(self) -> float:
+        """Relative flow excess at the worst instant (0.25 = 25 % more than the valve gives)."""
+        return self.peak_flow / self.flow_gain - 1.0
+
+    def __str__(self):
+        return (f"{self.joint}: saturated {self.t_start:.3f}–{self.t_end:.3f} s, needs "
+                f"{100 * self.excess:.1f} % more flow than the valve's "
+                f"{self.flow_gain * 6e4:.1f} L/min (peak |u| = {self.peak_command:.3f})")
+
+
+@dataclass
+class FeedForward:
+    """Valve commands on a uniform control grid.
+
+    t (M,) [s], u (M, n) in [−1, 1]: u[k] is held over [t[k], t[k] + 1/rate). ``saturated``:
+    joint name -> list of :class:`SaturationInterval` (empty dict: no saturation).
+    ``u_raw``: commands before clipping; ``flow``: signed valve flows asked for [m³/s]."""
+    t: np.ndarray
+    u: np.ndarray
+    saturated: dict
+    rate: float
+    joint_names: tuple = ()
+    hold: str = "mean"
+    u_raw: np.ndarray | None = None
+    flow: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when no command had to be clipped."""
+        return not self.saturated
+
+    def attach(self, traj: Trajectory) -> Trajectory:
+        """``traj`` resampled on the control grid, with ``u`` set (ready for ``to_csv``).
+
+        Control instants past the trajectory's end (the grid is uniform, so the last one may
+        overshoot by less than a period) hold its final state."""
+        q, qd, qdd, _ = traj.sample(self.t)
+        names = tuple(traj.joint_names) or self.joint_names
+        meta = dict(traj.meta)
+        meta.update(feedforward=dict(rate=self.rate, hold=self.hold,
+                                     saturated={k: [str(s) for s in v]
+                                                for k, v in self.saturated.items()}))
+        return Trajectory(self.t.copy(), q, qd, qdd, joint_names=names, method=traj.method,
+                          objective=traj.objective, interpolation="quintic", limits=traj.limits,
+                          u=self.u.copy(), meta=meta)
+
+    def to_csv(self, path, traj: Trajectory) -> Trajectory:
+        """Write the trajectory CSV (CONTRACT: t, q_*, qd_*, qdd_*, u_*) at the control rate;
+        returns the resampled trajectory that was written."""
+        out = self.attach(traj)
+        out.to_csv(path)
+        return out
+
+    def summary(self) -> dict:
+        """JSON-ready: rate, hold, peak |u| per joint, saturation intervals."""
+        return dict(rate_hz=self.rate, hold=self.hold,
+                    peak_command={j: float(np.max(np.abs(self.u_raw[:, i])))
+                                  for i, j in enumerate(self.joint_names)},
+                    saturated={k: [dict(t_start=s.t_start, t_end=s.t_end,
+                                        peak_command=s.peak_command, excess=s.excess)
+                                   for s in v] for k, v in self.saturated.items()})
+
+
+def _runs(mask):
+    """(start, stop) index pairs (stop exclusive) of the True runs of a 1-D bool array."""
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    d = np.flatnonzero(np.diff(m.astype(int)))
+    return list(zip(d[::2], d[1::2]))
+
+
+def commands(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") -> FeedForward:
+    """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
+
+    The grid is t0 + k/rate, k = 0 … ceil(duration·rate) (the last instant may lie up to one
+    period past the end; the trajectory then holds its final state). ``hold`` = "mean"
+    (stroke displacement per period, default) or "sample" (instantaneous rate at t_k)."""
+    if traj.n != crane.n:
+        raise ValueError(f"trajectory has {traj.n} joints, crane '{crane.spec.id}' has {crane.n}")
+    if not (rate > 0 and math.isfinite(rate)):
+        raise ValueError(f"rate must be a positive number of Hz, got {rate}")
+    if hold not in ("mean", "sample"):
+        raise ValueError(f"hold = {hold!r}; allowed: 'mean', 'sample'")
+    vp = valve_parameters(crane)
+    dt = 1.0 / rate
+    M = max(1, int(math.ceil(traj.duration * rate - 1e-9)))
+    t = traj.t[0] + dt * np.arange(M + 1)
+    q, qd, _, _ = traj.sample(t)
+    x, dxdq = crane.stroke(q)
+    xd = dxdq * qd                     # instantaneous stroke rate at every control instant
+    if hold == "mean":
+        # past the end sample() clips: the final state is held, which is what we want
+        xd[:-1] = np.diff(x, axis=0) / dt
+        if t[-1] > traj.t[-1]:         # past the end: hold the final state's rate (rest: 0)
+            _, qd_end, _, _ = traj.sample(traj.t[-1:])
+            xd[-1] = crane.stroke(q[-1])[1] * qd_end[0]
+    u_raw, flow = _flow_to_command(xd, vp)
+    u = np.clip(u_raw, -1.0, 1.0)
+    names = tuple(crane.names)
+    sat = {}
+    for i, name in enumerate(names):
+        over = np.abs(u_raw[:, i]) > 1.0
+        for a, b in _runs(over):
+            k = a + int(np.argmax(np.abs(u_raw[a:b, i])))
+            sat.setdefault(name, []).append(SaturationInterval(
+                joint=name, t_start=float(t[a]), t_end=float(t[b - 1] + dt),
+                peak_command=float(abs(u_raw[k, i])), peak_flow=float(abs(flow[k, i])),
+                flow_gain=float(vp.flow_gain[i])))
+    return FeedForward(t=t, u=u, saturated=sat, rate=float(rate), joint_names=names, hold=hold,
+                       u_raw=u_raw, flow=flow, meta=dict(crane=crane.spec.id))
+
+
+# ----------------------------------------------------------------------------- replay
+def predict_motion(crane, t, u, q0, flow_scale=1.0, substeps: int = 1,
+                   joint_names=None) -> Trajectory:
+    """Kinematic open-loop replay of valve commands (the inverse of :func:`commands`).
+
+    ``t`` (M,) strictly increasing [s], ``u`` (M, n): u[k] is held over [t[k], t[k+1]) (the last
+    row is not used). Commands are clipped to [−1, 1]; |u| ≤ deadband gives no flow;
+    ``flow_scale`` (scalar or per joint) multiplies every valve's flow (a gain error for
+    robustness studies). Within a period the stroke rate is constant, so the strokes are
+    integrated exactly and mapped back with the inverse stroke map. ``substeps`` > 1 also
+    returns that many equally spaced points inside every period. Returns a Trajectory with
+    piecewise-linear interpolation (joint positions from q0)."""
+    t = np.asarray(t, float).ravel()
+    u = np.atleast_2d(np.asarray(u, float))
+    q0 = np.asarray(q0, float).ravel()
+    n = crane.n
+    if u.shape != (t.size, n) or q0.shape != (n,):
+        raise ValueError(f"predict_motion: expected t (M,), u (M, {n}), q0 ({n},); got "
+                         f"{t.shape}, {u.shape}, {q0.shape}")
+    if t.size < 2 or np.any(np.diff(t) <= 0):
+        raise ValueError("predict_motion: t needs at least two strictly increasing instants")
+    substeps = int(substeps)
+    if substeps < 1:
+        raise ValueError("predict_motion: substeps must be >= 1")
+    vp = valve_parameters(crane)
+    xd = _command_to_stroke_rate(u[:-1], vp, flow_scale)        # (M-1, n) per period
+    h = np.diff(t)
+    frac = np.arange(substeps) / substeps
+    tt = np.concatenate([(t[:-1, None] + h[:, None] * frac[None, :]).ravel(), t[-1:]])
+    dx = np.repeat(xd * (h / substeps)[:, None], substeps, axis=0)
+    x0, _ = crane.stroke(q0)
+    x = x0[None, :] + np.vstack([np.zeros((1, n)), np.cumsum(dx, axis=0)])
+    q = crane.joint_from_stroke(x)
+    q[0] = q0
+    for _ in range(2):                 # polish (joint_from_stroke starts from a table look-up)
+        xq, d = crane.stroke(q[1:])
+        q[1:] -= (xq - x[1:]) / d
+    # an actuator whose stroke did not change stands exactly still (no round-off drift)
+    k = np.arange(len(x))[:, None]
+    moved = np.vstack([np.ones((1, n), bool), x[1:] != x[:-1]])
+    last = np.maximum.accumulate(np.where(moved, k, 0), axis=0)
+    q = np.take_along_axis(q, last, axis=0)
+    names = tuple(joint_names) if joint_names else tuple(crane.names)
+    return Trajectory(tt, q, joint_names=names, method="feedforward-replay",
+                      interpolation="linear",
+                      meta=dict(flow_scale=np.asarray(flow_scale, float).tolist(),
+                                substeps=substeps))
+
+
+def round_trip(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean",
+               substeps: int = 8) -> dict:
+    """commands -> predict_motion -> compare with ``traj``. Returns max |q_pred − q_plan| per
+    joint at the control instants (``at_samples``) and on the ``substeps``-refined grid
+    (``overall``), plus the FeedForward."""
+    ff = commands(crane, traj, rate, hold=hold)
+    pred = predict_motion(crane, ff.t, ff.u, traj.q[0], substeps=substeps)
+    q_plan = traj.sample(pred.t)[0]
+    err = np.abs(pred.q - q_plan)
+    at = err[::substeps]
+    return dict(at_samples=at.max(axis=0), overall=err.max(axis=0), feedforward=ff,
+                prediction=pred)
+
+
+# ----------------------------------------------------------------------------- progress (seed 003)
+def _spearman(a, b) -> float:
+    """Spearman rank correlation (average ranks for ties); 0 when either input is constant."""
+    from scipy.stats import rankdata
+    ra, rb = rankdata(a), rankdata(b)
+    sa, sb = np.std(ra), np.std(rb)
+    if sa == 0 or sb == 0:
+        return 0.0
+    return float(np.mean((ra - ra.mean()) * (rb - rb.mean())) / (sa * sb))
+
+
+def _intervals(t, mask_seg, min_gap: float = 0.0):
+    """Merge flagged segments [t_k, t_{k+1}] (mask over N-1 segments) into sample-index pairs
+    (a, b) covering t[a]..t[b]; runs separated by less than ``min_gap`` [s] are joined."""
+    out = []
+    for a, b in _runs(mask_seg):
+        if out and t[a] - t[out[-1][1]] < min_gap:
+            out[-1] = (out[-1][0], b)
+        else:
+            out.append((a, b))
+    return out
+
+
+@dataclass
+class ProgressEstimator:
+    """q_j ≈ g_j(ΔP) for the chosen actuator's ΔP = p_a − p_b (seed 003).
+
+    ``non_monotone``: time intervals (t0, t1) [s] where ΔP moves against its overall direction
+    (``reversals``: by how much, Pa, same order); ``ambiguous``: time intervals where the ΔP
+    value is taken more than once along the motion (g cannot tell those instants apart).
+    ``rms``: fit residual per joint (rad | m); ``max_error``: largest residual per joint.
+    ``spearman``: |rank correlation of ΔP with time| of every candidate actuator."""
+    cylinder: str
+    index: int
+    direction: int                # +1: ΔP rises along the motion, −1: falls
+    polys: list
+    rms: dict
+    max_error: dict
+    spearman: dict
+    non_monotone: list
+    reversals: list
+    ambiguous: list
+    dp_range: tuple
+    t: np.ndarray
+    dp: np.ndarray
+    q: np.ndarray
+    joint_names: tuple
+
+    @property
+    def monotone(self) -> bool:
+        return not self.non_monotone
+
+    def estimate(self, dp_value):
+        """Joint positions for ΔP value(s) [Pa]: scalar -> (n,), array (N,) -> (N, n).
+        ΔP is clipped to the fitted range (no polynomial extrapolation)."""
+        d = np.clip(np.asarray(dp_value, float), *self.dp_range)
+        return np.stack([p(d) for p in self.polys], axis=-1)
+
+    def summary(self) -> dict:
+        """JSON-ready description (SI)."""
+        return dict(cylinder=self.cylinder, direction=self.direction, monotone=self.monotone,
+                    non_monotone_s=[list(iv) for iv in self.non_monotone],
+                    reversals_Pa=list(self.reversals),
+                    ambiguous_s=[list(iv) for iv in self.ambiguous],
+                    dp_range_Pa=list(self.dp_range), rms=dict(self.rms),
+                    max_error=dict(self.max_error), spearman=dict(self.spearman))
+
+    def __str__(self):
+        mono = "monotone" if self.monotone else \
+            "NOT monotone in " + ", ".join(f"{a:.2f}–{b:.2f} s" for a, b in self.non_monotone)
+        rms = ", ".join(f"{k} {v:.2e}" for k, v in self.rms.items())
+        return f"progress from ΔP of '{self.cylinder}' ({mono}); fit RMS: {rms}"
+
+
+def progress_estimator(crane, traj: Trajectory, degree: int = 5, rate: float = 200.0,
+                       candidates=None, tol: float = 1e-3, min_range: float = 1e5,
+                       payload=None) -> ProgressEstimator:
+    """Seed 003's position estimate from pressures along the planned motion of ``traj``.
+
+    ΔP_i = p_a − p_b of every candidate actuator (names or indices; default: all) comes from
+    :func:`~planner.trajectory.evaluate` at ``rate`` [Hz] (its grid also holds every sample of
+    ``traj``). A *reversal* is a stretch where ΔP moves against its overall direction (the sign
+    of its Spearman rank correlation with time) by more than ``tol``·(its range) in total —
+    smaller wiggles (default 0.1 % of the range) are below any pressure transducer's
+    resolution. The chosen ΔP is, first, one without reversals, then the one with the largest
+    |Spearman correlation| with time. Candidates whose ΔP spans less than ``min_range`` [Pa]
+    (default 1 bar: e.g. an unloaded slew drive, whose ΔP is numerical noise) are skipped
+    unless none is left. Polynomials of ``degree`` map it to every joint
+    (numpy Polynomial.fit, least squares); they are fitted on the whole motion even where ΔP is
+    not monotone (those intervals are reported, and the fit there is a compromise)."""
+    ev = evaluate(crane, traj, rate=rate, payload=payload)
+    t, q = ev.t, ev.q
+    dp_all = np.atleast_2d(ev.hyd["p_a"] - ev.hyd["p_b"])
+    names = tuple(crane.names)
+    idx = list(range(crane.n)) if candidates is None else [
+        int(c) if isinstance(c, (int, np.integer)) else names.index(c) for c in candidates]
+    gap = 0.5 / rate
+
+    def reversals(dp, s):
+        span = float(np.ptp(dp))
+        sd = s * dp
+        out = []
+        for a, b in _intervals(t, np.diff(sd) < 0, gap):
+            drop = float(np.max(sd[a:b + 1]) - np.min(sd[a:b + 1]))
+            if drop > tol * span:
+                out.append((a, b, drop))
+        return out
+
+    usable = [i for i in idx if np.ptp(dp_all[:, i]) >= min_range] or idx
+    scores, best = {}, None
+    for i in usable:
+        dp = dp_all[:, i]
+        rho = _spearman(t, dp) if np.ptp(dp) > 0 else 0.0
+        scores[names[i]] = abs(rho)
+        s = 1 if rho >= 0 else -1
+        key = (np.ptp(dp) > 0 and not reversals(dp, s), abs(rho))
+        if best is None or key > best[0]:
+            best = (key, i, s)
+    _, c, s = best
+    dp = dp_all[:, c]
+    span = float(np.ptp(dp))
+    rev = reversals(dp, s)
+    # ambiguity: a value already passed (running extreme) or to be passed again later
+    sd = s * dp
+    back = sd < np.maximum.accumulate(sd) - tol * span
+    ahead = sd > np.minimum.accumulate(sd[::-1])[::-1] + tol * span
+    amb = back | ahead
+    ambiguous = [(float(t[a]), float(t[b]))
+                 for a, b in _intervals(t, amb[:-1] | amb[1:], gap)]
+    polys, rms, emax = [], {}, {}
+    for j, name in enumerate(names):
+        p = Polynomial.fit(dp, q[:, j], degree)
+        polys.append(p)
+        r = p(dp) - q[:, j]
+        rms[name] = float(np.sqrt(np.mean(r ** 2)))
+        emax[name] = float(np.max(np.abs(r)))
+    return ProgressEstimator(cylinder=names[c], index=c, direction=s, polys=polys, rms=rms,
+                             max_error=emax, spearman=scores,
+                             non_monotone=[(float(t[a]), float(t[b])) for a, b, _ in rev],
+                             reversals=[d for _, _, d in rev], ambiguous=ambiguous,
+                             dp_range=(float(dp.min()), float(dp.max())), t=t, dp=dp, q=q,
+                             joint_names=names)

@@ -123,8 +123,14 @@ def run_dp(crane, name, speed, tele_start=None):
     rows, worst, status = [], 0.0, "ok"
     for sec in sections:
         ts = dp_tele_step(crane, sec.path_speed)
-        r = dp(crane, Line(sec.start, sec.end), objective="energy", tip_speed=sec.path_speed,
-               step=DP_STEP, tele_step=ts, window=DP_WINDOW, tele_start=tele)
+        kw = dict(objective="energy", tip_speed=sec.path_speed, step=DP_STEP, tele_step=ts,
+                  window=DP_WINDOW, tele_start=tele)
+        r = dp(crane, Line(sec.start, sec.end), **kw)
+        relaxed = False
+        if not r.ok:  # greedy chaining can dead-end on the pump-flow limit: retry without it
+            r2 = dp(crane, Line(sec.start, sec.end), pump=False, **kw)
+            if r2.ok:
+                relaxed, first_reason, r = True, r.reason, r2
         if not r.ok:
             status = f"{r.status}: {r.reason}"
             rows.append(dict(start=sec.start[:2], end=sec.end[:2], status=r.status,
@@ -136,6 +142,8 @@ def run_dp(crane, name, speed, tele_start=None):
         total += ev.energy_J
         worst = max(worst, ev.max_limit_violation)
         rows.append(dict(start=sec.start[:2], end=sec.end[:2], path_speed=sec.path_speed,
+                         pump_flow_relaxed=relaxed,
+                         reason_with_pump_limit=first_reason if relaxed else "",
                          tele_step_m=ts, stages=r.grid["stages"],
                          tele_nodes=r.grid["tele_nodes"], energy_J=ev.energy_J,
                          dp_energy_J=r.energy_J, tele_in_m=tele_in, tele_out_m=tele,
@@ -144,6 +152,7 @@ def run_dp(crane, name, speed, tele_start=None):
                          solve_time_s=r.solve_time_s))
     return dict(status=status, energy_J=total if status == "ok" else None,
                 max_limit_violation=worst, sections=rows,
+                pump_flow_relaxed=sum(bool(x.get("pump_flow_relaxed")) for x in rows),
                 solve_time_s=time.perf_counter() - t0)
 
 
@@ -234,8 +243,10 @@ def markdown(res):
     A("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in res["table"]:
         d, dp_ = row["dp"], row["dp_pinned_start"]
-        e = "—" if d["energy_J"] is None else f"{d['energy_J'] / 1e3:.1f}"
-        ep = "—" if dp_["energy_J"] is None else f"{dp_['energy_J'] / 1e3:.1f}"
+        e = "—" if d["energy_J"] is None else f"{d['energy_J'] / 1e3:.1f}" + \
+            ("*" if d["pump_flow_relaxed"] else "")
+        ep = "—" if dp_["energy_J"] is None else f"{dp_['energy_J'] / 1e3:.1f}" + \
+            ("*" if dp_["pump_flow_relaxed"] else "")
         A(f"| {row['cycle']} | {row['speed']:g} | {row['system']} | "
           f"{row['laws']['jla']['energy_J'] / 1e3:.1f} | "
           f"{row['best_local_energy_J'] / 1e3:.1f} ({LAW_TITLES[row['best_local']]}) | {e} | "
@@ -245,7 +256,10 @@ def markdown(res):
     A("")
     A("'DP, start pinned': the first section starts at the laws' start telescope value "
       "(START_TELE) instead of a free one, so the DP and the laws start from the same "
-      "configuration.\n")
+      "configuration (the free DP always chose the fully extended telescope, 2.3 m). "
+      "'*': greedy chaining left a section with no transition that respects the pump-flow "
+      "limit; that section was re-solved without it (pump=False; the laws do not respect it "
+      "either) and its pump-flow excess is in the JSON.\n")
     A("## Gains (tuned as the seed did) and the gain check\n")
     g = res["gains"]
     A(f"JLA: k_JLA = {g['jla']['k_jla']:g} m²/s (Chan–Dubey on the strokes, 15 % zone, "
@@ -287,9 +301,9 @@ def discussion(res):
         + ", ".join(f"{LAW_TITLES[k]} {int(np.sum(p[k] > 0))}/12" for k in ("p1", "p1_5", "p2"))
         + " runs (mean saving " + ", ".join(f"{LAW_TITLES[k]} {100 * p[k].mean():+.1f} %"
                                             for k in ("p1", "p1_5", "p2"))
-        + ("; increasing with n)" if p["p1"].mean() < p["p1_5"].mean() < p["p2"].mean()
-           else "; not increasing with n)")
-        + " (savings from {:+.1f} % to {:+.1f} %; mean {:+.1f} %); Q-optimal in {}/12 "
+        + ("; increasing with n" if p["p1"].mean() < p["p1_5"].mean() < p["p2"].mean()
+           else "; not increasing with n")
+        + "; individual runs {:+.1f} % to {:+.1f} %, overall mean {:+.1f} %); Q-optimal in {}/12 "
         "(mean {:+.1f} %).".format(100 * min(v.min() for k, v in p.items() if k != "q_optimal"),
                                    100 * max(v.max() for k, v in p.items() if k != "q_optimal"),
                                    100 * np.mean([p[k] for k in ("p1", "p1_5", "p2")]),
@@ -363,13 +377,21 @@ def discussion(res):
             f"{100 * moreb.mean():.0f} %) more energy than the DP. Nurmi & Mattila's 15–30 % "
             f"(measured, 4-DOF forestry crane): {inband}/{len(d)} rows inside the band"
             + (f", above it: {', '.join(above)}" if above else "") + ".")
-    lines.append(
-        "So the model reproduces the *size* of the global-vs-local gap (the same order as "
-        "Nurmi & Mattila, larger on the diagonal cycle) but not the seed's claim that the local "
-        "P-optimal law closes much of it. Caveats: the DP is optimal per section only (greedy "
-        "chaining of the telescope), it respects the pump-flow limit (the laws do not), both "
-        "are judged quasi-statically on piecewise-linear trajectories (velocity steps at the "
-        "section ends), and every number rests on the assumed s100f data.")
+    nf, npn = res.get("nurmi_mattila_free"), res.get("nurmi_mattila_pinned")
+    if nf and npn:
+        mf, mp = np.mean(nf["jla_more_than_dp"]), np.mean(npn["jla_more_than_dp"])
+        lines.append(
+            f"**Verdict on Nurmi & Mattila**: JLA uses on average {100 * mf:.0f} % more energy "
+            f"than the DP when the DP may choose its start telescope ({nf['rows_in_band']}/"
+            f"{nf['rows']} rows in the 15–30 % band), but only {100 * mp:.0f} % more from the "
+            f"laws' own start configuration ({npn['rows_in_band']}/{npn['rows']} rows in the "
+            "band) — much of the 'global' advantage here is the choice of the start "
+            "configuration. The model thus shows a global-vs-local gap of that order only with "
+            "a free start, and the local P-optimal law does not close it (the seed's hope). "
+            "Caveats: the DP is optimal per section only (greedy chaining of the telescope), it "
+            "respects the pump-flow limit (the laws do not: see above), both are judged "
+            "quasi-statically on piecewise-linear trajectories (velocity steps at the section "
+            "ends), and every number rests on the assumed s100f data.")
     return "\n\n".join(lines)
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import math
 import os
 import platform
@@ -163,7 +164,7 @@ def figure(crane, name, art, res, out_png):
     opt, prof, path = art["opt"], art["prof"], art["path"]
     env = opt.env
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8.5, 8.5), height_ratios=[3, 2], sharex=True)
-    top = 2.2 * float(np.max(env.envelope))
+    top = 2.6 * float(np.max(env.envelope))
     colours = ["tab:gray", "tab:blue", "tab:green", "tab:orange"]
     for i in range(crane.n):
         bi = env.bounds[:, i]
@@ -290,8 +291,10 @@ def markdown(res):
               f"| {pct(e['violations']['acceleration'])} | {pct(e['violations']['pump_flow'])} |")
     A("\n\\* not claimed by the phase-plane profiles: seed 003 gives no acceleration limits or "
       "hydraulics; the spec's values are assumptions.\n")
-    A("### Junctions of the from-rest redesign (max over joints; rad, rad/s, rad/s² | m, …)\n")
-    A("| path | space | where | θ | t [s] | |Δq| | |Δq̇| | |Δq̈| | transition [s] | "
+    A("### Junctions of the from-rest redesign (largest absolute error over the joints "
+      "between the transition's end state and the nominal state; rad, rad/s, rad/s² or m, "
+      "m/s, m/s²)\n")
+    A("| path | space | where | θ | t [s] | Δq | Δq̇ | Δq̈ | transition [s] | "
       "acc./jerk limit scale | max θ̇/envelope | tip off path [mm] |")
     A("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for nm, r in (("circle", c), ("parabola", p)):
@@ -308,7 +311,7 @@ def markdown(res):
     A("")
     A("### Telescope coefficients\n")
     for nm, r in (("circle", c), ("parabola", p)):
-        A(f"- {nm}: `{dumps(r['telescope']['telescope']).replace(chr(10), ' ')}`")
+        A(f"- {nm}: `{json.dumps(r['telescope']['telescope'], ensure_ascii=False)}`")
     A("")
     pc = res["parabola_check"]
     A("## The parabola as printed\n")
@@ -346,7 +349,9 @@ def findings(res):
         f"Telescope: on the circle the optimised Fourier telescope (q4 "
         f"{ct['tele_range_m'][0]:.2f} … {ct['tele_range_m'][1]:.2f} m) has "
         f"{ct['area'] / ct['constant_area']:.2f}× the envelope area of the best constant "
-        f"telescope ({ct['constant_best_m']:.2f} m; only 0.52–0.57 m reach the whole circle) and "
+        f"telescope ({ct['constant_best_m']:.2f} m; only constants in "
+        f"{ct['constant_feasible_range_m'][0]:.2f}–{ct['constant_feasible_range_m'][1]:.2f} m "
+        "reach the whole circle, on a 1 cm grid) and "
         f"rides the envelope in {ct['time_at_envelope_s']:.2f} s instead of "
         f"{ct['constant_time_at_envelope_s']:.2f} s. On the parabola (α = −45°) no constant "
         "telescope reaches both ends, the Bézier telescope sweeps "
@@ -387,8 +392,9 @@ def findings(res):
     out.append(
         "Transition limits: in θ-space they are the assumed joint acceleration/jerk limits "
         "divided by max |Φ'_i| on the transition (the centripetal term Φ''θ̇² is ignored). On "
-        f"the circle the junction state (θ̇ = {c['nominal']['start_speed']:.2f}… rad/s at 5 % "
-        "of the path, decelerating) cannot be reached within 0.1π rad under those limits, so "
+        f"the circle the junction state (θ̇ = {ft['transitions'][0]['junction_theta_dot']:.2f} "
+        f"rad/s, θ̈ = {ft['transitions'][0]['junction_theta_ddot']:.2f} rad/s² at 5 % of the "
+        "path) cannot be reached within 0.1π rad under those limits, so "
         f"acceleration and jerk were raised ×{sc:.2f}; the transition alone then exceeds the "
         "assumed joint acceleration by "
         f"{pct(ft['transitions_evaluate'][0]['violations']['acceleration'])}. On the parabola "

@@ -202,7 +202,8 @@ class MoveNLP:
         self._energy_fn = ca.Function("E", [wv, P], [energy])
         opts = {"expand": True, "print_time": False,
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
-                          "acceptable_tol": 1e-5, "mu_strategy": "adaptive"}}
+                          "acceptable_tol": 1e-5, "mu_strategy": "adaptive",
+                          "max_wall_time": 60.0}}
         if ipopt_options:
             opts["ipopt"].update(ipopt_options)
         self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": P, "f": f,
@@ -294,7 +295,8 @@ class MoveNLP:
         if ist not in STATUS_OK:
             code = {"Infeasible_Problem_Detected": "infeasible",
                     "Maximum_Iterations_Exceeded": "max_iter",
-                    "Restoration_Failed": "restoration_failed"}.get(ist, "failed")
+                    "Restoration_Failed": "restoration_failed",
+                    "Maximum_WallTime_Exceeded": "timeout"}.get(ist, "failed")
             return NLPResult(code, f"IPOPT: {ist}", iterations=st.get("iter_count", 0),
                              ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
         n, N = crane.n, self.N

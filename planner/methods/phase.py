@@ -351,7 +351,7 @@ class TeleOpt:
     env: Envelope                # fine grid
     const_best: float | None     # best constant telescope [m] (None: no constant is feasible)
     const_area: float            # its envelope area on the fine grid (nan if none)
-    const_scan: tuple            # (tele grid, areas on the coarse grid)
+    const_scan: tuple            # (tele grid, areas on the fine grid; NaN: infeasible)
     band: np.ndarray             # (K_coarse, M) feasibility mask
     band_theta: np.ndarray
     band_tele: np.ndarray
@@ -364,8 +364,12 @@ class TeleOpt:
         return self.env.ok
 
     def summary(self) -> dict:
+        tg, areas = self.const_scan
+        ok = np.isfinite(areas)
+        rng = [float(tg[ok].min()), float(tg[ok].max())] if ok.any() else None
         return dict(telescope=self.tele.describe(self.coef), area=self.area,
                     feasible=self.ok, constant_best_m=self.const_best,
+                    constant_feasible_range_m=rng,
                     constant_area=self.const_area,
                     area_gain_vs_constant=(self.area / self.const_area - 1.0
                                            if self.const_best is not None else None),
@@ -380,15 +384,15 @@ def optimise_telescope(crane, path: SeedPath, tele, *, n_theta: int = 241,
                        margin: float = 1e-3) -> TeleOpt:
     """Telescope coefficients that maximise the area under the envelope (deterministic).
 
-    The objective on ``n_theta`` points is −area + penalty·Σ_k Δθ_k·(d_k + step) over the
-    points where IK fails, d_k the distance of φ4(θ_k) to the nearest feasible telescope value
-    there (from a scan on a ``tele_step`` grid), so infeasible coefficients are pushed back
-    into the feasible band; joints (the telescope included) closer than ``margin``·range to a
-    limit are penalised in proportion to the intrusion, so that the optimum keeps a small
-    distance to the limits and stays feasible between the grid points. Starts: the best constant telescope (if one is feasible) and the
-    least-squares fit to the middle of the feasible band; Nelder–Mead (adaptive, bounded),
-    restarted ``restarts`` times from its own result. The winner is re-judged on ``n_fine``
-    points."""
+    The objective on ``n_theta`` points is −area + penalty·Σ_k Δθ_k·(d_k + step + 1) over
+    the points where IK fails, d_k the distance of φ4(θ_k) to the nearest feasible telescope
+    value there (from a scan on a ``tele_step`` grid), so infeasible coefficients are pushed
+    back into the feasible band; joints (the telescope included) closer than ``margin``·range
+    to a limit are penalised in proportion to the intrusion, so that the optimum keeps a small
+    distance to the limits and stays feasible between the grid points. Starts: the best
+    constant telescope (if one is feasible) and the least-squares fit to the middle of the
+    feasible band; Nelder–Mead (adaptive, bounded), restarted ``restarts`` times from its own
+    result. The winner is re-judged on ``n_fine`` points."""
     t0 = _time.perf_counter()
     lo, hi = crane.tele_range
     theta = path.grid(n_theta)
@@ -402,7 +406,6 @@ def optimise_telescope(crane, path: SeedPath, tele, *, n_theta: int = 241,
         raise ValueError(f"{path.name}: no telescope value in [{lo}, {hi}] m reaches the path "
                          f"at θ = {theta[k]:.4f} (p = {np.round(path.xyz(theta[k])[0], 3)}); "
                          f"e.g. {why[0]}")
-    dist_tab = np.where(band, 0.0, np.inf)
     nfev = 0
 
     L = crane.limit_arrays()
@@ -427,7 +430,7 @@ def optimise_telescope(crane, path: SeedPath, tele, *, n_theta: int = 241,
     if np.any(np.isfinite(areas)):
         kc = int(np.nanargmax(areas))
         starts.append(("best_constant", tele.constant(tg[kc])))
-    # middle of the feasible band (largest feasible telescope interval per θ)
+    # middle of the feasible band (between its lowest and highest telescope value per θ)
     mid = np.array([0.5 * (tg[m].min() + tg[m].max()) for m in band])
     B = tele.basis(theta)
     c_fit = np.linalg.lstsq(B, mid, rcond=None)[0]
@@ -452,14 +455,14 @@ def optimise_telescope(crane, path: SeedPath, tele, *, n_theta: int = 241,
     coef = np.asarray(best[0], float)
     thf = path.grid(n_fine)
     env = envelope(crane, path, tele, coef, thf, explain=True)
-    ok_c = np.isfinite(areas)
-    if ok_c.any():
-        kc = int(np.nanargmax(areas))
-        cb = float(tg[kc])
-        ca = envelope(crane, path, tele, tele.constant(cb), thf).area
+    # the best constant telescope, judged on the same fine grid as the optimum
+    areas_f = constant_scan(crane, path, thf, tg)
+    if np.any(np.isfinite(areas_f)):
+        kc = int(np.nanargmax(areas_f))
+        cb, ca = float(tg[kc]), float(areas_f[kc])
     else:
         cb, ca = None, float("nan")
-    return TeleOpt(tele, coef, env.area, env, cb, ca, (tg, areas), band, theta, tg, info,
+    return TeleOpt(tele, coef, env.area, env, cb, ca, (tg, areas_f), band, theta, tg, info,
                    nfev, _time.perf_counter() - t0)
 
 
@@ -524,7 +527,8 @@ class Profile:
         return q, dq * td[..., None], ddq * (td ** 2)[..., None] + dq * tdd[..., None]
 
     def nominal_state(self, crane, theta, side=0):
-        """Path state (θ, f, f·f') and the joint state of the nominal profile at θ."""
+        """((θ̇, θ̈) = (f, f·f'), (q, q̇, q̈)) of the nominal profile at θ (f' one-sided with
+        ``side`` = ±1: the derivative on the side where the nominal motion continues)."""
         q, dq, ddq, f, df = _states(crane, self.path, self.tele, self.coef, theta,
                                     self.fraction, side)
         return (f, f * df), (q, dq * f[:, None], ddq * (f ** 2)[:, None] + dq * (f * df)[:, None])
@@ -728,6 +732,7 @@ def _transition(crane, profile, where, th_rest, th_j, junction, space, rate, acc
         k = -1 if start else 0
         perr = (abs(th[k] - th_j), abs(thd[k] - fj), abs(thdd[k] - aj))
         info = dict(where=where, duration_s=tr.duration, space=space,
+                    junction_theta_dot=fj, junction_theta_ddot=aj,
                     limits=dict(theta_dot_max=vcap, theta_dot_min=0.0,
                                 theta_ddot_max=amax * scale, theta_dddot_max=jmax * scale,
                                 theta_ddot_from_joints=a_der, theta_dddot_from_joints=j_der),
@@ -750,6 +755,7 @@ def _transition(crane, profile, where, th_rest, th_j, junction, space, rate, acc
         k = -1 if start else 0
         perr = (math.nan,) * 3
         info = dict(where=where, duration_s=tr.duration, space=space,
+                    junction_theta_dot=fj, junction_theta_ddot=aj,
                     limits=dict(qdd_max=(amax * scale).tolist(),
                                 qddd_max=(jmax * scale).tolist()),
                     limit_scale=scale)

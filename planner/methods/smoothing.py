@@ -76,7 +76,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
         t = np.array([0.0, 1e-9])
     else:
         sw = np.unique(_switch_times(traj))
-        sw = sw[np.concatenate([[True], np.diff(sw) > 1e-9])]
+        sw = sw[np.concatenate([[True], np.diff(sw) > 1e-6])]  # near-duplicates: 1/h³ noise
         u = np.linspace(0.0, T, max(50, int(np.ceil(T * sample_rate)) + 1))
         # keep uniform samples away from switching times: a very short interval would amplify
         # round-off in the interpolant's jerk (∝ 1/h³)

@@ -124,35 +124,46 @@ def _pair_bounds(crane: Crane, qs, qg):
 
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
-                n_grid: int = 121, refine: int = 2) -> LowerBound:
+                n_grid: int = 121, refine: int = 2, starts: int = 8) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
     configurations ``q_start``/``q_goal``.
 
-    Free telescope values are searched on an ``n_grid`` grid at each free end, then ``refine``
-    times on a 5× finer grid around the best pair."""
+    Free telescope values are searched on an ``n_grid`` grid at each free end; the ``starts``
+    best grid pairs (the bound is not convex in the telescope values: several basins) are then
+    refined ``refine`` times on 5× finer local grids; the smallest value found is returned."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
     grid = np.linspace(*tr, n_grid) if tr else np.zeros(1)
-    best = dict(vel=np.inf, r2r=np.inf, pump=np.inf, comb=np.inf, E=np.inf)
-    arg = (np.nan, np.nan)
-    grids = (grid, grid)
-    step = (tr[1] - tr[0]) / (n_grid - 1) if tr else 0.0
-    for it in range(1 + (refine if tr else 0)):
-        qs, ts = _end_configs(crane, start, q_start, grids[0])
-        qg, tg = _end_configs(crane, goal, q_goal, grids[1])
-        Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg)
-        comb = np.maximum(Tr, Tp)
-        i, k = np.unravel_index(np.argmin(comb), comb.shape)
-        if comb[i, k] <= best["comb"]:
-            arg = (ts[i], tg[k])
-        best = dict(vel=min(best["vel"], Tv.min()), r2r=min(best["r2r"], Tr.min()),
-                    pump=min(best["pump"], Tp.min()), comb=min(best["comb"], comb.min()),
-                    E=min(best["E"], E.min()))
-        if tr:
-            grids = tuple(np.clip(np.linspace(c - 2 * step, c + 2 * step, 21), *tr)
-                          if not np.isnan(c) else grid for c in arg)
-            step /= 5
+    qs, ts = _end_configs(crane, start, q_start, grid)
+    qg, tg = _end_configs(crane, goal, q_goal, grid)
+    Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg)
+    comb = np.maximum(Tr, Tp)
+    best = dict(vel=Tv.min(), r2r=Tr.min(), pump=Tp.min(), comb=comb.min(), E=E.min())
+    i, k = np.unravel_index(np.argmin(comb), comb.shape)
+    arg = (ts[i], tg[k])
+    if tr:
+        step0 = (tr[1] - tr[0]) / (n_grid - 1)
+        order = np.argsort(comb, axis=None)[:starts]
+        for flat in order:
+            i, k = np.unravel_index(flat, comb.shape)
+            c0 = (ts[i], tg[k])
+            step = step0
+            for _ in range(refine):
+                grids = tuple(np.clip(np.linspace(c - 2 * step, c + 2 * step, 21), *tr)
+                              if not np.isnan(c) else grid for c in c0)
+                qs2, ts2 = _end_configs(crane, start, q_start, grids[0])
+                qg2, tg2 = _end_configs(crane, goal, q_goal, grids[1])
+                Tv2, Tr2, Tp2, E2 = _pair_bounds(crane, qs2, qg2)
+                comb2 = np.maximum(Tr2, Tp2)
+                a, b = np.unravel_index(np.argmin(comb2), comb2.shape)
+                c0 = (ts2[a], tg2[b])
+                if comb2[a, b] < best["comb"]:
+                    arg = c0
+                best = dict(vel=min(best["vel"], Tv2.min()), r2r=min(best["r2r"], Tr2.min()),
+                            pump=min(best["pump"], Tp2.min()),
+                            comb=min(best["comb"], comb2.min()), E=min(best["E"], E2.min()))
+                step /= 5
 
     def none_if_nan(v):
         return None if (not tr or np.isnan(v)) else float(v)

@@ -172,6 +172,10 @@ def cmd_plan(args):
         return 3
     ev = evaluate(crane, res.trajectory)
     checked = set(ev.checked)
+    for w in getattr(res, "warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
+    if getattr(res, "warnings", None):
+        out["warnings"] = list(res.warnings)
     if lb is not None:
         bound = (lb.combined_s if "acceleration" in checked else
                  max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))

@@ -46,6 +46,7 @@ class DPResult:
     energy_J: float = float("nan")
     solve_time_s: float = 0.0
     grid: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -145,6 +146,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
             raise ValueError(f"tele_step must be > 0, got {tele_step}")
         teles = np.linspace(tr[0], tr[1], int(round((tr[1] - tr[0]) / tele_step)) + 1)
     M1 = len(teles)
+    warn: list[str] = []
     grid = dict(stages=N, step_m=float(s[1] - s[0]), tele_nodes=M1, window=window,
                 tele_step_m=float(teles[1] - teles[0]) if M1 > 1 else 0.0)
     # --- nodes: IK of every (stage, telescope) pair
@@ -171,6 +173,13 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         C, Tedge = T, T
     elif objective == "energy":
         dt = (s[1] - s[0]) / tip_speed
+        if tr is not None:
+            t_i = crane.chain.tele
+            v_t = min(crane.spec.joints[t_i].limits.qd[1], -crane.spec.joints[t_i].limits.qd[0])
+            if grid["tele_step_m"] > v_t * dt:
+                warn.append(f"the telescope cannot move: one grid step ({grid['tele_step_m']:.4f}"
+                            f" m) per stage ({dt:.4f} s) exceeds its speed limit {v_t} m/s; use "
+                            f"tele_step <= {v_t * dt:.4f} m or a larger step along the path")
         E = edge_energy(crane, Q, dq, dt, w, payload)
         C = np.where(T <= dt * (1 + 1e-9), E, np.inf)
         Tedge = np.full_like(T, dt)
@@ -214,7 +223,8 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
                       meta=dict(grid=grid, path=path.name, path_length_m=path.length))
     return DPResult("ok", objective=objective, trajectory=traj, path_q=path_q, s=s,
                     times=times, tele_index=m, cost=float(J[m[N]]), duration_s=float(times[-1]),
-                    energy_J=energy, solve_time_s=_time.perf_counter() - t0, grid=grid)
+                    energy_J=energy, solve_time_s=_time.perf_counter() - t0, grid=grid,
+                    warnings=warn)
 
 
 def dp_time_reference(crane, path: Path, *, step: float = 0.01, stages: int | None = None,

@@ -5,6 +5,8 @@ control step (fixed rate) the law turns the tip velocity command (path tangent �
 small correction towards the reference point) into joint rates, possibly scaling the command by
 β ≤ 1 when joints saturate — then the reference advances only β·v·dt. The result is the common
 :class:`~planner.trajectory.Trajectory` (piecewise linear: the rates are held over each step).
+When the rates ask for more oil than the pump delivers, every function slows in proportion
+(load-sensing flow sharing, :func:`flow_share`), so law trajectories respect the pump limit.
 
 Laws (seed 000): ``least_norm`` (plain pseudo-inverse, uniform speed scaling — the baseline),
 ``max_velocity`` (weighted pseudo-inverse with the pin-the-saturated-joint logic of section 5.2),
@@ -72,6 +74,22 @@ def rate_box(crane, q):
     up = np.sqrt(2 * L["qdd_max"] * np.maximum(L["q_max"] - q, 0.0))
     dn = np.sqrt(2 * L["qdd_max"] * np.maximum(q - L["q_min"], 0.0))
     return np.maximum(L["qd_min"], -dn), np.minimum(L["qd_max"], up)
+
+
+def flow_share(crane, q, qd, payload=None):
+    """Load-sensing flow sharing: when the actuators ask for more than the pump delivers, every
+    function slows in proportion (flow-sharing valves). Returns (q̇ scaled, factor ≤ 1)."""
+    Q = crane.hydraulics(q, qd, np.zeros_like(qd), payload)["q_pump"]
+    qmax = crane.spec.pump.max_flow
+    if Q <= qmax:
+        return qd, 1.0
+    k = qmax / Q
+    return qd * k, k
+
+
+def _tip_error(e, r):
+    """Planar tip error [m] including the slew part (arc length r·Δslew)."""
+    return float(np.sqrt(e[0] ** 2 + e[1] ** 2 + (r * e[2]) ** 2))
 
 
 def _ratio(qd, lo, hi):
@@ -298,10 +316,12 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
         ref = path.tip(np.array([s]))[0]
         e = ref - tip
         e[2] = (e[2] + math.pi) % (2 * math.pi) - math.pi
-        errs.append(float(np.hypot(e[0], e[1])))
+        errs.append(_tip_error(e, tip[0]))
         v = tip_speed * _tip_rate_along(path, s) + gain * e
         lo, hi = rate_box(crane, q)
         qd, beta = law.rates(crane, Step(q, tip, J, x, dxdq, lo, hi, dt, qd_prev, memo), v)
+        qd, share = flow_share(crane, q, qd)
+        beta *= share
         ds = beta * tip_speed * dt
         h = dt
         if s + ds > path.length:
@@ -325,7 +345,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                              solve_time_s=_time.perf_counter() - t_start)
     traj = Trajectory(np.array(Ts), np.array(Qs), joint_names=tuple(crane.names),
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
-                      limits=("position", "velocity"),
+                      limits=("position", "velocity", "pump_flow"),
                       meta=dict(law=law.name, tip_speed=tip_speed, rate_hz=rate,
                                 start_q=Qs[0].tolist(),
                                 min_beta=float(min(betas)), mean_beta=float(np.mean(betas)),
@@ -354,10 +374,12 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
         ref, vref = command(t)
         e = np.asarray(ref, float) - tip
         e[2] = (e[2] + math.pi) % (2 * math.pi) - math.pi
-        errs.append(float(np.hypot(e[0], e[1])))
+        errs.append(_tip_error(e, tip[0]))
         v = np.asarray(vref, float) + gain * e
         lo, hi = rate_box(crane, q)
         qd, beta = law.rates(crane, Step(q, tip, J, x, dxdq, lo, hi, dt, qd_prev, memo), v)
+        qd, share = flow_share(crane, q, qd, payload)
+        beta *= share
         q = q + qd * dt
         Ts.append((k + 1) * dt)
         Qs.append(q.copy())
@@ -365,7 +387,7 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
         qd_prev = qd
     traj = Trajectory(np.array(Ts), np.array(Qs), joint_names=tuple(crane.names),
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
-                      limits=("position", "velocity"),
+                      limits=("position", "velocity", "pump_flow"),
                       meta=dict(law=law.name, rate_hz=rate, min_beta=float(min(betas)),
                                 mean_beta=float(np.mean(betas))))
     return LawResult("ok", trajectory=traj, duration_s=duration, min_beta=float(min(betas)),

@@ -124,7 +124,20 @@ def cmd_plan(args):
     out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
                start=list(args.start), goal=list(args.goal))
     t0 = time.perf_counter()
-    if method == "ruckig":
+    if args.path is None:
+        args.path = "free" if method in ("nlp", "ruckig") else "line"
+    out["path"] = args.path
+    if method == "nlp":
+        from .methods.nlp import MoveNLP
+        if args.objective == "energy" and args.duration is None:
+            raise CLIError("--method nlp --objective energy needs --duration T [s] "
+                           "(e.g. 1.2 × the minimum time)")
+        nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals)
+        res = nlp.solve(args.start, args.goal, T_max=args.duration)
+        path = None
+    elif method == "ruckig":
+        if args.path != "free":
+            raise CLIError("--method ruckig moves the joints (free path); use --path free")
         if args.objective != "time":
             raise CLIError("--method ruckig plans the fastest jerk-limited joint move; "
                            "use --objective time")
@@ -138,7 +151,7 @@ def cmd_plan(args):
                        "(free paths: --method ruckig)")
     else:
         path = Line(args.start, args.goal)
-    if method == "ruckig":
+    if method in ("ruckig", "nlp"):
         pass
     elif method in ("dp", "topp"):
         if method == "topp" and args.objective != "time":
@@ -207,10 +220,10 @@ def cmd_plan(args):
 
 def _method(text):
     reg = _law_registry()
-    if text in ("dp", "topp", "ruckig") or (text.startswith("law:") and text[4:] in reg):
+    if text in ("dp", "topp", "ruckig", "nlp") or (text.startswith("law:") and text[4:] in reg):
         return text
     raise argparse.ArgumentTypeError(
-        f"unknown method {text!r}; available: dp, topp, ruckig, "
+        f"unknown method {text!r}; available: nlp, dp, topp, ruckig, "
         + ", ".join(f"law:{k}" for k in reg))
 
 
@@ -304,18 +317,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--method", type=_method, default="dp",
-                   help="dp (Bellman along the line), topp (the DP path retimed with "
+                   help="nlp (CasADi/IPOPT; --path free|line), dp (Bellman along the line), "
+                        "topp (the DP path retimed with "
                         "acceleration and pump limits), ruckig (jerk-limited joint move, free "
                         "path), or law:NAME (least_norm, max_velocity, max_lift, jla, "
                         "q_optimal, p_optimal)")
     p.add_argument("--objective", choices=("time", "energy"), default="time")
-    p.add_argument("--path", choices=("line", "free"), default="line")
+    p.add_argument("--path", choices=("line", "free"), default=None,
+                   help="tip path (default: free for nlp and ruckig, line for the others)")
     p.add_argument("--tip-speed", type=float, help="commanded tip speed [m/s] (laws; DP energy)")
     p.add_argument("--duration", type=float, help="move duration [s] (DP energy)")
     p.add_argument("--step", type=float, default=0.01, help="DP stage spacing [m] (0.01)")
     p.add_argument("--tele-step", type=float, default=0.01, help="DP telescope grid [m] (0.01)")
     p.add_argument("--window", type=int, default=5, help="DP telescope steps per stage (5)")
     p.add_argument("--rate", type=float, default=100.0, help="law control rate [Hz] (100)")
+    p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
     p.add_argument("--out", metavar="FILE.csv", help="write the trajectory CSV")
     p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")

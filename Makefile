@@ -23,6 +23,9 @@ bench: install
 	$(BIN)/python benchmarks/bench_model.py
 	$(BIN)/python benchmarks/bench_dp_laws.py
 	$(BIN)/python benchmarks/seed000_tables.py
+	$(BIN)/python benchmarks/bench_nlp.py
+	$(BIN)/python benchmarks/seed002_table.py
+	$(BIN)/python benchmarks/seed003_paths.py
 
 clean:
 	rm -rf $(VENV) demo-output build *.egg-info

@@ -11,7 +11,7 @@ a) the local laws JLA, Q-optimal, P-optimal n = 1, 1.5, 2 (planner.methods.laws_
    tuned default gains) run with ``follow_command`` at 100 Hz from the assumed start
    configuration; every trajectory is judged by ``evaluate`` (energy_J = pump energy; the
    largest violation of the checked limits — position and velocity — and, for information, the
-   pump-flow limit, which the laws do not enforce) and by the law's largest tracking error;
+   pump-flow limit, enforced for the laws by flow sharing) and by the law's largest tracking error;
 b) the global DP (planner.methods.dp, objective "energy") on every straight section of the cycle
    (the preliminary move included) at the cycle's tip speed (√2 × the per-axis speed on the
    diagonal), the telescope chained between consecutive sections (the first section free); the

@@ -24,7 +24,7 @@ from tqdm import tqdm
 from planner import Crane
 from planner.bounds import lower_bound
 from planner.io import atomic_write_text
-from planner.methods.nlp import MoveNLP
+from planner.methods.nlp import MoveNLP, energy_optimal
 from planner.trajectory import evaluate
 
 
@@ -59,9 +59,11 @@ def run(cid, moves, n_energy, N):
             row.update(duration_s=r.duration_s, ratio=r.duration_s / lb.combined_s,
                        violation=ev.max_limit_violation, energy_J=ev.energy_J)
             if nle is not None and i < n_energy:
-                re = nle.solve(a, b, T_max=1.2 * r.duration_s)
+                re, info = energy_optimal(crane, a, b, 1.2 * r.duration_s, time_result=r,
+                                          energy_nlp=nle)
                 row["energy_status"] = re.status
-                row["energy_solve_s"] = re.solve_time_s
+                row["energy_solve_s"] = re.solve_time_s  # excludes the time-optimal solve
+                row["energy_winner"] = info.get("winner")
                 if re.ok:
                     eve = evaluate(crane, re.trajectory)
                     row.update(energy_opt_J=eve.energy_J, energy_violation=eve.max_limit_violation)
@@ -83,6 +85,8 @@ def run(cid, moves, n_energy, N):
         eok = [r for r in en if r["energy_status"] == "ok"]
         summ.update(energy_moves=len(en), energy_success=len(eok) / len(en),
                     energy_less=sum(r["energy_opt_J"] < r["energy_J"] for r in eok),
+                    energy_all_pass=all(r["energy_violation"] <= 1e-3 for r in eok),
+                    energy_nlp_wins=sum(r.get("energy_winner") == "nlp" for r in eok),
                     energy_median_saving=statistics.median(
                         1 - r["energy_opt_J"] / r["energy_J"] for r in eok) if eok else None,
                     energy_median_solve_s=statistics.median(r["energy_solve_s"] for r in en))
@@ -119,12 +123,14 @@ def main():
                                                      for f in summ["failures"]) + " |" + " |" * 8)
     if args.energy:
         md += ["", f"Energy-optimal at 1.2 × T_min on the first {args.energy} moves:", "",
-               "| machine | success | uses less energy than time-optimal | median saving | "
-               "median solve [s] |", "| --- | ---: | ---: | ---: | ---: |"]
+               "| machine | success | uses less energy than time-optimal | all pass evaluate | "
+               "NLP beat the stretched incumbent | median saving | median solve [s] |",
+               "| --- | ---: | ---: | --- | ---: | ---: | ---: |"]
         for cid, d in report["machines"].items():
             s = d["summary"]
             md.append(f"| {cid} | {100 * s['energy_success']:.0f} % | {s['energy_less']} / "
-                      f"{s['energy_moves']} | {100 * (s['energy_median_saving'] or 0):.1f} % | "
+                      f"{s['energy_moves']} | {s['energy_all_pass']} | {s['energy_nlp_wins']} | "
+                      f"{100 * (s['energy_median_saving'] or 0):.1f} % | "
                       f"{s['energy_median_solve_s']:.2f} |")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

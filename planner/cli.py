@@ -132,7 +132,9 @@ def cmd_plan(args):
         if args.objective == "energy" and args.duration is None:
             raise CLIError("--method nlp --objective energy needs --duration T [s] "
                            "(e.g. 1.2 × the minimum time)")
-        nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals)
+        from .methods.nlp import Wall
+        walls = tuple(Wall(*w) for w in (args.wall or []))
+        nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals, obstacles=walls)
         res = nlp.solve(args.start, args.goal, T_max=args.duration)
         path = None
     elif method == "ruckig":
@@ -203,8 +205,10 @@ def cmd_plan(args):
         res.trajectory.to_csv(args.out)
     if args.plot:
         from .plots import trajectory_figure
+        from .methods.nlp import Wall
         trajectory_figure(crane, ev, args.plot,
-                          f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s")
+                          f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s",
+                          walls=tuple(Wall(*w) for w in (args.wall or [])))
     _emit(args, out)
     if not args.json:
         loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
@@ -216,6 +220,17 @@ def cmd_plan(args):
               + ("".join(f"\n  not respected by {method}: {k} exceeded by {100 * v:.1f} %"
                          for k, v in loose.items())))
     return 0
+
+
+def _wall(text):
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) not in (3, 4) or v[1] <= v[2] or (len(v) == 4 and v[3] <= 0):
+        raise argparse.ArgumentTypeError(f"expected r,z_top,z_bottom[,clearance] with "
+                                         f"z_top > z_bottom and clearance > 0, got {text!r}")
+    return v
 
 
 def _method(text):
@@ -332,6 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--window", type=int, default=5, help="DP telescope steps per stage (5)")
     p.add_argument("--rate", type=float, default=100.0, help="law control rate [Hz] (100)")
     p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
+    p.add_argument("--wall", type=_wall, action="append", metavar="r,z_top,z_bottom[,clear]",
+                   help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
+                        "from the slew axis, kept clear by `clear` m (0.3); repeatable")
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
     p.add_argument("--out", metavar="FILE.csv", help="write the trajectory CSV")
     p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")

@@ -81,7 +81,7 @@ def workspace_figure(crane, path, n: int = 90):
                 z_max=float(np.max(tip[:, 1])))
 
 
-def trajectory_figure(crane, ev, path, title: str = ""):
+def trajectory_figure(crane, ev, path, title: str = "", walls=()):
     """Joint positions, rates relative to their limits, the tip path in r–z, and pump flow /
     power of an evaluated trajectory (an :class:`~planner.trajectory.Evaluation`)."""
     L = crane.limit_arrays()
@@ -97,6 +97,11 @@ def trajectory_figure(crane, ev, path, title: str = ""):
     ax[0, 1].set_title("joint rate / limit in the direction of motion")
     ax[1, 0].plot(ev.tip[:, 0], ev.tip[:, 1], "k-")
     ax[1, 0].plot(ev.tip[[0, -1], 0], ev.tip[[0, -1], 1], "ro")
+    for w in walls:  # obstacles (e.g. the headboard) with their clearance band
+        ax[1, 0].plot([w.r, w.r], [w.z_bottom, w.z_top], color="saddlebrown", lw=4)
+        ax[1, 0].add_patch(plt.Rectangle((w.r - w.clearance, w.z_bottom - w.clearance),
+                                         2 * w.clearance, w.z_top - w.z_bottom + 2 * w.clearance,
+                                         color="saddlebrown", alpha=0.15))
     ax[1, 0].set_aspect("equal", adjustable="datalim")
     ax[1, 0].ticklabel_format(useOffset=False)
     ax[1, 0].margins(0.15)

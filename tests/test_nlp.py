@@ -70,3 +70,33 @@ def test_kinematic_line_nlp_not_slower_than_the_seed_dp():
     q = r.trajectory.q
     assert r.duration_s >= lower_bound(crane, q_start=q[0], q_goal=q[-1]).velocity_s * (1 - 1e-6)
     assert evaluate(crane, r.trajectory).max_limit_violation <= 1e-6
+
+
+def test_energy_optimal_saves_energy_and_the_front_is_monotone(s100f):
+    from planner.methods.nlp import pareto_front
+    front = pareto_front(s100f, (7.0, 0.0, 0.0), (4.0, 0.0, 0.0), factors=(1.2, 1.6), N=30)
+    assert all(r.ok for _, _, r in front)
+    T = [f[0] for f in front]
+    E = [f[1] for f in front]
+    assert T[0] < T[1] <= 1.2 * T[0] * (1 + 1e-6) and T[2] <= 1.6 * T[0] * (1 + 1e-6)
+    assert E[1] < 0.95 * E[0]          # the energy-optimal move at 1.2 T_min saves energy
+    assert E[2] <= E[1] * (1 + 1e-3)   # more time, no more energy: a monotone front
+    for _, _, r in front:
+        assert evaluate(s100f, r.trajectory).max_limit_violation <= 1e-3
+
+
+def test_headboard_wall_is_cleared(s100f):
+    from planner.methods.nlp import Wall
+    a, b = (6.0, -1.0, 0.0), (1.2, 0.8, 0.0)       # ground pick-up -> over the bunk
+    wall = Wall(r=2.2, z_top=1.6, z_bottom=-0.5, clearance=0.3)
+
+    def dist(r):
+        tip = evaluate(s100f, r.trajectory).tip
+        zc = np.clip(tip[:, 1], wall.z_bottom, wall.z_top)
+        return np.hypot(tip[:, 0] - wall.r, tip[:, 1] - zc).min()
+    free = MoveNLP(s100f, "time", "free", N=30).solve(a, b)
+    walled = MoveNLP(s100f, "time", "free", N=30, obstacles=(wall,)).solve(a, b)
+    assert free.ok and walled.ok
+    assert dist(free) < 0.1                       # without it the tip passes through the wall
+    assert dist(walled) >= 0.96 * wall.clearance  # the disc chain's guarantee
+    assert evaluate(s100f, walled.trajectory).max_limit_violation <= 1e-3

@@ -274,8 +274,6 @@ class MoveNLP:
         retimed by TOPP-RA (velocity, acceleration, pump)."""
         crane = self.crane
         lb = lower_bound(crane, start, goal)
-        if self.obstacles and self.path == "free":
-            return self._guess_over_walls(start, goal, lb), lb
         if self.path == "line":
             from ..paths import Line
             from .dp import dp
@@ -287,13 +285,16 @@ class MoveNLP:
             if not t.ok:
                 raise ValueError(t.reason)
             return self.guess_from(t.trajectory), lb
-        r = rest_to_rest(crane, crane.ik(start, lb.tele_start), crane.ik(goal, lb.tele_goal))
-        tr = r.trajectory
-        k = max(1.0, 1.05 * lb.combined_s / max(tr.duration, 1e-9))
-        if k > 1.0:
-            tr = Trajectory(tr.t * k, tr.q, tr.qd / k, tr.qdd / k ** 2,
-                            joint_names=tr.joint_names)
-        return self.guess_from(tr), lb
+        return self._plain_guess(start, goal, lb), lb
+
+    def _plain_guess(self, start, goal, lb):
+        """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
+        crane = self.crane
+        tr = rest_to_rest(crane, crane.ik(start, lb.tele_start),
+                          crane.ik(goal, lb.tele_goal)).trajectory
+        if 1.05 * lb.combined_s > tr.duration:
+            tr = stretch(tr, 1.05 * lb.combined_s)
+        return self.guess_from(tr)
 
     def _guess_over_walls(self, start, goal, lb):
         """Rest-to-rest Ruckig segments through a via point above every wall crossed (at the
@@ -346,13 +347,47 @@ class MoveNLP:
         """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
         [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`)."""
         t0 = _time.perf_counter()
-        crane = self.crane
         if self.objective == "energy" and T_max is None:
             raise ValueError("objective 'energy' needs T_max [s]")
+        if w0 is None and self.obstacles and self.path == "free":
+            # obstacle problems are multimodal: try the plain and the over-the-wall guess and
+            # keep the fastest solution that clears every wall on a fine resampling
+            try:
+                lb = lower_bound(self.crane, start, goal)
+                guesses = [self._plain_guess(start, goal, lb),
+                           self._guess_over_walls(start, goal, lb)]
+            except ValueError as e:
+                return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+            res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
+            good = [r for r in res if r.ok and self.clears(r.trajectory)]
+            if good:
+                best = min(good, key=lambda r: r.duration_s)
+            else:
+                best = next((r for r in res if not r.ok), res[0])
+                if best.ok:
+                    best = NLPResult("obstacle", "no solution clears every wall between the "
+                                     "check points: raise N or the clearance",
+                                     iterations=best.iterations)
+            best.solve_time_s = _time.perf_counter() - t0
+            return best
         try:
-            guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
+            guess = self.default_guess(start, goal)[0] if w0 is None else w0
         except ValueError as e:  # unreachable end
             return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+        return self._solve_from(guess, start, goal, T_max, lam, payload, t0)
+
+    def clears(self, traj, rate: float = 1000.0) -> bool:
+        """True when the tip keeps ≥ 0.96·clearance from every wall on a fine resampling."""
+        t = traj.resample(rate)
+        tip = self.crane.tip(traj.sample(t)[0])
+        for w in self.obstacles:
+            zc = np.clip(tip[:, 1], w.z_bottom, w.z_top)
+            if np.hypot(tip[:, 0] - w.r, tip[:, 1] - zc).min() < 0.96 * w.clearance:
+                return False
+        return True
+
+    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0) -> NLPResult:
+        crane = self.crane
         if T_max is not None and self.objective == "energy":
             T0 = guess[self._nx + self._nu]
             if T_max > T0:  # start from the guess slowed down to the budget

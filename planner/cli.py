@@ -134,8 +134,14 @@ def cmd_plan(args):
                            "(e.g. 1.2 × the minimum time)")
         from .methods.nlp import Wall
         walls = tuple(Wall(*w) for w in (args.wall or []))
-        nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals, obstacles=walls)
-        res = nlp.solve(args.start, args.goal, T_max=args.duration)
+        if args.objective == "energy" and args.path == "free" and not walls:
+            from .methods.nlp import energy_optimal
+            res, info = energy_optimal(crane, args.start, args.goal, args.duration,
+                                       N=args.intervals)
+            out["energy_winner"] = info.get("winner")
+        else:
+            nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals, obstacles=walls)
+            res = nlp.solve(args.start, args.goal, T_max=args.duration)
         path = None
     elif method == "ruckig":
         if args.path != "free":

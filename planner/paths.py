@@ -102,9 +102,11 @@ class Curve(Path):
     re-parametrised by arc length from ``samples`` points (cubic interpolation of u(s))."""
     name = "curve"
 
-    def __init__(self, p, u0: float, u1: float, samples: int = 4001):
+    def __init__(self, p, u0: float, u1: float, samples: int = 4001, p_sym=None):
         from scipy.interpolate import CubicSpline
         self.p = p
+        self.p_sym = p_sym  # optional CasADi face: θ (SX/MX) -> xyz 3-vector (for the NLP)
+        self.u_range = (float(u0), float(u1))
         u = np.linspace(u0, u1, samples)
         pts = np.asarray(p(u), float)
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -119,11 +121,14 @@ class Curve(Path):
 def circle(center_xyz, radius: float, theta0: float = -math.pi, theta1: float = math.pi,
            plane: str = "xz") -> Curve:
     """Circle p(θ) = c + R(cos θ·e1 + sin θ·e2) in the 'xz' (vertical, seed 003) or 'xy' plane."""
+    import casadi as ca
     c = np.asarray(center_xyz, float)
     e1, e2 = {"xz": (np.array([1.0, 0, 0]), np.array([0, 0, 1.0])),
               "xy": (np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))}[plane]
     cv = Curve(lambda th: c + radius * (np.cos(th)[..., None] * e1 + np.sin(th)[..., None] * e2),
-               theta0, theta1)
+               theta0, theta1,
+               p_sym=lambda th: ca.DM(c) + radius * (ca.cos(th) * ca.DM(e1)
+                                                       + ca.sin(th) * ca.DM(e2)))
     cv.name = "circle"
     return cv
 
@@ -131,9 +136,11 @@ def circle(center_xyz, radius: float, theta0: float = -math.pi, theta1: float = 
 def parabola(x0: float, x1: float, z_min: float, z_max: float, azimuth: float) -> Curve:
     """Seed 003's 3-D lift: x from x0 to x1, y = tan(azimuth)·x, z a parabola with its vertex
     z_max mid-way and z_min at both ends (the digest's vertex check: (x − h) is meant)."""
+    import casadi as ca
     h = 0.5 * (x0 + x1)
     a = (x0 - h) ** 2 / (4 * (z_min - z_max))
     cv = Curve(lambda x: np.stack([x, math.tan(azimuth) * x, (x - h) ** 2 / (4 * a) + z_max],
-                                  axis=-1), x0, x1)
+                                  axis=-1), x0, x1,
+               p_sym=lambda x: ca.vertcat(x, math.tan(azimuth) * x, (x - h) ** 2 / (4 * a) + z_max))
     cv.name = "parabola"
     return cv

@@ -100,3 +100,19 @@ def test_headboard_wall_is_cleared(s100f):
     assert dist(free) < 0.1                       # without it the tip passes through the wall
     assert dist(walled) >= 0.96 * wall.clearance  # the disc chain's guarantee
     assert evaluate(s100f, walled.trajectory).max_limit_violation <= 1e-3
+
+
+def test_curve_mode_keeps_the_tip_on_seed_003s_circle():
+    import math
+
+    from planner.paths import circle, tip_to_xyz
+    crane = Crane.from_id("umea-lab")
+    cv = circle((3.0, 0.0, 2.5), 0.7, -math.pi / 2, math.pi / 2)
+    r = MoveNLP(crane, "time", cv, N=30).solve()
+    assert r.ok, r.reason
+    ev = evaluate(crane, r.trajectory)
+    assert ev.max_limit_violation <= 1e-3
+    X = tip_to_xyz(ev.tip)
+    rad = np.hypot(X[:, 0] - 3.0, X[:, 2] - 2.5)
+    assert np.abs(rad - 0.7).max() < 0.01 and np.abs(X[:, 1]).max() < 1e-6
+    np.testing.assert_allclose(X[[0, -1]], [[3.0, 0, 1.8], [3.0, 0, 3.2]], atol=1e-6)

@@ -89,8 +89,14 @@ class MoveNLP:
                  obstacles: tuple = (), ipopt_options: dict | None = None):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
-        if path not in ("free", "line"):
-            raise ValueError(f"path must be 'free' or 'line', not {path!r}")
+        self.curve = None
+        if not isinstance(path, str):  # a Curve with a symbolic face: tip on p(θ)
+            if getattr(path, "p_sym", None) is None:
+                raise ValueError("a path object needs a symbolic face p_sym(θ) (see "
+                                 "planner.paths.circle / parabola)")
+            self.curve, path = path, "curve"
+        elif path not in ("free", "line"):
+            raise ValueError(f"path must be 'free', 'line' or a Curve, not {path!r}")
         self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
         spec = crane.spec
         n = crane.n
@@ -163,6 +169,20 @@ class MoveNLP:
                 for q, _, _ in pts + mids:
                     tip = crane.f_fk(q)[1]  # (r, z, slew)
                     add_g((tip[0] - rc) ** 2 + (tip[1] - zc) ** 2, ob.clearance ** 2, ca.inf)
+        if path == "curve":
+            # one path parameter per node, monotone, fixed at the ends; the tip on p(θ_k) at the
+            # nodes: per interval n jerks + 1 θ − 3 equations leave n − 2 free directions
+            u0, u1 = self.curve.u_range
+            TH = ca.SX.sym("TH", N + 1)
+            lo_u, hi_u = min(u0, u1), max(u0, u1)
+            th_vars = TH
+            for k in range(N + 1):
+                q = X[:n, k]
+                add_g(fk(q)[0] - self.curve.p_sym(TH[k]), 0.0, 0.0)
+            add_g(TH[0] - u0, 0.0, 0.0)
+            add_g(TH[N] - u1, 0.0, 0.0)
+            sgn = 1.0 if u1 >= u0 else -1.0
+            add_g(sgn * (TH[1:] - TH[:-1]), 0.0, ca.inf)
         if path == "line":
             d = pb - pa
             dn = d / ca.norm_2(d)
@@ -236,6 +256,8 @@ class MoveNLP:
             f = energy * 1e-5 + smooth
         else:
             f = T + lam * energy + smooth
+        if path == "curve":
+            add_w(th_vars, lo_u, hi_u)  # last block: θ per node
         wv = ca.vertcat(*w)
         self._energy_fn = ca.Function("E", [wv, P], [energy])
         opts = {"expand": True, "print_time": False,
@@ -266,6 +288,14 @@ class MoveNLP:
         w0[self._nx + self._nu] = traj.duration
         rest = self._nx + self._nu + 1
         w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
+        if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
+            u = np.linspace(*self.curve.u_range, 4001)
+            P = np.asarray(self.curve.p(u))
+            tips = self.crane.fk(q)
+            k = np.argmin(((tips[:, None, :] - P[None, :, :]) ** 2).sum(-1), axis=1)
+            th = np.maximum.accumulate(u[k]) if u[-1] > u[0] else np.minimum.accumulate(u[k])
+            th[0], th[-1] = u[0], u[-1]
+            w0[-(N + 1):] = th
         return w0
 
     def default_guess(self, start, goal):
@@ -274,11 +304,12 @@ class MoveNLP:
         retimed by TOPP-RA (velocity, acceleration, pump)."""
         crane = self.crane
         lb = lower_bound(crane, start, goal)
-        if self.path == "line":
+        if self.path in ("line", "curve"):
             from ..paths import Line
             from .dp import dp
             from .topp import retime
-            d = dp(crane, Line(start, goal), step=0.05, tele_step=0.05, window=3)
+            geo = self.curve if self.path == "curve" else Line(start, goal)
+            d = dp(crane, geo, step=0.05, tele_step=0.05, window=3)
             if not d.ok:
                 raise ValueError(d.reason)
             t = retime(crane, d.path_q, gridpoints=100)
@@ -342,11 +373,17 @@ class MoveNLP:
         return np.hstack([pos, neg]).ravel()
 
     # ------------------------------------------------------------------------ solve
-    def solve(self, start, goal, *, T_max: float | None = None, lam: float = 0.0,
+    def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
               payload: float | None = None, w0=None) -> NLPResult:
         """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
         [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`)."""
         t0 = _time.perf_counter()
+        if self.curve is not None and start is None:  # curve mode: the curve's ends
+            from ..paths import xyz_to_tip
+            ends = np.asarray(self.curve.p(np.array(self.curve.u_range)))
+            start, goal = xyz_to_tip(ends[0]), xyz_to_tip(ends[1])
+        if start is None or goal is None:
+            raise ValueError("give start and goal tips (r, z, slew)")
         if self.objective == "energy" and T_max is None:
             raise ValueError("objective 'energy' needs T_max [s]")
         if w0 is None and self.obstacles and self.path == "free":
@@ -433,9 +470,17 @@ class MoveNLP:
             return NLPResult(code, f"IPOPT: {ist}", iterations=st.get("iter_count", 0),
                              ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
         n, N = crane.n, self.N
-        X = w[:self._nx].reshape(3 * n, N + 1, order="F")
+        X = w[:self._nx].reshape(3 * n, N + 1, order="F").copy()
+        U = w[self._nx:self._nx + self._nu].reshape(n, N, order="F")
         T = float(w[self._nx + self._nu])
         t = np.linspace(0.0, T, N + 1)
+        h = T / N
+        for k in range(N):  # re-integrate exactly: node states consistent with the jerks
+            q, v, a = X[:n, k], X[n:2 * n, k], X[2 * n:, k]
+            j = U[:, k]
+            X[:n, k + 1] = q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j
+            X[n:2 * n, k + 1] = v + h * a + h ** 2 / 2 * j
+            X[2 * n:, k + 1] = a + h * j
         traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
                           method="nlp", objective=self.objective,
                           limits=("position", "velocity", "acceleration", "jerk")

@@ -17,7 +17,6 @@ import statistics
 import time
 from pathlib import Path
 
-import numpy as np
 
 from planner import Crane
 from planner.io import atomic_write_text

@@ -119,7 +119,7 @@ def main():
                   f"{summ['median_solve_s']:.3f} | {summ['p90_solve_s']:.3f} | "
                   f"{summ['build_s']:.2f} |")
         if summ["failures"]:
-            md.append(f"|  | failures: " + "; ".join(f"#{f['i']} {f['status']}"
+            md.append("|  | failures: " + "; ".join(f"#{f['i']} {f['status']}"
                                                      for f in summ["failures"]) + " |" + " |" * 8)
     if args.energy:
         md += ["", f"Energy-optimal at 1.2 × T_min on the first {args.energy} moves:", "",

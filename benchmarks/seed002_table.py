@@ -29,7 +29,6 @@ import argparse
 import os
 import platform
 import sys
-import tempfile
 import time
 import tomllib
 from datetime import datetime, timezone
@@ -43,7 +42,7 @@ if str(ROOT) not in sys.path:  # run from a checkout without installing
 import numpy as np  # noqa: E402
 
 from planner.cycles import CYCLES, SPEEDS, START, START_REASON, START_TELE, cycle  # noqa: E402
-from planner.io import dumps  # noqa: E402
+from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods import laws_energy as le  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
 from planner.methods.laws import follow_command  # noqa: E402
@@ -459,30 +458,11 @@ def main(argv=None):
     res["discussion"] = discussion(res)
     res["runtime_s"] = time.perf_counter() - t_start
     out = Path(args.out)
-    _atomic(out / "seed002_table.json", dumps(res))
+    atomic_write_text(out / "seed002_table.json", dumps(res) + "\n")
     md = markdown(res)
-    _atomic(out / "seed002_table.md", md)
+    atomic_write_text(out / "seed002_table.md", md if md.endswith("\n") else md + "\n")
     print(md)
     return 0
-
-
-def _atomic(path: Path, text: str) -> None:
-    """Temp file in the same folder + os.replace (nothing half-written on failure)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text if text.endswith("\n") else text + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 if __name__ == "__main__":

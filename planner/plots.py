@@ -72,7 +72,7 @@ def workspace_figure(crane, path, n: int = 90):
     ax.set_aspect("equal")
     ax.set_xlabel("r [m] (horizontal distance from the slew axis)")
     ax.set_ylabel("z [m] (height in frame 0)")
-    tl = (f"; dotted: telescope retracted" if pc.tele is not None else "")
+    tl = ("; dotted: telescope retracted" if pc.tele is not None else "")
     ax.set_title(f"{spec.name}\nreachable tip region at slew 0 (green){tl}", fontsize=10)
     ax.legend(fontsize=7, loc="lower left")
     ax.grid(alpha=0.3)

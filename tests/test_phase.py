@@ -192,8 +192,8 @@ def test_from_rest_junctions_continuous(lab, parabola_profile, space):
         assert j.pos_err <= 1e-6 and j.vel_err <= 1e-6 and j.acc_err <= 1e-6, j
     tr = fr.trajectory
     # starts and ends at rest on the path ends
-    q0, qdT = prof.joint_state(lab, np.array([path.theta0, path.theta1]), np.zeros(2),
-                               np.zeros(2))[0], tr.qd[-1]
+    q0 = prof.joint_state(lab, np.array([path.theta0, path.theta1]), np.zeros(2),
+                               np.zeros(2))[0]
     assert np.allclose(tr.q[0], q0[0], atol=1e-9) and np.allclose(tr.q[-1], q0[1], atol=1e-9)
     for k in (0, -1):
         assert np.allclose(tr.qd[k], 0, atol=1e-9) and np.allclose(tr.qdd[k], 0, atol=1e-9)

@@ -276,7 +276,7 @@ class MoveNLP:
     # ------------------------------------------------------------------------ guesses
     def guess_from(self, traj) -> np.ndarray:
         """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
-        n, N = self.crane.n, self.N
+        N = self.N
         t = np.linspace(traj.t[0], traj.t[-1], N + 1)
         q, qd, qdd, _ = traj.sample(t)
         X = np.vstack([q.T, qd.T, qdd.T])

@@ -91,7 +91,9 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
     path = toppra.SplineInterpolator(ss, path_q)
     L = crane.limit_arrays()
     grid = np.linspace(ss[0], ss[-1], gridpoints + 1)
-    scale = {k: 1.0 for k in limits}
+    # per-joint factors for velocity/acceleration (an overshoot is usually one joint's),
+    # one factor for the shared pump
+    scale = {"velocity": np.ones(crane.n), "acceleration": np.ones(crane.n), "pump_flow": 1.0}
     checked = ("position",) + tuple(limits)
     for it in range(1, max_iter + 1):
         cons = []
@@ -131,13 +133,23 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
                           method="topp", objective="time" if duration is None else "duration",
                           limits=checked,
                           meta=dict(gridpoints=gridpoints, parametrizer="ParametrizeConstAccel",
-                                    limit_scale=dict(scale)))
+                                    limit_scale={k: np.atleast_1d(v).tolist()
+                                                 for k, v in scale.items()}))
         ev = evaluate(crane, traj)
         if ev.max_limit_violation <= tol:
             break
+        lim = {"velocity": (ev.qd, L["qd_min"], L["qd_max"]),
+               "acceleration": (ev.qdd, -L["qdd_max"], L["qdd_max"])}
         for k in limits:
-            if ev.violations[k] > tol:
+            if ev.violations[k] <= tol:
+                continue
+            if k == "pump_flow":
                 scale[k] /= 1.0 + ev.violations[k] + tol
+            else:
+                v, lo, hi = lim[k]
+                per = np.max(np.maximum(v / hi, v / lo), axis=0) - 1.0  # per joint excess
+                bad = per > tol
+                scale[k][bad] /= 1.0 + per[bad] + tol
     return ToppResult("ok", trajectory=traj, duration_s=T, iterations=it,
                       max_limit_violation=ev.max_limit_violation,
                       solve_time_s=_time.perf_counter() - t0)

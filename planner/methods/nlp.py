@@ -557,27 +557,31 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPRes
 
 def pareto_front(crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,
                  time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None):
-    """Time–energy trade-off: the minimum time T_min, then the minimum pump energy with a time
-    budget T ≤ k·T_min for each factor k (warm-started from the previous point). Returns a
-    list of (duration [s], pump energy [J] judged by evaluate(), NLPResult)."""
+    """Time–energy trade-off: the minimum time T_min, then the least pump energy with a time
+    budget T ≤ k·T_min for each factor k. Each point is the best candidate within the limits
+    (judged by evaluate()): the energy NLP warm-started from the previous point stretched to the
+    budget, or the previous point itself (it meets any larger budget) — so the front is
+    non-increasing by construction, as min-energy-under-a-budget must be. Returns a list of
+    (duration [s], pump energy [J], NLPResult, source) with source "nlp" or "carried"."""
     from ..trajectory import evaluate
     tn = time_nlp or MoveNLP(crane, "time", "free", N=N)
     en = energy_nlp or MoveNLP(crane, "energy", "free", N=N)
     rt = tn.solve(start, goal)
     if not rt.ok:
-        return [(float("nan"), float("nan"), rt)]
-    out = [(rt.duration_s, evaluate(crane, rt.trajectory).energy_J, rt)]
-    prev = rt.trajectory
+        return [(float("nan"), float("nan"), rt, "failed")]
+    best = (evaluate(crane, rt.trajectory).energy_J, rt)
+    out = [(rt.duration_s, best[0], rt, "nlp")]
     for k in factors:
         if k <= 1.0:
             continue
         T = k * rt.duration_s
-        r = en.solve(start, goal, T_max=T, w0=en.guess_from(stretch(prev, T)))
+        src = "carried"
+        r = en.solve(start, goal, T_max=T, w0=en.guess_from(stretch(best[1].trajectory, T)))
         if r.ok:
-            out.append((r.duration_s, evaluate(crane, r.trajectory).energy_J, r))
-            prev = r.trajectory
-        else:
-            out.append((float("nan"), float("nan"), r))
+            ev = evaluate(crane, r.trajectory)
+            if ev.max_limit_violation <= 1e-3 and ev.energy_J < best[0]:
+                best, src = (ev.energy_J, r), "nlp"
+        out.append((best[1].duration_s, best[0], best[1], src))
     return out
 
 

@@ -1,0 +1,668 @@
+"""The library database: one HDF5 file per library (CONTRACT: trajectory database), and its
+CSV / MAT / JSON export.
+
+File layout (``format`` = "crane-planner-library", ``format_version`` = 1)::
+
+    /                       attrs: format, format_version, crane_id, created (ISO 8601, UTC),
+                                   planner_version, joint_names
+    /spec_toml              scalar variable-length UTF-8 string: the crane spec's TOML verbatim
+    /index                  resizable 1-D compound dataset, one row per *finished* entry:
+                              id          fixed-length UTF-8 string (<= 64 bytes)
+                              start, goal 3 x float64: tip (r [m], z [m], slew [rad])
+                              objective, method, status   fixed-length UTF-8 strings (<= 64 bytes)
+                              duration_s, energy_J, robustness   float64 (NaN = not available)
+    /entries/<id>           one group per entry; attrs: method, objective, status, reason,
+                            solver_stats (JSON: the producing method's Trajectory.meta),
+                            provenance (JSON: crane_id, planner_version, date), joint_names,
+                            interpolation, limits (JSON), evaluation (JSON summary, if given),
+                            plus the caller's ``attrs``
+        t                   (N,)      s
+        q, qd, qdd          (N, n)    rad | m, and rates
+        u                   (N, n)    valve commands (-1..1), when the trajectory has them
+        x, xd, p_a, p_b     (N, n)    cylinder strokes [m], stroke rates [m/s], chamber pressures
+        q_pump, power       (N,)      pump flow [m^3/s], pump power [W]
+                            (these six only when an Evaluation was passed to add())
+
+Arrays are row-major "samples x joints" (MATLAB's h5read shows them transposed, joints x
+samples); each dataset carries a ``units`` attribute; datasets are uncompressed unless the
+store was opened with ``compress=True`` (gzip + shuffle, readable by MATLAB). A failed entry
+(status != "ok") has an index row and a group with attributes only (its ``reason``).
+
+Derived channels: evaluate() samples on a fine grid that contains every original sample time, so
+the stored x, xd, p_a, p_b, q_pump, power are evaluate()'s own values picked *exactly* at the
+trajectory's times (no re-computation, no interpolation; linear interpolation is only a fallback
+for an Evaluation made on a grid without them). Computing the Evaluation is the caller's job.
+
+Crash safety and resume: an entry's group is written completely and flushed, *then* its index
+row is appended and flushed. A group without an index row is an unfinished write: opening the
+file in mode "a" deletes it (``LibraryStore.cleaned`` says how many), so a killed build loses at
+most the entries in flight and resumes with ``has(id)``. (HDF5 does not reclaim the space of
+deleted groups; h5repack compacts a file if that matters.) The driver is the single writer.
+"""
+from __future__ import annotations
+
+import csv
+import io as _io
+import json
+import math
+import os
+import re
+from datetime import datetime, timezone
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .io import atomic_write_bytes, atomic_write_text, dumps
+from .trajectory import LIMIT_KINDS, Trajectory
+
+FORMAT = "crane-planner-library"
+FORMAT_VERSION = 1
+MAX_STR = 64  # bytes, fixed-length strings of the index table
+
+_STR = h5py.string_dtype("utf-8", MAX_STR)
+INDEX_DTYPE = np.dtype([("id", _STR), ("start", "<f8", (3,)), ("goal", "<f8", (3,)),
+                        ("objective", _STR), ("method", _STR), ("status", _STR),
+                        ("duration_s", "<f8"), ("energy_J", "<f8"), ("robustness", "<f8")])
+TRAJ_CHANNELS = ("t", "q", "qd", "qdd", "u")
+HYD_CHANNELS = ("x", "xd", "p_a", "p_b", "q_pump", "power")
+UNITS = dict(t="s", q="rad|m", qd="rad/s|m/s", qdd="rad/s^2|m/s^2", u="1 (valve command, -1..1)",
+             x="m", xd="m/s", p_a="Pa", p_b="Pa", q_pump="m^3/s", power="W")
+RESERVED_ATTRS = {"method", "objective", "status", "reason", "solver_stats", "provenance",
+                  "joint_names", "interpolation", "limits", "evaluation"}
+
+
+class StoreError(ValueError):
+    """A library file that cannot be used (foreign, corrupt, newer, other crane) or a bad call."""
+
+
+def _planner_version() -> str:
+    from . import __version__
+    return __version__
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def _s(v) -> str:
+    """h5py attribute / fixed-length field -> str."""
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace").rstrip("\x00")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        return _s(v[()])
+    return str(v)
+
+
+def _check_text(what: str, value: str, allow_empty=False) -> str:
+    if not isinstance(value, str):
+        raise StoreError(f"{what} must be a string, got {type(value).__name__}")
+    n = len(value.encode("utf-8"))
+    if n > MAX_STR or (n == 0 and not allow_empty):
+        raise StoreError(f"{what} = {value!r}: must be 1..{MAX_STR} bytes (UTF-8), has {n}")
+    return value
+
+
+def _check_id(entry_id: str) -> str:
+    _check_text("entry id", entry_id)
+    if ("/" in entry_id or entry_id in (".", "..") or entry_id != entry_id.strip()
+            or any(ord(c) < 32 or ord(c) == 127 for c in entry_id)):
+        raise StoreError(f"entry id {entry_id!r}: no '/', no control characters, no leading or "
+                         "trailing blanks, not '.' or '..'")
+    return entry_id
+
+
+def _tip3(what: str, p) -> np.ndarray:
+    a = np.asarray(p, dtype=float).ravel()
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise StoreError(f"{what} must be 3 finite numbers (r, z, slew), got {p!r}")
+    return a
+
+
+def _cart(p: np.ndarray) -> np.ndarray:
+    """(…, 3) tips (r, z, slew) -> Cartesian (x, y, z)."""
+    r, z, s = p[..., 0], p[..., 1], p[..., 2]
+    return np.stack([r * np.cos(s), r * np.sin(s), z], axis=-1)
+
+
+def _on_grid(ev_t, t, a):
+    """Evaluation array ``a`` (on ev_t) at the times t: exact pick, else linear interpolation."""
+    a = np.asarray(a, dtype=float)
+    k = np.clip(np.searchsorted(ev_t, t), 0, len(ev_t) - 1)
+    if np.array_equal(ev_t[k], t):
+        return a[k]
+    if a.ndim == 1:
+        return np.interp(t, ev_t, a)
+    return np.column_stack([np.interp(t, ev_t, a[:, j]) for j in range(a.shape[1])])
+
+
+class LibraryStore:
+    """One library file. Use :meth:`create` or :meth:`open`; a context manager closes it.
+
+    Writer API: :meth:`add` (one call per finished entry). Reader API: :meth:`has`, :meth:`ids`,
+    :meth:`index_rows`, :meth:`trajectory`, :meth:`entry`, :meth:`info`, :meth:`nearest`."""
+
+    def __init__(self, f: h5py.File, path: Path, mode: str):
+        self._f = f
+        self.path = path
+        self.mode = mode
+        self.cleaned = 0  # unfinished entry groups removed on open (mode "a")
+        # gzip (deflate 4) + shuffle for new datasets: ~35 % smaller files, ~2x slower writes
+        # (the samples are noisy floats); off by default. MATLAB reads either.
+        self.compress = False
+        self.crane_id = _s(f.attrs["crane_id"])
+        self.format_version = int(f.attrs["format_version"])
+        self._load_index()
+
+    # ------------------------------------------------------------------ opening
+    @classmethod
+    def create(cls, path, spec, *, overwrite: bool = False,
+               compress: bool = False) -> "LibraryStore":
+        """New library file for the crane ``spec`` (a CraneSpec). Refuses to replace an existing
+        file unless ``overwrite``. ``compress``: gzip the entry datasets."""
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path}: library file exists already (open it with mode 'a' "
+                                  "to resume, or pass overwrite=True)")
+        if not getattr(spec, "id", ""):
+            raise StoreError(f"{path}: a crane spec with an id is needed to create a library")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        f = h5py.File(path, "w")
+        try:
+            f.attrs["format"] = FORMAT
+            f.attrs["format_version"] = np.int64(FORMAT_VERSION)
+            f.attrs["crane_id"] = spec.id
+            f.attrs["created"] = _now()
+            f.attrs["planner_version"] = _planner_version()
+            f.attrs["joint_names"] = list(spec.joint_names)
+            f.create_dataset("spec_toml", data=spec.text or "",
+                             dtype=h5py.string_dtype("utf-8"))
+            f.create_dataset("index", shape=(0,), maxshape=(None,), dtype=INDEX_DTYPE,
+                             chunks=(256,))
+            f.create_group("entries")
+            f.flush()
+            db = cls(f, path, "a")
+            db.compress = compress
+            return db
+        except BaseException:
+            f.close()
+            raise
+
+    @classmethod
+    def open(cls, path, mode: str = "r", spec=None, *, compress: bool = False) -> "LibraryStore":
+        """Open an existing library: mode "r" (read) or "a" (append; removes unfinished entry
+        groups). With ``spec``, refuse a library of another crane. ``compress``: gzip the
+        datasets of entries added from now on."""
+        if mode not in ("r", "a"):
+            raise StoreError(f"LibraryStore.open: mode must be 'r' or 'a', got {mode!r}")
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such library file")
+        if not h5py.is_hdf5(path):
+            with open(path, "rb") as fh:
+                head = fh.read(16)
+            raise StoreError(f"{path}: not an HDF5 file (first bytes {head!r}); expected a "
+                             f"'{FORMAT}' library")
+        try:
+            f = h5py.File(path, mode)
+        except OSError as e:
+            raise StoreError(f"{path}: cannot open the HDF5 file ({e})") from e
+        try:
+            cls._check_format(f, path)
+            if spec is not None and _s(f.attrs["crane_id"]) != spec.id:
+                raise StoreError(f"{path}: library is for crane '{_s(f.attrs['crane_id'])}', "
+                                 f"not '{spec.id}'")
+            db = cls(f, path, mode)
+            db.compress = compress
+            if mode == "a":
+                db.cleaned = db._clean_unfinished()
+            return db
+        except BaseException:
+            f.close()
+            raise
+
+    @staticmethod
+    def _check_format(f: h5py.File, path: Path):
+        fmt = f.attrs.get("format")
+        if fmt is None:
+            raise StoreError(f"{path}: HDF5 file without the root attribute format = '{FORMAT}' "
+                             f"(root attributes: {sorted(f.attrs.keys())}); not a library")
+        if _s(fmt) != FORMAT:
+            raise StoreError(f"{path}: root attribute format = {_s(fmt)!r}, expected '{FORMAT}'")
+        try:
+            ver = int(f.attrs["format_version"])
+        except (KeyError, TypeError, ValueError):
+            raise StoreError(f"{path}: missing or invalid root attribute format_version "
+                             f"({f.attrs.get('format_version')!r})") from None
+        if ver > FORMAT_VERSION:
+            raise StoreError(f"{path}: format_version {ver} is newer than this planner reads "
+                             f"({FORMAT_VERSION}); update crane-planner")
+        missing = [k for k in ("crane_id",) if k not in f.attrs] + \
+                  [k for k in ("index", "entries", "spec_toml") if k not in f]
+        if missing:
+            raise StoreError(f"{path}: corrupt library, missing {', '.join(missing)}")
+        if f["index"].dtype.names is None or "id" not in f["index"].dtype.names:
+            raise StoreError(f"{path}: corrupt library, 'index' is not the index table "
+                             f"(dtype {f['index'].dtype})")
+
+    def _load_index(self):
+        rows = self._f["index"][()]
+        self._ids = [_s(x) for x in rows["id"]]
+        self._idset = set(self._ids)
+
+    def _clean_unfinished(self) -> int:
+        ent = self._f["entries"]
+        stale = [k for k in ent.keys() if k not in self._idset]
+        for k in stale:
+            del ent[k]
+        if stale:
+            self._f.flush()
+        return len(stale)
+
+    def close(self):
+        if self._f is not None and self._f.id.valid:
+            self._f.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def __repr__(self):
+        return (f"LibraryStore({str(self.path)!r}, crane={self.crane_id!r}, "
+                f"entries={len(self._ids)})")
+
+    def __len__(self):
+        return len(self._ids)
+
+    def __contains__(self, entry_id):
+        return entry_id in self._idset
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def spec_toml(self) -> str:
+        return _s(self._f["spec_toml"][()])
+
+    @property
+    def attrs(self) -> dict:
+        return {k: (_s(v) if isinstance(v, (bytes, str)) else v) for k, v in self._f.attrs.items()}
+
+    def has(self, entry_id: str) -> bool:
+        return entry_id in self._idset
+
+    def ids(self) -> list[str]:
+        """Ids of finished entries, in the order they were added."""
+        return list(self._ids)
+
+    # ------------------------------------------------------------------ writing
+    def add(self, entry_id: str, traj: Trajectory | None, *, start, goal, objective: str,
+            method: str, status: str, reason: str = "", evaluation=None,
+            robustness: float = math.nan, attrs: dict | None = None) -> None:
+        """Store one finished entry (crash-safe: group first, then its index row).
+
+        ``traj`` is required for status "ok" and optional otherwise (a failed entry is just an
+        index row and a group with attributes). ``evaluation`` (evaluate(crane, traj)) adds the
+        derived channels and energy_J; ``attrs`` are extra group attributes (str / numbers stored
+        as such, anything else as JSON)."""
+        if self.mode != "a":
+            raise StoreError(f"{self.path}: opened read-only; open with mode 'a' to add entries")
+        _check_id(entry_id)
+        if entry_id in self._idset:
+            raise StoreError(f"{self.path}: entry '{entry_id}' exists already (ids are unique)")
+        start, goal = _tip3("start", start), _tip3("goal", goal)
+        for k, v in (("objective", objective), ("method", method), ("status", status)):
+            _check_text(k, v, allow_empty=(k != "status"))
+        if status == "ok" and traj is None:
+            raise StoreError(f"entry '{entry_id}': status 'ok' needs a trajectory")
+        if evaluation is not None and traj is None:
+            raise StoreError(f"entry '{entry_id}': an evaluation needs its trajectory")
+        bad = sorted(RESERVED_ATTRS & set(attrs or {}))
+        if bad:
+            raise StoreError(f"entry '{entry_id}': attrs may not override {bad}")
+        if entry_id in self._f["entries"]:  # leftover of an unfinished write in this session
+            del self._f["entries"][entry_id]
+        try:
+            self._write_group(entry_id, traj, objective=objective, method=method, status=status,
+                              reason=reason, evaluation=evaluation, attrs=attrs)
+            self._f.flush()
+        except BaseException:
+            if entry_id in self._f["entries"]:
+                del self._f["entries"][entry_id]
+            raise
+        duration = traj.duration if traj is not None else math.nan
+        energy = float(evaluation.energy_J) if evaluation is not None else math.nan
+        row = np.zeros((), dtype=INDEX_DTYPE)
+        row["id"], row["start"], row["goal"] = entry_id.encode(), start, goal
+        row["objective"], row["method"], row["status"] = (objective.encode(), method.encode(),
+                                                          status.encode())
+        row["duration_s"], row["energy_J"] = duration, energy
+        row["robustness"] = float(robustness) if robustness is not None else math.nan
+        self._append_row(row)
+
+    def _write_group(self, entry_id, traj, *, objective, method, status, reason, evaluation,
+                     attrs):
+        """Write the complete entry group (no index row: on its own this is an unfinished write)."""
+        g = self._f["entries"].create_group(entry_id)
+        a = g.attrs
+        a["method"], a["objective"], a["status"], a["reason"] = method, objective, status, reason
+        a["provenance"] = json.dumps(dict(crane_id=self.crane_id,
+                                          planner_version=_planner_version(), date=_now()))
+        if traj is not None:
+            a["joint_names"] = list(traj.joint_names)
+            a["interpolation"] = traj.interpolation
+            a["limits"] = json.dumps(list(traj.limits))
+            a["solver_stats"] = dumps(traj.meta or {})
+            for name in TRAJ_CHANNELS:
+                arr = getattr(traj, name)
+                if arr is not None:
+                    self._dataset(g, name, arr)
+            if evaluation is not None:
+                ev_t = np.asarray(evaluation.t, float)
+                if ev_t[0] > traj.t[0] + 1e-9 or ev_t[-1] < traj.t[-1] - 1e-9:
+                    raise StoreError(f"entry '{entry_id}': evaluation covers t = [{ev_t[0]}, "
+                                     f"{ev_t[-1]}], trajectory [{traj.t[0]}, {traj.t[-1]}]")
+                qe = _on_grid(ev_t, traj.t, evaluation.q)
+                if qe.shape != traj.q.shape or not np.allclose(qe, traj.q, rtol=0, atol=1e-6):
+                    raise StoreError(f"entry '{entry_id}': the evaluation is not of this "
+                                     "trajectory (positions differ)")
+                for name in HYD_CHANNELS:
+                    if name in evaluation.hyd:
+                        self._dataset(g, name, _on_grid(ev_t, traj.t, evaluation.hyd[name]))
+                a["evaluation"] = dumps(evaluation.summary())
+            for name in g:
+                g[name].attrs["units"] = UNITS.get(name, "")
+        else:
+            a["solver_stats"] = "{}"
+        for k, v in (attrs or {}).items():
+            if isinstance(v, (str, bool, int, float, np.integer, np.floating)):
+                a[k] = v
+            else:
+                a[k] = dumps(v)
+
+    def _dataset(self, g, name, data):
+        data = np.asarray(data, dtype=float)
+        kw = dict(compression="gzip", compression_opts=4, shuffle=True) \
+            if self.compress and data.size >= 64 else {}
+        g.create_dataset(name, data=data, **kw)
+
+    def _append_row(self, row):
+        ds = self._f["index"]
+        n = ds.shape[0]
+        ds.resize((n + 1,))
+        ds[n] = row
+        self._f.flush()
+        eid = _s(row["id"])
+        self._ids.append(eid)
+        self._idset.add(eid)
+
+    # ------------------------------------------------------------------ reading
+    def _index_array(self) -> np.ndarray:
+        return self._f["index"][()]
+
+    def index_rows(self) -> list[dict]:
+        """One dict per finished entry: id, start, goal (tuples r, z, slew), objective, method,
+        status, duration_s, energy_J, robustness (NaN when not available)."""
+        out = []
+        for r in self._index_array():
+            out.append(dict(id=_s(r["id"]), start=tuple(float(v) for v in r["start"]),
+                            goal=tuple(float(v) for v in r["goal"]), objective=_s(r["objective"]),
+                            method=_s(r["method"]), status=_s(r["status"]),
+                            duration_s=float(r["duration_s"]), energy_J=float(r["energy_J"]),
+                            robustness=float(r["robustness"])))
+        return out
+
+    def _group(self, entry_id):
+        if entry_id not in self._idset:
+            raise KeyError(f"{self.path}: no entry '{entry_id}' ({len(self._ids)} entries)")
+        try:
+            return self._f["entries"][entry_id]
+        except KeyError:
+            raise StoreError(f"{self.path}: corrupt library, index row '{entry_id}' has no "
+                             "group") from None
+
+    def entry_attrs(self, entry_id: str) -> dict:
+        """The entry group's attributes (JSON attributes decoded)."""
+        out = {}
+        for k, v in self._group(entry_id).attrs.items():
+            if isinstance(v, bytes):
+                v = _s(v)
+            elif isinstance(v, np.ndarray):
+                v = [_s(x) for x in v] if v.dtype.kind in "OSU" else v.tolist()
+            elif isinstance(v, np.generic):
+                v = v.item()
+            if k in ("solver_stats", "provenance", "limits", "evaluation") and isinstance(v, str):
+                try:
+                    v = json.loads(v)
+                except ValueError:
+                    pass
+            out[k] = v
+        return out
+
+    def entry(self, entry_id: str) -> dict:
+        """All datasets (arrays) and attributes of an entry: {'attrs': {...}, 't': ..., ...}."""
+        g = self._group(entry_id)
+        out = {name: g[name][()] for name in g}
+        out["attrs"] = self.entry_attrs(entry_id)
+        return out
+
+    def trajectory(self, entry_id: str) -> Trajectory:
+        """The stored Trajectory (raises KeyError for unknown ids, StoreError when the entry has
+        no trajectory, e.g. a failed one)."""
+        g = self._group(entry_id)
+        if "t" not in g:
+            raise StoreError(f"{self.path}: entry '{entry_id}' has no trajectory (status "
+                             f"'{_s(g.attrs.get('status', ''))}': {_s(g.attrs.get('reason', ''))})")
+        a = self.entry_attrs(entry_id)
+        limits = tuple(k for k in a.get("limits", LIMIT_KINDS) if k in LIMIT_KINDS)
+        meta = a.get("solver_stats", {})
+        return Trajectory(t=g["t"][()], q=g["q"][()], qd=g["qd"][()], qdd=g["qdd"][()],
+                          u=g["u"][()] if "u" in g else None,
+                          joint_names=tuple(a.get("joint_names", ())),
+                          method=a.get("method", ""), objective=a.get("objective", ""),
+                          interpolation=a.get("interpolation", "quintic"), limits=limits,
+                          meta=meta if isinstance(meta, dict) else {})
+
+    def info(self) -> dict:
+        """Summary: entry counts (total, ok, failures by status, by objective and method) and
+        min / mean / max of duration_s, energy_J and robustness over the "ok" entries."""
+        rows = self.index_rows()
+        ok = [r for r in rows if r["status"] == "ok"]
+        failures: dict[str, int] = {}
+        for r in rows:
+            if r["status"] != "ok":
+                failures[r["status"]] = failures.get(r["status"], 0) + 1
+
+        def stats(key):
+            v = np.array([r[key] for r in ok], float)
+            v = v[np.isfinite(v)]
+            if v.size == 0:
+                return dict(n=0, min=None, mean=None, max=None, total=None)
+            return dict(n=int(v.size), min=float(v.min()), mean=float(v.mean()),
+                        max=float(v.max()), total=float(v.sum()))
+
+        def count(key):
+            out: dict[str, int] = {}
+            for r in rows:
+                out[r[key]] = out.get(r[key], 0) + 1
+            return out
+        a = self.attrs
+        return dict(file=str(self.path), format=a.get("format"),
+                    format_version=self.format_version, crane_id=self.crane_id,
+                    created=a.get("created"), planner_version=a.get("planner_version"),
+                    entries=len(rows), ok=len(ok), failures=failures,
+                    by_objective=count("objective"), by_method=count("method"),
+                    duration_s=stats("duration_s"), energy_J=stats("energy_J"),
+                    robustness=stats("robustness"), cleaned=self.cleaned)
+
+    def nearest(self, start, goal, objective: str | None = None) -> tuple[str, float]:
+        """The "ok" entry (of ``objective``, if given) whose start and goal tips are nearest:
+        distance = |start - start_e| + |goal - goal_e| in Cartesian space [m]. Returns
+        (entry_id, distance_m); LookupError when there is no candidate."""
+        s, g = _cart(_tip3("start", start)), _cart(_tip3("goal", goal))
+        idx = self._index_array()
+        if idx.size == 0:
+            raise LookupError(f"{self.path}: the library has no entries")
+        status = np.array([_s(x) for x in idx["status"]])
+        mask = status == "ok"
+        if objective is not None:
+            mask &= np.array([_s(x) for x in idx["objective"]]) == objective
+        if not mask.any():
+            what = f" with objective '{objective}'" if objective is not None else ""
+            raise LookupError(f"{self.path}: no 'ok' entries{what}")
+        d = (np.linalg.norm(_cart(idx["start"][mask]) - s, axis=1)
+             + np.linalg.norm(_cart(idx["goal"][mask]) - g, axis=1))
+        k = int(np.argmin(d))
+        return _s(idx["id"][mask][k]), float(d[k])
+
+
+# ----------------------------------------------------------------------------- export
+INDEX_CSV_COLUMNS = ("id", "file", "start_r", "start_z", "start_slew", "goal_r", "goal_z",
+                     "goal_slew", "objective", "method", "status", "duration_s", "energy_J",
+                     "robustness", "reason")
+
+
+def _unique(name: str, used: set, maxlen: int) -> str:
+    base, k = name[:maxlen], 1
+    out = base
+    while out.lower() in used:  # case-insensitive: file names on macOS / Windows
+        k += 1
+        suffix = f"_{k}"
+        out = base[:maxlen - len(suffix)] + suffix
+    used.add(out.lower())
+    return out
+
+
+def _file_stem(entry_id: str, used: set) -> str:
+    stem = re.sub(r"[^A-Za-z0-9_.+-]", "_", entry_id).lstrip(".") or "entry"
+    if stem.lower() == "index":
+        stem = "entry_index"
+    return _unique(stem, used, 100)
+
+
+def matlab_name(entry_id: str, used: set) -> str:
+    """A valid, unique MATLAB identifier (letter first, [A-Za-z0-9_], <= 63 chars) for an id."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", entry_id)
+    if not name or not name[0].isalpha():
+        name = "e_" + name
+    return _unique(name, used, 63)
+
+
+def _jsonable(o):
+    """Plain JSON types; non-finite floats -> None (strict JSON)."""
+    if isinstance(o, np.ndarray):
+        if o.dtype.kind == "f" and not np.all(np.isfinite(o)):
+            return _jsonable(o.astype(object))
+        if o.dtype.kind in "fiub":
+            return o.tolist()
+        return [_jsonable(v) for v in o.tolist()]
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, bytes):
+        return _s(o)
+    if o is None or isinstance(o, (str, int, float, bool)):
+        return o
+    return str(o)
+
+
+def _fmt(v: float) -> str:
+    return "" if not math.isfinite(v) else f"{v:.10g}"
+
+
+def export(db_path, out_dir, fmt: str) -> list[Path]:
+    """Export a library: fmt "csv" (one trajectory CSV per entry with a trajectory, per the
+    trajectory-CSV contract, plus index.csv), "mat" (library.mat: struct ``entries`` with one
+    field per entry, struct ``index``, ``crane_id``, ``spec_toml``) or "json" (library.json:
+    index rows and entries as lists). Every file is written atomically. Returns the paths."""
+    if fmt not in ("csv", "mat", "json"):
+        raise StoreError(f"export format must be 'csv', 'mat' or 'json', got {fmt!r}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    with LibraryStore.open(db_path, "r") as db:
+        rows = db.index_rows()
+        reasons = {r["id"]: db.entry_attrs(r["id"]).get("reason", "") for r in rows}
+        if fmt == "csv":
+            used: set = set()
+            files = {}
+            for r in rows:
+                g = db._group(r["id"])
+                if "t" not in g:
+                    files[r["id"]] = ""
+                    continue
+                name = _file_stem(r["id"], used) + ".csv"
+                p = out_dir / name
+                db.trajectory(r["id"]).to_csv(p)
+                files[r["id"]] = name
+                written.append(p)
+            buf = _io.StringIO()
+            w = csv.writer(buf, lineterminator="\n")
+            w.writerow(INDEX_CSV_COLUMNS)
+            for r in rows:
+                w.writerow([r["id"], files[r["id"]], *(_fmt(v) for v in r["start"]),
+                            *(_fmt(v) for v in r["goal"]), r["objective"], r["method"],
+                            r["status"], _fmt(r["duration_s"]), _fmt(r["energy_J"]),
+                            _fmt(r["robustness"]), reasons[r["id"]]])
+            p = out_dir / "index.csv"
+            atomic_write_text(p, buf.getvalue())
+            written.append(p)
+        elif fmt == "mat":
+            from scipy.io import savemat
+            used = set()
+            entries, names = {}, []
+            for r in rows:
+                e = db.entry(r["id"])
+                a = e.pop("attrs")
+                name = matlab_name(r["id"], used)
+                names.append(name)
+                s = {k: np.asarray(v, float) for k, v in e.items()}
+                s.update(id=r["id"], status=r["status"], method=r["method"],
+                         objective=r["objective"], reason=str(a.get("reason", "")),
+                         joint_names=np.array(list(a.get("joint_names", [])), dtype=object),
+                         solver_stats=json.dumps(a.get("solver_stats", {}), default=str),
+                         provenance=json.dumps(a.get("provenance", {})))
+                entries[name] = s
+            n = len(rows)
+            index = dict(
+                id=np.array([r["id"] for r in rows], dtype=object).reshape(n, 1),
+                field=np.array(names, dtype=object).reshape(n, 1),
+                start=np.array([r["start"] for r in rows], float).reshape(n, 3),
+                goal=np.array([r["goal"] for r in rows], float).reshape(n, 3),
+                objective=np.array([r["objective"] for r in rows], dtype=object).reshape(n, 1),
+                method=np.array([r["method"] for r in rows], dtype=object).reshape(n, 1),
+                status=np.array([r["status"] for r in rows], dtype=object).reshape(n, 1),
+                duration_s=np.array([r["duration_s"] for r in rows], float).reshape(n, 1),
+                energy_J=np.array([r["energy_J"] for r in rows], float).reshape(n, 1),
+                robustness=np.array([r["robustness"] for r in rows], float).reshape(n, 1))
+            buf = _io.BytesIO()
+            savemat(buf, dict(crane_id=db.crane_id, spec_toml=db.spec_toml, index=index,
+                              entries=entries), long_field_names=True, do_compression=True,
+                    oned_as="column")
+            p = out_dir / "library.mat"
+            atomic_write_bytes(p, buf.getvalue())
+            written.append(p)
+        else:
+            entries = []
+            for r in rows:
+                e = db.entry(r["id"])
+                a = e.pop("attrs")
+                d = dict(id=r["id"], **{k: v for k, v in a.items()})
+                d.update({k: np.asarray(v, float) for k, v in e.items()})
+                entries.append(d)
+            doc = dict(format=FORMAT, format_version=db.format_version, crane_id=db.crane_id,
+                       planner_version=db.attrs.get("planner_version"),
+                       index=[dict(r, reason=reasons[r["id"]]) for r in rows], entries=entries)
+            p = out_dir / "library.json"
+            # one pass, arrays via tolist(): planner.io.dumps round-trips the whole document
+            # three times, which is ~10x slower on large libraries
+            atomic_write_text(p, json.dumps(_jsonable(doc), allow_nan=False,
+                                            separators=(",", ":")) + "\n")
+            written.append(p)
+    return written

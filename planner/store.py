@@ -45,7 +45,6 @@ import csv
 import io as _io
 import json
 import math
-import os
 import re
 from datetime import datetime, timezone
 from pathlib import Path

@@ -10,7 +10,7 @@ from scipy.io import loadmat
 
 from planner import Crane
 from planner.methods.smoothing import rest_to_rest
-from planner.store import FORMAT, LibraryStore, StoreError, export
+from planner.store import LibraryStore, StoreError, export
 from planner.trajectory import evaluate
 
 

@@ -26,6 +26,8 @@ bench: install
 	$(BIN)/python benchmarks/bench_nlp.py
 	$(BIN)/python benchmarks/seed002_table.py
 	$(BIN)/python benchmarks/seed003_paths.py
+	$(BIN)/python benchmarks/seed003_nlp.py
+	cd benchmarks && ../$(BIN)/python bench_pareto.py
 
 clean:
 	rm -rf $(VENV) demo-output build *.egg-info

@@ -274,6 +274,44 @@ def cmd_simulate(args):
     return 0
 
 
+def cmd_library_info(args):
+    from .store import LibraryStore
+    with LibraryStore.open(args.library, "r") as db:
+        info = db.info()
+    _emit(args, info)
+    if not args.json:
+        d = info.get("duration_s") or {}
+        print(f"{args.library}: {info['entries']} entries ({info['ok']} ok), failures "
+              f"{info['failures'] or 'none'}; duration mean {d.get('mean', float('nan')):.3f} s")
+    return 0
+
+
+def cmd_library_query(args):
+    from .store import LibraryStore
+    with LibraryStore.open(args.library, "r") as db:
+        try:
+            eid, dist = db.nearest(args.start, args.goal, objective=args.objective)
+        except LookupError as e:
+            raise CLIError(str(e)) from None
+        row = next(r for r in db.index_rows() if r["id"] == eid)
+        if args.out:
+            db.trajectory(eid).to_csv(args.out)
+    _emit(args, dict(status="ok", id=eid, distance_m=dist, entry=row))
+    if not args.json:
+        print(f"nearest entry {eid} ({row['objective']}, {row['method']}): "
+              f"{dist:.3f} m from the request (start + goal), {row['duration_s']:.3f} s")
+    return 0
+
+
+def cmd_library_export(args):
+    from .store import export
+    files = export(args.library, args.out, args.format)
+    _emit(args, dict(status="ok", files=[str(f) for f in files]))
+    if not args.json:
+        print(f"{len(files)} file(s) written to {args.out}")
+    return 0
+
+
 def _method(text):
     reg = _law_registry()
     if text in ("dp", "topp", "ruckig", "nlp") or (text.startswith("law:") and text[4:] in reg):
@@ -396,6 +434,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")
     _json_arg(p)
     p.set_defaults(func=cmd_plan)
+    lib = sub.add_parser("library", help="trajectory databases (HDF5): info, query, export")
+    lsub = lib.add_subparsers(dest="what", required=True)
+    p = lsub.add_parser("info", help="entries, failures, time/energy statistics")
+    p.add_argument("library", metavar="LIB.h5")
+    _json_arg(p)
+    p.set_defaults(func=cmd_library_info)
+    p = lsub.add_parser("query", help="the entry nearest to a requested move")
+    p.add_argument("library", metavar="LIB.h5")
+    p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
+    p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
+    p.add_argument("--objective", help="only entries with this objective")
+    p.add_argument("--out", metavar="FILE.csv", help="write the entry's trajectory CSV")
+    _json_arg(p)
+    p.set_defaults(func=cmd_library_query)
+    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT or JSON")
+    p.add_argument("library", metavar="LIB.h5")
+    p.add_argument("--format", choices=("csv", "mat", "json"), required=True)
+    p.add_argument("--out", required=True, metavar="DIR")
+    _json_arg(p)
+    p.set_defaults(func=cmd_library_export)
     p = sub.add_parser("simulate", help="replay a trajectory open loop; write measured data")
     p.add_argument("crane")
     p.add_argument("--trajectory", required=True, metavar="FILE.csv|FILE.h5#ID")
@@ -420,7 +478,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         rc = args.func(args)
-    except (SpecError, UnreachableError, CLIError, ValueError) as e:
+    except (SpecError, UnreachableError, CLIError, ValueError, OSError) as e:
         print(f"crane-planner: error: {e}", file=sys.stderr)
         return 2
     except KeyError as e:

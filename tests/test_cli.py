@@ -239,3 +239,37 @@ def test_no_command_is_a_usage_error(capsys):
     with pytest.raises(SystemExit) as ei:
         main([])
     assert ei.value.code == 2
+
+
+def test_library_commands_on_a_small_database(tmp_path, capsys):
+    """library info / query / export and simulate FILE.h5#ID on a database made by the store."""
+    import json
+
+    from planner import Crane
+    from planner.methods.smoothing import rest_to_rest
+    from planner.store import LibraryStore
+    from planner.trajectory import evaluate
+    crane = Crane.from_id("umea-lab")
+    lib = tmp_path / "lib.h5"
+    moves = [((3.0, 1.8, 0.0), (2.5, 3.0, -0.5)), ((2.6, 2.2, 0.2), (3.4, 2.6, -0.3))]
+    with LibraryStore.create(lib, crane.spec) as db:
+        for i, (a, b) in enumerate(moves):
+            tr = rest_to_rest(crane, crane.ik(a, 0.5), crane.ik(b, 0.5)).trajectory
+            db.add(f"m{i}", tr, start=a, goal=b, objective="time", method="ruckig",
+                   status="ok", evaluation=evaluate(crane, tr))
+    assert main(["library", "info", str(lib), "--json", "-"]) == 0
+    assert json.loads(capsys.readouterr().out)["entries"] == 2
+    assert main(["library", "query", str(lib), "--start", "2.65,2.2,0.2",
+                 "--goal", "3.4,2.6,-0.3", "--json", "-"]) == 0
+    q = json.loads(capsys.readouterr().out)
+    assert q["id"] == "m1" and q["distance_m"] == pytest.approx(0.05, abs=1e-6)
+    assert main(["library", "export", str(lib), "--format", "csv",
+                 "--out", str(tmp_path / "x")]) == 0
+    assert (tmp_path / "x" / "index.csv").exists()
+    assert main(["simulate", "umea-lab", "--trajectory", f"{lib}#m0",
+                 "--out", str(tmp_path / "meas.csv")]) == 0
+    header = (tmp_path / "meas.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "t" and "q_boom" in header and "p_boom_a" in header
+    capsys.readouterr()
+    assert main(["library", "info", str(tmp_path / "missing.h5")]) == 2
+    assert "no such library file" in capsys.readouterr().err

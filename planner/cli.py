@@ -274,6 +274,21 @@ def cmd_simulate(args):
     return 0
 
 
+def cmd_library_build(args):
+    from .library import build
+    objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
+    summary = build(args.crane, args.tasks, args.out, objectives=objectives,
+                    workers=args.workers, scheduler=args.scheduler, limit=args.limit,
+                    N=args.intervals, robustness=not args.no_robustness,
+                    progress=not (args.json == "-"))
+    _emit(args, summary)
+    if not args.json:
+        print(f"{summary['library']}: planned {summary['planned']} entries "
+              f"({summary['statuses'] or 'none'}), {summary['skipped_existing']} already there, "
+              f"{summary['seconds']:.1f} s")
+    return 0
+
+
 def cmd_library_info(args):
     from .store import LibraryStore
     with LibraryStore.open(args.library, "r") as db:
@@ -436,6 +451,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_plan)
     lib = sub.add_parser("library", help="trajectory databases (HDF5): info, query, export")
     lsub = lib.add_subparsers(dest="what", required=True)
+    p = lsub.add_parser("build", help="plan every move of a task suite into LIB.h5 "
+                                      "(resumes an interrupted build)")
+    p.add_argument("crane")
+    p.add_argument("--tasks", required=True, help="task suite id or path (forwarder-cycle)")
+    p.add_argument("--out", required=True, metavar="LIB.h5")
+    p.add_argument("--objectives", default="time", help="comma list of time, energy (time)")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
+    p.add_argument("--limit", type=int, help="only the first N moves of the suite")
+    p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
+    p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
+    _json_arg(p)
+    p.set_defaults(func=cmd_library_build)
     p = lsub.add_parser("info", help="entries, failures, time/energy statistics")
     p.add_argument("library", metavar="LIB.h5")
     _json_arg(p)

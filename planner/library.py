@@ -1,0 +1,221 @@
+"""Build a library of ready-to-replay moves for a machine's work cycle.
+
+A task suite (problems/tasks/<name>.toml) expands to moves (id, start tip, goal tip). For every
+move and objective a worker plans the move (``time``: the minimum-time NLP; ``energy``: the
+least pump energy within 1.2 × the minimum time, :func:`~planner.methods.nlp.energy_optimal`),
+judges it with :func:`~planner.trajectory.evaluate`, attaches 50 Hz valve feed-forward, and
+scores its open-loop robustness (:func:`~planner.simulate.robustness`). The driver is the single
+writer of the HDF5 database (:mod:`planner.store`): entries are written one by one as results
+arrive, failures are stored with their status and reason, and a rerun of the same command
+skips the entries already in the file (a killed build resumes where it stopped).
+
+Executors: in-process (``workers=1``), local processes (``workers=N``), or a Dask cluster
+(``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N workers). Workers
+build each NLP once per process and reuse it for every move.
+"""
+from __future__ import annotations
+
+import time as _time
+import tomllib
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+
+
+from .spec import SpecError, parse_angle
+
+OBJECTIVES = ("time", "energy")
+ENERGY_BUDGET = 1.2  # energy entries: least energy within 1.2 × the minimum time
+
+
+@dataclass(frozen=True)
+class Move:
+    id: str
+    start: tuple
+    goal: tuple
+
+
+def suite_path(name: str) -> Path:
+    from problems import TASKS
+    p = Path(name)
+    if p.suffix == ".toml" and p.exists():
+        return p
+    p = TASKS / f"{name}.toml"
+    if not p.exists():
+        known = ", ".join(sorted(x.stem for x in TASKS.glob("*.toml")))
+        raise KeyError(f"unknown task suite '{name}'; known: {known} (or a path to a .toml)")
+    return p
+
+
+def load_suite(name: str) -> tuple[dict, list[Move]]:
+    """(suite table, moves) of a task suite: every pick-up × every drop (and back)."""
+    path = suite_path(name)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise SpecError(str(path), "<toml>", None, f"not valid TOML: {e}") from None
+
+    def points(key):
+        t = data.get(key)
+        if not isinstance(t, dict) or not {"r", "slew", "z"} <= set(t):
+            raise SpecError(str(path), key, t, "expected a table with r (list), slew (list), z")
+        try:
+            rs = [float(r) for r in t["r"]]
+            sl = [parse_angle(s) for s in t["slew"]]
+            z = float(t["z"])
+        except (TypeError, ValueError):
+            raise SpecError(str(path), key, t, "r and slew must be lists of numbers "
+                                               "(slew may be '30deg'), z a number") from None
+        return [(r, z, s) for s in sl for r in rs]
+    picks, drops = points("pickups"), points("drops")
+    both = bool(data.get("options", {}).get("both_directions", True))
+    moves = []
+    for i, p in enumerate(picks):
+        for j, d in enumerate(drops):
+            moves.append(Move(f"p{i:02d}-d{j:02d}", p, d))
+            if both:
+                moves.append(Move(f"d{j:02d}-p{i:02d}", d, p))
+    return data.get("suite", {}), moves
+
+
+# ------------------------------------------------------------------------------ worker side
+_NLP_CACHE: dict = {}
+
+
+def _nlp(crane, objective, N):
+    from .methods.nlp import MoveNLP
+    key = (crane.spec.id, objective, N)
+    if key not in _NLP_CACHE:  # built once per worker process, reused for every move
+        _NLP_CACHE[key] = MoveNLP(crane, objective, "free", N=N)
+    return _NLP_CACHE[key]
+
+
+def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
+               robustness: bool = True) -> dict:
+    """Plan one library entry (runs in a worker). Never raises for planning failures: they come
+    back as a status with a reason."""
+    from .feedforward import commands
+    from .methods.nlp import energy_optimal
+    from .model import Crane
+    from .trajectory import evaluate
+    t0 = _time.perf_counter()
+    out = dict(id=f"{move.id}:{objective}", start=move.start, goal=move.goal,
+               objective=objective, method="nlp")
+    try:
+        crane = Crane.from_id(crane_id)
+        rt = _nlp(crane, "time", N).solve(move.start, move.goal)
+        res = rt
+        if rt.ok and objective == "energy":
+            res, info = energy_optimal(crane, move.start, move.goal, ENERGY_BUDGET * rt.duration_s,
+                                       time_result=rt, energy_nlp=_nlp(crane, "energy", N))
+            out["energy_winner"] = info.get("winner")
+        if not res.ok:
+            return dict(out, status=res.status, reason=res.reason,
+                        solve_s=_time.perf_counter() - t0)
+        traj = res.trajectory
+        verdict = evaluate(crane, traj)  # the judge sees the plan itself
+        if verdict.max_limit_violation > 1e-3:
+            worst = max(verdict.violations, key=verdict.violations.get)
+            return dict(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
+                        f"{100 * verdict.max_limit_violation:.2f} %",
+                        solve_s=_time.perf_counter() - t0)
+        # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
+        # derived channels (strokes, pressures, pump) on those samples
+        traj_u = commands(crane, traj, 50.0).attach(traj)
+        ev = evaluate(crane, traj_u)
+        rob = float("nan")
+        if robustness:
+            from .simulate import robustness as robust
+            rob = float(robust(crane, traj_u)["score_m"])
+        return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
+                    robustness=rob, solve_s=_time.perf_counter() - t0,
+                    iterations=res.iterations)
+    except Exception as e:  # a failed move must never stop the build: record why
+        return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
+                    solve_s=_time.perf_counter() - t0)
+
+
+# ------------------------------------------------------------------------------ driver side
+def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int = 1,
+          scheduler: str | None = None, limit: int | None = None, N: int = 40,
+          robustness: bool = True, progress: bool = True) -> dict:
+    """Build (or resume) the library ``out`` (HDF5). Returns a summary dict."""
+    from tqdm import tqdm
+
+    from .model import Crane
+    from .store import LibraryStore
+    bad = [o for o in objectives if o not in OBJECTIVES]
+    if bad:
+        raise ValueError(f"objectives: unknown {bad}; allowed: {', '.join(OBJECTIVES)}")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    crane = Crane.from_id(crane_id)
+    meta, moves = load_suite(suite)
+    if limit is not None:
+        moves = moves[:limit]
+    out = Path(out)
+    db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
+          else LibraryStore.create(out, crane.spec))
+    t0 = _time.perf_counter()
+    with db:
+        done = set(db.ids())
+        todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
+        skipped = len(moves) * len(objectives) - len(todo)
+        bar = tqdm(total=len(todo), desc=f"library {crane.spec.id}", unit="entry",
+                   disable=not progress)
+        counts: dict = {}
+
+        def write(r):
+            traj = r.pop("trajectory", None)
+            ev = r.pop("evaluation", None)
+            db.add(r["id"], traj, start=r["start"], goal=r["goal"], objective=r["objective"],
+                   method=r["method"], status=r["status"], reason=r.get("reason", ""),
+                   evaluation=ev, robustness=r.get("robustness", float("nan")),
+                   attrs=dict(solve_s=r.get("solve_s"), suite=suite,
+                              energy_winner=r.get("energy_winner")))
+            counts[r["status"]] = counts.get(r["status"], 0) + 1
+            bar.update(1)
+
+        if scheduler:
+            _run_dask(scheduler, crane_id, todo, N, robustness, write)
+        elif workers == 1:
+            for m, o in todo:
+                write(plan_entry(crane_id, m, o, N, robustness))
+        else:
+            with ProcessPoolExecutor(max_workers=workers) as ex:
+                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness) for m, o in todo]
+                for f in as_completed(futs):
+                    write(f.result())
+        bar.close()
+        info = db.info()
+    return dict(status="ok", library=str(out), crane=crane.spec.id, suite=suite,
+                moves=len(moves), objectives=list(objectives), planned=len(todo),
+                skipped_existing=skipped, statuses=counts, seconds=_time.perf_counter() - t0,
+                info=info)
+
+
+def _run_dask(scheduler, crane_id, todo, N, robustness, write):
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed as dask_completed
+    except ImportError:
+        raise RuntimeError("a Dask scheduler needs the 'cluster' extra: "
+                           "pip install 'crane-planner[cluster]'") from None
+    cluster = None
+    if scheduler.startswith("local:"):
+        cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1,
+                               processes=True, dashboard_address=None)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler)
+    try:
+        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, pure=False)
+                for m, o in todo]
+        for f in dask_completed(futs):
+            write(f.result())
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+__all__ = ["Move", "load_suite", "plan_entry", "build", "OBJECTIVES"]

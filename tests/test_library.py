@@ -1,0 +1,100 @@
+"""Library build: suite expansion, resume, failures recorded, Dask, and kill-and-resume."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from planner import Crane
+from planner.library import build, load_suite
+from planner.store import LibraryStore
+from planner.trajectory import evaluate
+
+KW = dict(objectives=("time",), robustness=False, progress=False, N=20)
+
+
+def test_forwarder_cycle_suite_has_200_reachable_moves():
+    meta, moves = load_suite("forwarder-cycle")
+    assert len(moves) >= 200 and len({m.id for m in moves}) == len(moves)
+    crane = Crane.from_id(meta["crane"])
+    pts = np.array(sorted({m.start for m in moves} | {m.goal for m in moves}))
+    lo, hi = crane.tele_range
+    ok = [(crane.ik_batch(np.tile(p, (29, 1)), np.linspace(lo, hi, 29))[1] == "").any()
+          for p in pts]
+    assert all(ok)
+
+
+def test_build_then_resume_plans_only_the_missing_entries(tmp_path):
+    lib = tmp_path / "lib.h5"
+    s1 = build("s100f", "forwarder-cycle", lib, limit=2, **KW)
+    assert s1["planned"] == 2 and s1["statuses"] == {"ok": 2}
+    with LibraryStore.open(lib, "r") as db:
+        before = {r["id"]: r["duration_s"] for r in db.index_rows()}
+    s2 = build("s100f", "forwarder-cycle", lib, limit=3, **KW)
+    assert s2["planned"] == 1 and s2["skipped_existing"] == 2
+    crane = Crane.from_id("s100f")
+    with LibraryStore.open(lib, "r") as db:
+        rows = {r["id"]: r for r in db.index_rows()}
+        assert len(rows) == 3
+        for k, d in before.items():
+            assert rows[k]["duration_s"] == d       # finished entries untouched
+        for k in rows:                               # every stored move passes the judge
+            tr = db.trajectory(k)
+            assert tr.u is not None
+            assert evaluate(crane, tr, kinds=("position", "velocity")).ok()
+
+
+def test_failed_moves_are_stored_and_do_not_stop_the_build(tmp_path):
+    suite = tmp_path / "bad.toml"
+    suite.write_text('[suite]\nid = "bad"\ncrane = "s100f"\n'
+                     '[pickups]\nr = [5.0, 30.0]\nslew = [0.0]\nz = -1.0\n'
+                     '[drops]\nr = [2.0]\nslew = ["170deg"]\nz = 1.5\n'
+                     '[options]\nboth_directions = false\n')
+    lib = tmp_path / "lib.h5"
+    s = build("s100f", str(suite), lib, **KW)
+    assert s["planned"] == 2 and s["statuses"].get("ok") == 1
+    with LibraryStore.open(lib, "r") as db:
+        bad = [r for r in db.index_rows() if r["status"] != "ok"]
+        assert len(bad) == 1 and bad[0]["status"] == "unreachable"
+        assert "unreachable" in db.entry_attrs(bad[0]["id"])["reason"]
+
+
+def test_tiny_build_through_a_dask_local_cluster(tmp_path):
+    pytest.importorskip("dask.distributed")
+    lib = tmp_path / "lib.h5"
+    s = build("s100f", "forwarder-cycle", lib, limit=2, scheduler="local:2", **KW)
+    assert s["statuses"] == {"ok": 2}
+
+
+@pytest.mark.parametrize("kill_after", [2])
+def test_kill_and_resume_equals_a_clean_build(tmp_path, kill_after):
+    cmd = [sys.executable, "-m", "planner", "library", "build", "s100f", "--tasks",
+           "forwarder-cycle", "--limit", "6", "--no-robustness", "--intervals", "20"]
+    clean = tmp_path / "clean.h5"
+    subprocess.run(cmd + ["--out", str(clean)], check=True, capture_output=True)
+    killed = tmp_path / "killed.h5"
+    p = subprocess.Popen(cmd + ["--out", str(killed)], stderr=subprocess.PIPE,
+                         stdout=subprocess.DEVNULL)
+    buf, t0 = b"", time.time()
+    while f"{kill_after}/6".encode() not in buf and time.time() - t0 < 120:
+        chunk = os.read(p.stderr.fileno(), 256)
+        if not chunk:
+            break
+        buf += chunk
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    with LibraryStore.open(killed, "a") as db:   # cleans an entry in flight, if any
+        partial = len(db)
+    assert 1 <= partial < 6                      # it really was interrupted
+    subprocess.run(cmd + ["--out", str(killed)], check=True, capture_output=True)
+    with LibraryStore.open(clean, "r") as a, LibraryStore.open(killed, "r") as b:
+        ra = {r["id"]: r for r in a.index_rows()}
+        rb = {r["id"]: r for r in b.index_rows()}
+        assert set(ra) == set(rb) and len(rb) == 6   # no duplicates, nothing missing
+        for k in ra:
+            assert rb[k]["status"] == ra[k]["status"]
+            assert rb[k]["duration_s"] == pytest.approx(ra[k]["duration_s"], rel=1e-9)
+            np.testing.assert_allclose(b.trajectory(k).q, a.trajectory(k).q, atol=1e-9)

@@ -102,13 +102,8 @@ def cmd_bound(args):
 
 def _law_registry():
     from .methods.laws import LAWS
-    reg = dict(LAWS)
-    try:
-        from .methods import laws_energy
-        reg.update(getattr(laws_energy, "LAWS", {}))
-    except ImportError:
-        pass
-    return reg
+    from .methods.laws_energy import LAWS_ENERGY as ENERGY_LAWS
+    return {**LAWS, **ENERGY_LAWS}
 
 
 def cmd_plan(args):
@@ -157,11 +152,8 @@ def cmd_plan(args):
     elif args.path != "line":
         raise CLIError(f"--path {args.path}: {method} follows a tip path; use --path line "
                        "(free paths: --method ruckig)")
-    else:
-        path = Line(args.start, args.goal)
-    if method in ("ruckig", "nlp"):
-        pass
     elif method in ("dp", "topp"):
+        path = Line(args.start, args.goal)
         if method == "topp" and args.objective != "time":
             raise CLIError("--method topp retimes for minimum time (or a fixed --duration); "
                            "for energy use --method dp --objective energy")
@@ -174,6 +166,7 @@ def cmd_plan(args):
             res = retime(crane, res.path_q, duration=args.duration)
     else:
         from .methods.laws import follow
+        path = Line(args.start, args.goal)
         if args.objective != "time":
             raise CLIError(f"--objective {args.objective}: local laws follow the path at "
                            "--tip-speed; use --method dp for energy")

@@ -435,7 +435,7 @@ class LibraryStore:
                 try:
                     v = json.loads(v)
                 except ValueError:
-                    pass
+                    pass  # not JSON (written by hand or an older file): keep the text
             out[k] = v
         return out
 

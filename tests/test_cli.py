@@ -273,3 +273,16 @@ def test_library_commands_on_a_small_database(tmp_path, capsys):
     capsys.readouterr()
     assert main(["library", "info", str(tmp_path / "missing.h5")]) == 2
     assert "no such library file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("law", ["least_norm", "max_velocity", "max_lift", "jla", "q_optimal",
+                                 "p_optimal"])
+def test_every_law_plans_through_the_cli(law, capsys):
+    import json
+    crane = "cranab850" if law == "max_lift" else "s100f"
+    start, goal = ("5.5,1.0,0", "5.5,-1.0,0") if law == "max_lift" else ("7,0,0", "5,0,0")
+    assert main(["plan", crane, "--start", start, "--goal", goal, "--method", f"law:{law}",
+                 "--tip-speed", "0.5", "--json", "-"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["status"] == "ok" and out["method"] == f"law:{law}"
+    assert out["max_limit_violation"] <= 1e-3

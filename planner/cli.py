@@ -302,13 +302,56 @@ def cmd_library_query(args):
         except LookupError as e:
             raise CLIError(str(e)) from None
         row = next(r for r in db.index_rows() if r["id"] == eid)
-        if args.out:
-            db.trajectory(eid).to_csv(args.out)
-    _emit(args, dict(status="ok", id=eid, distance_m=dist, entry=row))
+        traj = db.trajectory(eid)
+        spec_toml = db.spec_toml
+    result = dict(status="ok", id=eid, distance_m=dist, entry=row)
+    if args.q_from:
+        traj, join_s = _join_from(spec_toml, args.q_from, traj)
+        result["join_duration_s"] = join_s
+    if args.out:
+        traj.to_csv(args.out)
+    _emit(args, result)
     if not args.json:
         print(f"nearest entry {eid} ({row['objective']}, {row['method']}): "
-              f"{dist:.3f} m from the request (start + goal), {row['duration_s']:.3f} s")
+              f"{dist:.3f} m from the request (start + goal), {row['duration_s']:.3f} s"
+              + (f"; joined from the current state in {result['join_duration_s']:.3f} s"
+                 if args.q_from else ""))
     return 0
+
+
+def _join_from(spec_toml, text, traj):
+    """Prepend a Ruckig rest-to-rest join from the joint state ``text`` (comma list; angles
+    may be '30deg') to the entry's start. Returns (joined trajectory, join duration [s])."""
+    import tomllib
+
+    import numpy as np
+
+    from .methods.smoothing import rest_to_rest
+    from .model import Crane
+    from .spec import parse_spec
+    from .trajectory import Trajectory
+    crane = Crane(parse_spec(tomllib.loads(spec_toml), "<library spec>"))
+    try:
+        q = np.array([parse_angle(v) for v in text.split(",")], float)
+    except ValueError:
+        raise CLIError(f"--from {text!r}: expected {crane.n} joint values "
+                       f"({', '.join(crane.names)})") from None
+    if q.shape != (crane.n,):
+        raise CLIError(f"--from needs {crane.n} joint values ({', '.join(crane.names)}), "
+                       f"got {q.size}")
+    j = rest_to_rest(crane, q, traj.q[0])
+    if not j.ok:
+        raise CLIError(f"--from: {j.reason}")
+    a, b = j.trajectory, traj
+    t = np.concatenate([a.t, a.t[-1] + b.t[1:]])
+    def cat(x, y):
+        return np.vstack([x, y[1:]])
+    joined = Trajectory(t, cat(a.q, b.q), cat(a.qd, b.qd), cat(a.qdd, b.qdd),
+                        joint_names=b.joint_names, method=f"ruckig+{b.method}",
+                        objective=b.objective)
+    # valve feed-forward for the whole joined move at the control rate (50 Hz)
+    from .feedforward import commands
+    return commands(crane, joined, 50.0).attach(joined), float(a.duration)
 
 
 def cmd_library_export(args):
@@ -467,6 +510,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--objective", help="only entries with this objective")
+    p.add_argument("--from", dest="q_from", metavar="q1,q2,...",
+                   help="current joint configuration: prepend a Ruckig rest-to-rest join to "
+                        "the entry's start (angles may be written 30deg)")
     p.add_argument("--out", metavar="FILE.csv", help="write the entry's trajectory CSV")
     _json_arg(p)
     p.set_defaults(func=cmd_library_query)

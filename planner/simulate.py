@@ -398,7 +398,8 @@ def default_perturbations(crane, angle=math.radians(1.0), length=0.02, gain=0.02
                           pump=0.10) -> dict:
     """Seed 003's lesson as a default set: initial mismatch ±``angle`` on each revolute joint
     and ±``length`` on each prismatic one, flow-gain error ±``gain`` on every valve, pump flow
-    −``pump``. Returns name -> :class:`Plant`."""
+    −``pump``, and every mismatch combined with each gain error (the drift of a replay with
+    both adds up). Returns name -> :class:`Plant`."""
     out = {}
     for i, j in enumerate(crane.spec.joints):
         for sgn in (1, -1):
@@ -407,9 +408,14 @@ def default_perturbations(crane, angle=math.radians(1.0), length=0.02, gain=0.02
             lab = (f"{sgn * math.degrees(angle):+g}deg" if j.revolute
                    else f"{sgn * 100 * length:+g}cm")
             out[f"q0:{j.name}{lab}"] = Plant(q0_offset=off)
+    singles = dict(out)
     out[f"gain+{100 * gain:g}%"] = Plant(flow_gain_scale=1 + gain)
     out[f"gain-{100 * gain:g}%"] = Plant(flow_gain_scale=1 - gain)
     out[f"pump-{100 * pump:g}%"] = Plant(pump_flow_scale=1 - pump)
+    for name, p in singles.items():
+        for sgn in (1, -1):
+            out[f"{name}&gain{sgn * 100 * gain:+g}%"] = Plant(q0_offset=p.q0_offset,
+                                                            flow_gain_scale=1 + sgn * gain)
     return out
 
 

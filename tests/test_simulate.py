@@ -348,7 +348,7 @@ def test_robustness_envelopes(s100f):
     r = robustness(s100f, traj, series=True)
     json.dumps(r)
     names = set(default_perturbations(s100f))
-    assert set(r["perturbations"]) == names and len(names) == 2 * s100f.n + 3
+    assert set(r["perturbations"]) == names and len(names) == 2 * s100f.n + 3 + 4 * s100f.n
     for v in r["perturbations"].values():
         assert math.isfinite(v["max_tip_error_m"]) and math.isfinite(v["final_tip_error_m"])
         assert v["final_tip_error_m"] <= v["max_tip_error_m"] + 1e-15

@@ -219,7 +219,7 @@ def machine_facts():
                     cpu = line.split(":", 1)[1].strip()
                     break
     except OSError:
-        pass
+        pass  # no /proc/cpuinfo (not Linux): the CPU model stays unknown
     return dict(platform=platform.platform(), python=platform.python_version(),
                 python_implementation=platform.python_implementation(), cpu=cpu,
                 cpu_count=os.cpu_count(), casadi=casadi.__version__, numpy=np.__version__,

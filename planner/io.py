@@ -37,7 +37,7 @@ def _atomic(path, writer) -> None:
         try:
             os.unlink(tmp)
         except OSError:
-            pass
+            pass  # the temporary file is already gone: nothing left to clean
         raise
 
 

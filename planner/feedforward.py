@@ -155,20 +155,36 @@ class FeedForward:
         """True when no command had to be clipped."""
         return not self.saturated
 
-    def attach(self, traj: Trajectory) -> Trajectory:
+    def attach(self, traj: Trajectory, knots: bool = False) -> Trajectory:
         """``traj`` resampled on the control grid, with ``u`` set (ready for ``to_csv``).
 
         Control instants past the trajectory's end (the grid is uniform, so the last one may
-        overshoot by less than a period) hold its final state."""
-        q, qd, qdd, _ = traj.sample(self.t)
+        overshoot by less than a period) hold its final state. ``knots=True`` also keeps the
+        trajectory's own sample times (e.g. an NLP's nodes, where its jerk switches): the
+        quintic interpolation through the result then reproduces ``traj`` exactly (a 50 Hz
+        resampling alone can overshoot the jerk limit by ~20 % where a switch falls inside a
+        period); the rows between control instants carry the command held over that period, so
+        a zero-order-hold replay of the rows is the same signal as the control grid's."""
+        t = self.t
+        if knots:
+            inside = traj.t[(traj.t > self.t[0]) & (traj.t < self.t[-1])]
+            t = np.union1d(self.t, inside)
+            # drop knots within a microsecond of a control instant (no near-duplicate rows)
+            k = np.searchsorted(self.t, t)
+            near = np.minimum(np.abs(t - self.t[np.clip(k, 0, len(self.t) - 1)]),
+                              np.abs(t - self.t[np.clip(k - 1, 0, len(self.t) - 1)]))
+            t = t[(near > 1e-6) | np.isin(t, self.t)]
+        held = np.clip(np.searchsorted(self.t, t + 1e-12, side="right") - 1, 0, len(self.t) - 1)
+        q, qd, qdd, _ = traj.sample(t)
         names = tuple(traj.joint_names) or self.joint_names
         meta = dict(traj.meta)
         meta.update(feedforward=dict(rate=self.rate, hold=self.hold,
                                      saturated={k: [str(s) for s in v]
                                                 for k, v in self.saturated.items()}))
-        return Trajectory(self.t.copy(), q, qd, qdd, joint_names=names, method=traj.method,
+        meta["feedforward"]["knots"] = bool(knots)
+        return Trajectory(t.copy(), q, qd, qdd, joint_names=names, method=traj.method,
                           objective=traj.objective, interpolation="quintic", limits=traj.limits,
-                          u=self.u.copy(), meta=meta)
+                          u=self.u[held].copy(), meta=meta)
 
     def to_csv(self, path, traj: Trajectory) -> Trajectory:
         """Write the trajectory CSV (CONTRACT: t, q_*, qd_*, qdd_*, u_*) at the control rate;

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
+from .obstacles import from_dict as obstacle_from_dict
 from .spec import SpecError, parse_angle
 
 OBJECTIVES = ("time", "energy")
@@ -48,7 +49,8 @@ def suite_path(name: str) -> Path:
 
 
 def load_suite(name: str) -> tuple[dict, list[Move]]:
-    """(suite table, moves) of a task suite: every pick-up × every drop (and back)."""
+    """(suite table, moves) of a task suite: every pick-up × every drop (and back). The suite
+    table's ``obstacles`` holds the parsed obstacles (a tuple, possibly empty)."""
     path = suite_path(name)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -75,23 +77,29 @@ def load_suite(name: str) -> tuple[dict, list[Move]]:
             moves.append(Move(f"p{i:02d}-d{j:02d}", p, d))
             if both:
                 moves.append(Move(f"d{j:02d}-p{i:02d}", d, p))
-    return data.get("suite", {}), moves
+    obstacles = []
+    for name_, t in (data.get("obstacles") or {}).items():
+        try:
+            obstacles.append(obstacle_from_dict(t))
+        except (ValueError, TypeError) as e:
+            raise SpecError(str(path), f"obstacles.{name_}", t, str(e)) from None
+    return dict(data.get("suite", {}), obstacles=tuple(obstacles)), moves
 
 
 # ------------------------------------------------------------------------------ worker side
 _NLP_CACHE: dict = {}
 
 
-def _nlp(crane, objective, N):
+def _nlp(crane, objective, N, obstacles=()):
     from .methods.nlp import MoveNLP
-    key = (crane.spec.id, objective, N)
+    key = (crane.spec.id, objective, N, tuple(obstacles))
     if key not in _NLP_CACHE:  # built once per worker process, reused for every move
-        _NLP_CACHE[key] = MoveNLP(crane, objective, "free", N=N)
+        _NLP_CACHE[key] = MoveNLP(crane, objective, "free", N=N, obstacles=tuple(obstacles))
     return _NLP_CACHE[key]
 
 
 def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
-               robustness: bool = True) -> dict:
+               robustness: bool = True, obstacles: tuple = ()) -> dict:
     """Plan one library entry (runs in a worker). Never raises for planning failures: they come
     back as a status with a reason."""
     from .feedforward import commands
@@ -103,11 +111,11 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
                objective=objective, method="nlp")
     try:
         crane = Crane.from_id(crane_id)
-        rt = _nlp(crane, "time", N).solve(move.start, move.goal)
+        rt = _nlp(crane, "time", N, obstacles).solve(move.start, move.goal)
         res = rt
         if rt.ok and objective == "energy":
             res, info = energy_optimal(crane, move.start, move.goal, ENERGY_BUDGET * rt.duration_s,
-                                       time_result=rt, energy_nlp=_nlp(crane, "energy", N))
+                                       time_result=rt, energy_nlp=_nlp(crane, "energy", N, obstacles))
             out["energy_winner"] = info.get("winner")
         if not res.ok:
             return dict(out, status=res.status, reason=res.reason,
@@ -121,14 +129,21 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
                         solve_s=_time.perf_counter() - t0)
         # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
         # derived channels (strokes, pressures, pump) on those samples
-        traj_u = commands(crane, traj, 50.0).attach(traj)
+        clear = float("nan")
+        if obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
+            from .paths import tip_to_xyz
+            cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
+            clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
+        # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
+        # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
+        traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
         ev = evaluate(crane, traj_u)
         rob = float("nan")
         if robustness:
             from .simulate import robustness as robust
             rob = float(robust(crane, traj_u)["score_m"])
         return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
-                    robustness=rob, solve_s=_time.perf_counter() - t0,
+                    robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
                     iterations=res.iterations)
     except Exception as e:  # a failed move must never stop the build: record why
         return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
@@ -151,6 +166,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
         raise ValueError(f"workers must be >= 1, got {workers}")
     crane = Crane.from_id(crane_id)
     meta, moves = load_suite(suite)
+    obstacles = meta["obstacles"]
     if limit is not None:
         moves = moves[:limit]
     out = Path(out)
@@ -160,6 +176,8 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     with db:
         done = set(db.ids())
         todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
+        # the slow energy entries first (longest-first packing: less idle tail on the workers)
+        todo.sort(key=lambda mo: mo[1] != "energy")
         skipped = len(moves) * len(objectives) - len(todo)
         bar = tqdm(total=len(todo), desc=f"library {crane.spec.id}", unit="entry",
                    disable=not progress)
@@ -172,18 +190,20 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                    method=r["method"], status=r["status"], reason=r.get("reason", ""),
                    evaluation=ev, robustness=r.get("robustness", float("nan")),
                    attrs=dict(solve_s=r.get("solve_s"), suite=suite,
-                              energy_winner=r.get("energy_winner")))
+                              energy_winner=r.get("energy_winner"),
+                              clearance_m=r.get("clearance_m")))
             counts[r["status"]] = counts.get(r["status"], 0) + 1
             bar.update(1)
 
         if scheduler:
-            _run_dask(scheduler, crane_id, todo, N, robustness, write)
+            _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write)
         elif workers == 1:
             for m, o in todo:
-                write(plan_entry(crane_id, m, o, N, robustness))
+                write(plan_entry(crane_id, m, o, N, robustness, obstacles))
         else:
             with ProcessPoolExecutor(max_workers=workers) as ex:
-                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness) for m, o in todo]
+                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness, obstacles)
+                        for m, o in todo]
                 for f in as_completed(futs):
                     write(f.result())
         bar.close()
@@ -194,7 +214,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                 info=info)
 
 
-def _run_dask(scheduler, crane_id, todo, N, robustness, write):
+def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write):
     try:
         from dask.distributed import Client, LocalCluster, as_completed as dask_completed
     except ImportError:
@@ -208,7 +228,8 @@ def _run_dask(scheduler, crane_id, todo, N, robustness, write):
     else:
         client = Client(scheduler)
     try:
-        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, pure=False)
+        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, obstacles,
+                              pure=False)
                 for m, o in todo]
         for f in dask_completed(futs):
             write(f.result())

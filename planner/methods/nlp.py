@@ -23,11 +23,12 @@ IPOPT iterations per energy solve; earlier complementarity products (p − p_i)�
 500–950 iterations. The result is judged by :func:`~planner.trajectory.evaluate`.
 
 Objectives: "time" (free T), "energy" (T ≤ T_max given), "blend" (T + λ·E). Paths: "free" or
-"line" (tip on the straight line between the ends at every node). Obstacles: :class:`Wall`
-(e.g. the headboard), kept clear at the check points — between them only if N is large enough
-that the tip moves less than the clearance per half interval; the default guess then passes
-over each wall (still sensitive to local optima: measured 4.56 s at N = 60 but a 20.8 s detour
-at N = 40 on the same move).
+"line" (tip on the straight line between the ends at every node). Obstacles
+(:mod:`planner.obstacles`: a :class:`Wall` in the r–z plane, a :class:`Plate` such as a
+forwarder's headboard) are kept clear at the check points; every free-path solution is then
+verified on a 1 kHz resampling, from the plain guess and from a guess over the obstacles the move
+meets, and the fastest one that clears is kept, else status "obstacle" (the over-the-wall guess
+matters: a 4.56 s move at N = 60 came out as a 20.8 s detour at N = 40 from a poor guess).
 """
 from __future__ import annotations
 
@@ -38,28 +39,12 @@ import casadi as ca
 import numpy as np
 
 from ..bounds import lower_bound
+from ..obstacles import Plate, Wall  # noqa: F401  (re-exported: the NLP's obstacle types)
 from ..paths import tip_to_xyz
 from ..trajectory import Trajectory
 from .smoothing import rest_to_rest
 
 STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-
-
-@dataclass(frozen=True)
-class Wall:
-    """A vertical wall in the r–z plane — e.g. the load bunk's headboard — from z_bottom up to
-    z_top at horizontal distance r [m] from the slew axis; the tip keeps ``clearance`` [m] from
-    it. Imposed smoothly as discs of radius ``clearance`` spaced ≤ clearance/2 along the wall,
-    at every check point: between two discs the distance to the wall is then at least
-    clearance·√(1 − 1/16) ≈ 0.968·clearance."""
-    r: float
-    z_top: float
-    z_bottom: float
-    clearance: float = 0.3
-
-    def centres(self):
-        k = max(2, int(np.ceil((self.z_top - self.z_bottom) / (0.5 * self.clearance))) + 1)
-        return [(self.r, z) for z in np.linspace(self.z_bottom, self.z_top, k)]
 
 
 @dataclass
@@ -164,11 +149,19 @@ class MoveNLP:
             add_g(v + gap, -ca.inf, L["qd_max"])
             add_g(v - gap, L["qd_min"], ca.inf)
         self.obstacles = tuple(obstacles)
-        for ob in self.obstacles:
-            for rc, zc in ob.centres():
-                for q, _, _ in pts + mids:
-                    tip = crane.f_fk(q)[1]  # (r, z, slew)
-                    add_g((tip[0] - rc) ** 2 + (tip[1] - zc) ** 2, ob.clearance ** 2, ca.inf)
+        if self.obstacles:
+            # obstacles at the nodes, midpoints and quarter points (q is a cubic per interval):
+            # the tip moves a quarter interval between checks, less room to slip through
+            quarters = []
+            for k in range(N):
+                q, v, a, j = X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k]
+                for hh in (h / 4, 3 * h / 4):
+                    quarters.append((q + hh * v + hh ** 2 / 2 * a + hh ** 3 / 6 * j, None, None))
+            for q, _, _ in pts + mids + quarters:
+                xyz, cyl = crane.f_fk(q)
+                for ob in self.obstacles:
+                    for expr, lo in ob.constraints(xyz, cyl):
+                        add_g(expr, lo, ca.inf)
         if path == "curve":
             # one path parameter per node, monotone, fixed at the ends; the tip on p(θ_k) at the
             # nodes: per interval n jerks + 1 θ − 3 equations leave n − 2 free directions
@@ -327,19 +320,20 @@ class MoveNLP:
             tr = stretch(tr, 1.05 * lb.combined_s)
         return self.guess_from(tr)
 
+    def _vias(self, start, goal) -> list:
+        """Via tips above the obstacles the move meets, in the order it meets them."""
+        start, goal = np.asarray(start, float), np.asarray(goal, float)
+        vias = [v for ob in self.obstacles for v in ob.vias(start, goal)]
+        vias.sort(key=lambda v: (abs(v[2] - start[2]), abs(v[0] - start[0])))
+        return vias
+
     def _guess_over_walls(self, start, goal, lb):
         """Rest-to-rest Ruckig segments through a via point above every wall crossed (at the
         wall's r, 1.5 clearances above its top, slew interpolated): a guess on the right side
         of the obstacles (a guess through a wall leaves IPOPT in a poor local optimum)."""
         crane = self.crane
         start, goal = np.asarray(start, float), np.asarray(goal, float)
-        vias = []
-        for w in sorted(self.obstacles, key=lambda w: abs(w.r - start[0])):
-            if (start[0] - w.r) * (goal[0] - w.r) < 0:  # the move crosses the wall's r
-                f = (w.r - start[0]) / (goal[0] - start[0])
-                vias.append(np.array([w.r, w.z_top + 1.5 * w.clearance,
-                                      start[2] + f * (goal[2] - start[2])]))
-        tips = [start] + vias + [goal]
+        tips = [start] + self._vias(start, goal) + [goal]
         qs = [crane.ik(tips[0], lb.tele_start)]
         for k, tip in enumerate(tips[1:], 1):
             tele = lb.tele_goal if k == len(tips) - 1 else None
@@ -387,12 +381,14 @@ class MoveNLP:
         if self.objective == "energy" and T_max is None:
             raise ValueError("objective 'energy' needs T_max [s]")
         if w0 is None and self.obstacles and self.path == "free":
-            # obstacle problems are multimodal: try the plain and the over-the-wall guess and
-            # keep the fastest solution that clears every wall on a fine resampling
+            # obstacle problems are multimodal: try the plain and (when the move meets an
+            # obstacle) the over-the-obstacle guess; keep the fastest solution that clears every
+            # obstacle on a fine resampling
             try:
                 lb = lower_bound(self.crane, start, goal)
-                guesses = [self._plain_guess(start, goal, lb),
-                           self._guess_over_walls(start, goal, lb)]
+                guesses = [self._plain_guess(start, goal, lb)]
+                if self._vias(start, goal):
+                    guesses.append(self._guess_over_walls(start, goal, lb))
             except ValueError as e:
                 return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
             res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
@@ -402,8 +398,8 @@ class MoveNLP:
             else:
                 best = next((r for r in res if not r.ok), res[0])
                 if best.ok:
-                    best = NLPResult("obstacle", "no solution clears every wall between the "
-                                     "check points: raise N or the clearance",
+                    best = NLPResult("obstacle", "no solution clears every obstacle between "
+                                     "the check points: raise N or the clearance",
                                      iterations=best.iterations)
             best.solve_time_s = _time.perf_counter() - t0
             return best
@@ -416,12 +412,9 @@ class MoveNLP:
     def clears(self, traj, rate: float = 1000.0) -> bool:
         """True when the tip keeps ≥ 0.96·clearance from every wall on a fine resampling."""
         t = traj.resample(rate)
-        tip = self.crane.tip(traj.sample(t)[0])
-        for w in self.obstacles:
-            zc = np.clip(tip[:, 1], w.z_bottom, w.z_top)
-            if np.hypot(tip[:, 0] - w.r, tip[:, 1] - zc).min() < 0.96 * w.clearance:
-                return False
-        return True
+        cyl = self.crane.tip(traj.sample(t)[0])
+        xyz = tip_to_xyz(cyl)
+        return all(ob.distance(xyz, cyl).min() >= 0.96 * ob.clearance for ob in self.obstacles)
 
     def _solve_from(self, guess, start, goal, T_max, lam, payload, t0) -> NLPResult:
         crane = self.crane
@@ -602,7 +595,9 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     judged by evaluate() against two always-feasible
     incumbents — that stretched move and the time-optimal move itself (T_min ≤ T_max); the lowest
     judged energy within the limits wins, so the result never costs more than the time-optimal
-    move. Returns (result, info), info["winner"] in {"nlp", "stretched", "time_optimal"}."""
+    move. With obstacles (``energy_nlp`` built with them) every NLP result must clear them on a
+    fine resampling; the incumbents inherit the time-optimal move's clearance (stretching keeps
+    the path). Returns (result, info), info["winner"] in {"nlp", "stretched", "time_optimal"}."""
     from ..trajectory import evaluate
     t0 = _time.perf_counter()
     rt = time_result or (time_nlp or MoveNLP(crane, "time", "free", N=N)).solve(start, goal)
@@ -619,19 +614,18 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     if e_t < best[0]:
         best = (e_t, rt, "time_optimal")
     tries = []
-    r = en.solve(start, goal, T_max=T_max, w0=en.guess_from(inc))
-    tries.append(r.status)
-    if r.ok:
-        ev = evaluate(crane, r.trajectory)
-        if ev.max_limit_violation <= 1e-3 and ev.energy_J < best[0]:
-            best = (ev.energy_J, r, "nlp")
-    if best[2] != "nlp":  # a second start from the independent Ruckig guess
-        r = en.solve(start, goal, T_max=T_max)
+    def consider(r):
+        nonlocal best
+        if r.ok and en.obstacles and not en.clears(r.trajectory):
+            r = NLPResult("obstacle", "passes through an obstacle between check points")
         tries.append(r.status)
         if r.ok:
             ev = evaluate(crane, r.trajectory)
             if ev.max_limit_violation <= 1e-3 and ev.energy_J < best[0]:
                 best = (ev.energy_J, r, "nlp")
+    consider(en.solve(start, goal, T_max=T_max, w0=en.guess_from(inc)))
+    if best[2] != "nlp":  # a second start from the independent Ruckig guess
+        consider(en.solve(start, goal, T_max=T_max))
     res = best[1]
     res.solve_time_s = _time.perf_counter() - t0
     return res, dict(winner=best[2], energy_J=best[0], stretched_energy_J=e_inc.energy_J,

@@ -153,7 +153,7 @@ def stroke_rates(crane, u, plant: Plant = Plant()):
     draws = (u > 0) | ~vp.single                         # single-acting lowering: to tank
     demand = np.sum(np.where(draws, Q, 0.0), axis=1)
     qmax = crane.spec.pump.max_flow * plant.pump_flow_scale
-    share = np.where(demand > qmax, qmax / np.where(demand > 0, demand, 1.0), 1.0)
+    share = np.where(demand > qmax, qmax / np.where(demand > qmax, demand, 1.0), 1.0)
     xd = np.where(draws, xd * share[:, None], xd)
     return xd, np.minimum(demand, qmax), share
 

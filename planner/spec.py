@@ -183,6 +183,7 @@ class CraneSpec:
     pump: Pump
     transformer: Transformer | None
     laws: LawParams = field(default_factory=LawParams)
+    effects: tuple = ()            # calibrated effects (dicts, planner.effects), see plant.py
     gravity: float = 9.81
     path: str = "<memory>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -405,7 +406,7 @@ def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
 def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     """Validate a parsed TOML dict and build a :class:`CraneSpec`."""
     R = _Reader(file)
-    R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws"}, "")
+    R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws", "effects"}, "")
     ct = R.table(data, "crane", "")
     R.keys(ct, {"id", "name", "description", "source", "elbow", "redundancy", "gravity"}, "crane.")
     cid = R.text(ct, "id", "crane.")
@@ -495,13 +496,27 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
                        "need 0 <= rho_min < rho_max")
         laws = LawParams(weights=weights, max_lift=max_lift,
                          source=R.text(lt, "source", "laws."))
+    effects = []
+    er = data.get("effects", [])
+    if not isinstance(er, list):
+        R.fail("effects", er, "expected [[effects]] tables (name, joint, parameters)")
+    for i, et in enumerate(er):
+        from .effects import effect_from_dict
+        if not isinstance(et, dict):
+            R.fail(f"effects[{i}]", et, "expected a table")
+        if et.get("joint") is not None and et.get("joint") not in names:
+            R.fail(f"effects[{i}].joint", et.get("joint"), f"must name a joint: {', '.join(names)}")
+        try:
+            effects.append(effect_from_dict(et).to_dict())
+        except ValueError as e:
+            R.fail(f"effects[{i}]", et, str(e))
     spec = CraneSpec(
         id=cid, name=R.text(ct, "name", "crane."),
         description=R.text(ct, "description", "crane.", default=""),
         source=R.text(ct, "source", "crane."),
         elbow=R.text(ct, "elbow", "crane.", choices=("up", "down")),
         redundancy=red, joints=joints, payload=payload, pump=pump, transformer=transformer,
-        laws=laws,
+        laws=laws, effects=tuple(effects),
         gravity=R.num(ct, "gravity", "crane.", default=9.81, lo=0.0),
         path=file, raw=data, text=text)
     return spec

@@ -1,0 +1,493 @@
+"""Measured vs simulated: locate the disagreement, name the missing effect, add it, show the gap.
+
+Given a machine, a recording (measured CSV: commands, positions, pressures) and optionally the
+commanded trajectory:
+
+1. **Nominal model.** Replay the measured commands on the nominal plant
+   (:func:`planner.plant.respond`); the start pose is fitted to the measured positions (a
+   nuisance parameter of every model). Residual = measured − simulated, per channel
+   (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``).
+2. **Noise floor** from the data: per channel, σ = 1.4826·MAD(Δ²y)/√6 (the second difference
+   of white noise has variance 6σ²; smooth motion contributes little at 50 Hz, sparse jumps are
+   rejected by the median). Nothing is claimed below it (seed 001's lesson).
+3. **Where**: channels ranked by residual RMS / σ, time windows where the residual stands out,
+   and the residual split by operating condition (direction of motion, speed, load, pump
+   saturation) — :func:`locate`.
+4. **Which effect**: every catalogue effect on every joint it can belong to is fitted (bounded
+   least squares on the noise-normalised residual of the *training* blocks: the even ones of
+   blocks ``block_s`` long (1 s: both splits see every move, rest and pump saturation);
+   a grid scan first, as several effects are invisible near their neutral value), then scored on
+   the *held-out* blocks: score = J_nominal − J_effect − k·ln(n) (J = Σ (r/σ)², k parameters:
+   a BIC-style complexity penalty). Identifiability: the condition number of the fit's scaled
+   Jacobian, and parameter standard errors from it. The best effect is named if its score
+   exceeds :attr:`Discrepancy.threshold`; else "none: the nominal model explains the data
+   within noise". When the named effect leaves the held-out residual above noise, a second
+   effect is tried on top (both refitted).
+5. **Gap**: per channel held-out RMS before/after, VAF, and the share of the above-noise
+   residual removed (``gap_reduction``): above-noise = the residual smoothed over 0.5 s, its
+   mean square less the noise's share (:func:`_excess`), summed over the channels in units of
+   σ², gap = 1 − √(after/before).
+
+The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
+:func:`compensate` re-plans feed-forward commands on it.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .effects import CATALOGUE, Effect
+from .plant import respond
+from .trials import Recording
+
+__all__ = ["Discrepancy", "DiscrepancyResult", "noise_floor", "locate", "compensate",
+           "calibrated_spec_text"]
+
+PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
+POSITION_FLOOR = 1e-6    # [rad | m]
+
+
+def noise_floor(Y: np.ndarray) -> np.ndarray:
+    """Per-column noise standard deviation estimated from the data (module doc, step 2)."""
+    d2 = np.diff(Y, n=2, axis=0)
+    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+    return 1.4826 * mad / math.sqrt(6.0)
+
+
+@dataclass
+class Candidate:
+    """One fitted model: the effects (fitted values), its held-out score and diagnostics."""
+    effects: tuple
+    k: int
+    J_train: float
+    J_test: float
+    score: float = 0.0
+    std: dict = field(default_factory=dict)
+    cond: float = 1.0
+    excited: bool = True
+    nfev: int = 0
+
+    @property
+    def label(self) -> str:
+        return " + ".join(f"{e.name}" + (f"[{e.joint}]" if e.joint else "")
+                          for e in self.effects) or "nominal"
+
+    def summary(self) -> dict:
+        return dict(model=self.label, effects=[e.to_dict() for e in self.effects],
+                    k=self.k, J_train=self.J_train, J_test=self.J_test, score=self.score,
+                    std=self.std, cond=self.cond, excited=self.excited)
+
+
+@dataclass
+class DiscrepancyResult:
+    """``effect``: the named catalogue effect (None = nominal explains the data within noise),
+    ``joint``, ``parameters`` (fitted values) with ``uncertainty`` (standard errors),
+    ``second``: a further effect (or None), per-channel ``rms_before``/``rms_after`` (held-out,
+    channel units), ``vaf_before``/``vaf_after`` [%], ``noise``, ``gap_reduction`` (share of the
+    above-noise held-out residual removed, overall and per channel), ``ranking`` (every
+    candidate), ``where`` (:func:`locate`), ``runtime_s``."""
+    effect: str | None
+    joint: str | None
+    parameters: dict
+    uncertainty: dict
+    effects: tuple
+    second: dict | None
+    rms_before: dict
+    rms_after: dict
+    vaf_before: dict
+    vaf_after: dict
+    noise: dict
+    gap_reduction: float
+    gap_reduction_channels: dict
+    ranking: list
+    where: dict
+    identifiable: bool
+    message: str
+    runtime_s: float
+    series: dict = field(default_factory=dict, repr=False)
+
+    def to_json(self) -> dict:
+        out = {k: getattr(self, k) for k in (
+            "effect", "joint", "parameters", "uncertainty", "second", "rms_before",
+            "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
+            "gap_reduction_channels", "identifiable", "message", "where", "runtime_s")}
+        out["effects"] = [e.to_dict() for e in self.effects]
+        out["ranking"] = self.ranking
+        return out
+
+
+def _candidates(crane, names=None):
+    out = []
+    for name in (names or CATALOGUE):
+        cls = CATALOGUE[name]
+        if cls.per_joint:
+            out += [cls(j) for j in crane.names]
+        else:
+            out.append(cls())
+    return out
+
+
+class Discrepancy:
+    """The workflow (module doc). ``fit(recording)`` -> :class:`DiscrepancyResult`.
+
+    candidates: catalogue names to try (default: all); block_s: length [s] of the alternating
+    train/held-out blocks; threshold: least held-out score to name an effect; grid: scan
+    points per parameter before the local fit."""
+
+    def __init__(self, crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
+                 grid: int = 7, second: bool = True):
+        unknown = [c for c in (candidates or []) if c not in CATALOGUE]
+        if unknown:
+            raise ValueError(f"unknown effect(s) {unknown}; known: {', '.join(CATALOGUE)}")
+        self.crane = crane
+        self.names = list(candidates) if candidates else list(CATALOGUE)
+        if not block_s > 0:
+            raise ValueError(f"block_s must be > 0 s, got {block_s}")
+        self.block_s = float(block_s)
+        self.threshold = float(threshold)
+        self.grid = int(grid)
+        self.try_second = second
+
+    # ------------------------------------------------------------------ data
+    def _prepare(self, rec: Recording):
+        crane = self.crane
+        n = crane.n
+        if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
+            raise ValueError(f"recording: expected u and q of shape (N, {n})")
+        if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
+            raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
+                             f"is too short: need at least 4 blocks of {self.block_s:g} s")
+        dt = np.diff(rec.t)
+        if np.ptp(dt) > 1e-6 * np.median(dt) + 1e-9:
+            raise ValueError("recording: the sample times must be uniform (one command per "
+                             "sample, as the CSV contract's simulate writes them)")
+        names = list(crane.names)
+        cols = [f"q_{j}" for j in names]
+        Y = [rec.q]
+        has_p = rec.p_a is not None and rec.p_b is not None
+        if has_p:
+            cols += [f"p_{j}_{s}" for j in names for s in ("a", "b")]
+            P = np.empty((len(rec.t), 2 * n))
+            P[:, 0::2], P[:, 1::2] = rec.p_a, rec.p_b
+            Y.append(P)
+        Y = np.hstack(Y)
+        sig = noise_floor(Y)
+        floor = np.array([POSITION_FLOOR] * n + [PRESSURE_FLOOR] * (Y.shape[1] - n))
+        sig = np.maximum(sig, floor)
+        block = np.floor((rec.t - rec.t[0]) / self.block_s).astype(int)
+        train = block % 2 == 0
+        self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p
+        self._train, self._test = train, ~train
+        self._cache = {}
+
+    def predict(self, effects=()) -> np.ndarray:
+        """Model channels (N, C) for the recording, with ``effects``."""
+        r = self.response(effects)
+        Y = [r.q]
+        if self._has_p:
+            P = np.empty((len(r.t), 2 * self.crane.n))
+            P[:, 0::2], P[:, 1::2] = r.p_a, r.p_b
+            Y.append(P)
+        return np.hstack(Y)
+
+    def response(self, effects=()):
+        rec = self._rec
+        return respond(self.crane, rec.t, rec.u, rec.q[0], tuple(effects), t_end=rec.t[-1],
+                       q_fit=rec.q, fit_mask=self._train, replay_cache=self._cache)
+
+    def _J(self, Yp, mask):
+        R = (self._Y - Yp)[mask] / self._sig
+        return float(np.sum(R * R))
+
+    # ------------------------------------------------------------------ fitting
+    def _fit(self, fixed: tuple, cand: Effect) -> Candidate:
+        """Fit ``cand``'s parameters (``fixed`` effects refitted jointly) on the train blocks."""
+        crane = self.crane
+        parts = list(fixed) + [cand]
+        sizes = [len(e.parameters) for e in parts]
+        lo = np.concatenate([e.bounds()[0] for e in parts])
+        hi = np.concatenate([e.bounds()[1] for e in parts])
+        span = hi - lo
+        mask = self._train
+
+        def build(z):
+            v = lo + z * span
+            out, k = [], 0
+            for e, s in zip(parts, sizes):
+                out.append(e.with_vector(v[k:k + s]))
+                k += s
+            return tuple(out)
+
+        def resid(z):
+            Yp = self.predict(build(z))
+            return ((self._Y - Yp)[mask] / self._sig).ravel()
+
+        z0 = np.concatenate([(e.vector() - e.bounds()[0]) / (np.asarray(e.bounds()[1]) -
+                                                             e.bounds()[0]) for e in fixed]
+                            + [(cand.neutral_vector(crane) - lo[-sizes[-1]:]) / span[-sizes[-1]:]])
+        nfev = 0
+        # grid scan over the candidate's own parameter(s) (axis by axis), fixed ones held
+        best_z, best_J = z0.copy(), None
+        k_c = sizes[-1]
+        for a in range(len(z0) - k_c, len(z0)):
+            for g in np.linspace(0.0, 1.0, self.grid):
+                z = best_z.copy()
+                z[a] = g
+                J = float(np.sum(resid(z) ** 2))
+                nfev += 1
+                if best_J is None or J < best_J:
+                    best_J, best_z = J, z
+        J0 = float(np.sum(resid(z0) ** 2))
+        nfev += 1
+        if J0 <= best_J:
+            best_z = z0
+        try:
+            sol = least_squares(resid, best_z, bounds=(0.0, 1.0), x_scale=1.0,
+                                diff_step=1e-3, max_nfev=40, method="trf")
+            z, jac, nfev = sol.x, sol.jac, nfev + sol.nfev
+        except Exception:  # a failed local fit keeps the best grid point
+            z, jac = best_z, None
+        effs = build(z)
+        Yp = self.predict(effs)
+        J_tr, J_te = self._J(Yp, mask), self._J(Yp, self._test)
+        std, cond, excited = {}, 1.0, True
+        if jac is not None:
+            JtJ = jac.T @ jac
+            sv = np.linalg.svd(jac, compute_uv=False)
+            excited = bool(sv[0] > 1e-9)
+            cond = float(sv[0] / max(sv[-1], 1e-300)) if excited else float("inf")
+            m = jac.shape[0]
+            s2 = J_tr / max(m - len(z), 1)
+            try:
+                cov = np.linalg.pinv(JtJ) * s2
+                sd = np.sqrt(np.maximum(np.diag(cov), 0.0)) * span
+            except np.linalg.LinAlgError:
+                sd = np.full(len(z), np.inf)
+            k = 0
+            for e, s in zip(effs, sizes):
+                for p, v in zip(e.parameters, sd[k:k + s]):
+                    std[f"{e.name}.{p.name}"] = float(v)
+                k += s
+        return Candidate(effs, int(sum(sizes)), J_tr, J_te, std=std, cond=cond,
+                         excited=excited, nfev=nfev)
+
+    def fit(self, rec: Recording, progress: bool = False) -> DiscrepancyResult:
+        t0 = _time.perf_counter()
+        self._prepare(rec)
+        crane = self.crane
+        Y0 = self.predict(())
+        nominal = Candidate((), 0, self._J(Y0, self._train), self._J(Y0, self._test))
+        n_test = int(self._test.sum())
+        pen = math.log(n_test)
+        cands = []
+        todo = _candidates(crane, self.names)
+        it = todo
+        if progress:
+            from tqdm import tqdm
+            it = tqdm(todo, desc="effects", unit="fit")
+        for c in it:
+            f = self._fit((), c)
+            f.score = nominal.J_test - f.J_test - pen * f.k
+            cands.append(f)
+        cands.sort(key=lambda c: -c.score)
+        ranking = [dict(c.summary(), rank=i + 1) for i, c in enumerate(cands)]
+        best = cands[0] if cands else None
+        chosen = best if (best is not None and best.score > self.threshold
+                          and best.excited) else None
+        second = None
+        if chosen is not None and self.try_second:
+            # more than noise left on the held-out blocks? then try a second effect on top
+            Yc = self.predict(chosen.effects)
+            R = (self._Y - Yc)[self._test] / self._sig
+            if float(np.mean(R * R)) > 1.0 + 5.0 / math.sqrt(R.size) * 3:
+                seconds = []
+                for c in _candidates(crane, self.names):
+                    if c.name == chosen.effects[0].name and c.joint == chosen.effects[0].joint:
+                        continue
+                    f = self._fit(chosen.effects, c)
+                    f.score = chosen.J_test - f.J_test - pen * (f.k - chosen.k)
+                    seconds.append(f)
+                seconds.sort(key=lambda c: -c.score)
+                if seconds and seconds[0].score > self.threshold and seconds[0].excited:
+                    second = seconds[0]
+        final = second or chosen
+        Yf = self.predict(final.effects) if final else Y0
+        res = self._report(Y0, Yf, final, chosen, second, ranking, t0)
+        return res
+
+    # ------------------------------------------------------------------ report
+    def _report(self, Y0, Yf, final, chosen, second, ranking, t0):
+        crane = self.crane
+        te = self._test
+        cols = self._cols
+        sig = self._sig
+        E0 = (self._Y - Y0)[te]
+        E1 = (self._Y - Yf)[te]
+        Yt = self._Y[te]
+        rms0 = np.sqrt(np.mean(E0 ** 2, axis=0))
+        rms1 = np.sqrt(np.mean(E1 ** 2, axis=0))
+        var = np.var(Yt, axis=0)
+        vaf0 = 100 * (1 - np.var(E0, axis=0) / np.maximum(var, 1e-300))
+        vaf1 = 100 * (1 - np.var(E1, axis=0) / np.maximum(var, 1e-300))
+        ex0, ex1 = _excess(self._Y - Y0, te, sig, self._rec.t), \
+            _excess(self._Y - Yf, te, sig, self._rec.t)
+        tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
+        gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
+        per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
+               for c, a, b in zip(cols, ex0, ex1)}
+        params, unc, eff, joint = {}, {}, None, None
+        ident = True
+        if final is not None:
+            e = final.effects[0] if chosen is not None else None
+            first = next(x for x in final.effects if chosen and x.name == chosen.effects[0].name
+                         and x.joint == chosen.effects[0].joint)
+            eff, joint = first.name, first.joint
+            params = dict(first.values, **({"joint": first.joint} if first.joint else {}))
+            unc = {p.name: final.std.get(f"{first.name}.{p.name}") for p in first.parameters}
+            ident = bool(final.cond < 1e8 and final.excited)
+            del e
+        sec = None
+        if second is not None:
+            s = second.effects[-1]
+            sec = dict(effect=s.name, joint=s.joint, parameters=s.values,
+                       uncertainty={p.name: second.std.get(f"{s.name}.{p.name}")
+                                    for p in s.parameters})
+        if eff is None:
+            msg = ("none: the nominal model explains the data within noise "
+                   f"(best candidate {ranking[0]['model']} scored {ranking[0]['score']:.1f} "
+                   f"< {self.threshold:g})" if ranking else "none")
+        else:
+            msg = (f"{eff}" + (f" on {joint}" if joint else "") + ": "
+                   + ", ".join(f"{k} = {v:.4g}" for k, v in params.items() if k != "joint")
+                   + f"; {100 * gap:.0f} % of the above-noise held-out residual removed"
+                   + (f"; second effect {sec['effect']}" + (f" on {sec['joint']}"
+                                                            if sec['joint'] else "")
+                      if sec else ""))
+        where = locate(self, Y0)
+        series = dict(t=self._rec.t, Y=self._Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig)
+        return DiscrepancyResult(
+            effect=eff, joint=joint, parameters=params, uncertainty=unc,
+            effects=final.effects if final else (), second=sec,
+            rms_before=dict(zip(cols, map(float, rms0))),
+            rms_after=dict(zip(cols, map(float, rms1))),
+            vaf_before=dict(zip(cols, map(float, vaf0))),
+            vaf_after=dict(zip(cols, map(float, vaf1))),
+            noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
+            gap_reduction_channels=per, ranking=ranking, where=where, identifiable=ident,
+            message=msg, runtime_s=_time.perf_counter() - t0, series=series)
+
+
+def _excess(E, mask, sig, t, window_s: float = 0.5):
+    """Above-noise residual per channel on ``mask``, in units of σ²: the mean square of the
+    residual smoothed over ``window_s`` (a moving average of w samples keeps a systematic
+    residual and divides white noise's variance by w) minus the noise's share σ²/w. Far less
+    sensitive to an error in σ than RMS² − σ² would be."""
+    from scipy.ndimage import uniform_filter1d
+    dt = float(np.median(np.diff(t)))
+    w = max(1, int(round(window_s / dt)))
+    f = uniform_filter1d(E, size=w, axis=0, mode="nearest")
+    ms = np.mean(f[mask] ** 2, axis=0)
+    return np.maximum(ms / sig ** 2 - 1.0 / w, 0.0)
+
+
+# ---------------------------------------------------------------------------- where
+def locate(d: Discrepancy, Y0: np.ndarray, window_s: float = 2.0) -> dict:
+    """Where the nominal residual lives: channels (RMS / σ), time windows with an excess
+    above 2 (RMS/σ over the window, worst channel), and per joint the residual excess split
+    by operating condition (moving out / in / still, slow / fast, high / low load, pump
+    saturated or not) — ratios of mean squared normalised residual to 1 (noise)."""
+    crane = d.crane
+    rec, sig, cols = d._rec, d._sig, d._cols
+    R = (d._Y - Y0) / sig
+    ms = np.mean(R * R, axis=0)
+    channels = sorted(({"channel": c, "rms_over_noise": float(math.sqrt(m))}
+                       for c, m in zip(cols, ms)), key=lambda x: -x["rms_over_noise"])
+    t = rec.t
+    dt = float(np.median(np.diff(t)))
+    w = max(2, int(round(window_s / dt)))
+    windows = []
+    for a in range(0, len(t) - w + 1, w):
+        m = np.sqrt(np.mean(R[a:a + w] ** 2, axis=0))
+        k = int(np.argmax(m))
+        if m[k] > 2.0:
+            windows.append(dict(t0=float(t[a]), t1=float(t[a + w - 1]), channel=cols[k],
+                                rms_over_noise=float(m[k])))
+    r = d.response(())
+    s = r.state
+    n = crane.n
+    share = np.ones(len(t))
+    # the nominal replay's pump sharing factor at each sample (from its command intervals)
+    try:
+        from .simulate import stroke_rates
+        _, _, sh = stroke_rates(crane, rec.u)
+        share = sh
+    except Exception:  # pragma: no cover - diagnostics only
+        pass
+    conditions = {}
+    for i, j in enumerate(crane.names):
+        idx = [i] + ([n + 2 * i, n + 2 * i + 1] if d._has_p else [])
+        e2 = np.mean(R[:, idx] ** 2, axis=1)
+        xd = s.xd[:, i]
+        vmax = max(np.abs(xd).max(), 1e-12)
+        moving = np.abs(xd) > 0.02 * vmax
+        F = np.abs(s.force[:, i])
+        split = {
+            "extending": xd > 0.02 * vmax, "retracting": xd < -0.02 * vmax, "still": ~moving,
+            "slow": moving & (np.abs(xd) < 0.5 * vmax), "fast": moving & (np.abs(xd) >= 0.5 * vmax),
+            "high_load": F >= np.median(F), "low_load": F < np.median(F),
+            "pump_saturated": share < 1.0, "pump_not_saturated": share >= 1.0}
+        conditions[j] = {k: (float(np.mean(e2[m])) if m.sum() >= 10 else None)
+                         for k, m in split.items()}
+    return dict(channels=channels, windows=windows[:20], n_windows=len(windows),
+                conditions=conditions)
+
+
+# ---------------------------------------------------------------------------- the model
+def calibrated_spec_text(crane, effects, source: str = "") -> str:
+    """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
+    if not crane.spec.text:
+        raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")
+    lines = [crane.spec.text.rstrip(), "",
+             f"# calibrated: effects identified by crane-planner discrepancy {source}".rstrip()]
+    for e in effects:
+        lines.append("[[effects]]")
+        lines.append(f'name = "{e.name}"')
+        if e.joint:
+            lines.append(f'joint = "{e.joint}"')
+        for k, v in e.values.items():
+            lines.append(f"{k} = {v!r}")
+    return "\n".join(lines) + "\n"
+
+
+def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 8, q0=None):
+    """Feed-forward commands for ``plan`` that make the plant *with* ``effects`` follow it:
+    the nominal commands, then iterative learning on the calibrated model (per joint, the
+    stroke error a few samples ahead corrected through the nominal valve gain). Returns
+    (t, u) at ``rate``. Sensor offsets shift the start (the crane is positioned with biased
+    sensors); pressure-only effects need no change."""
+    from .feedforward import _command_to_stroke_rate, commands, valve_parameters
+    ff = commands(crane, plan, rate)
+    t, u = ff.t, ff.u.copy()
+    q_start = plan.q[0] if q0 is None else np.asarray(q0, float)
+    kin = tuple(e for e in effects if e.kinematic)
+    if not kin:
+        return t, u
+    x_des, _ = crane.stroke(plan.sample(t)[0])
+    vp = valve_parameters(crane)
+    # stroke rate per unit command (nominal, either direction: the mean)
+    g = 0.5 * (_command_to_stroke_rate(np.ones((1, crane.n)), vp)[0]
+               - _command_to_stroke_rate(-np.ones((1, crane.n)), vp)[0])
+    dt = 1.0 / rate
+    lead = 1 + int(math.ceil(sum(getattr(e, "delay", 0.0) + getattr(e, "tau", 0.0)
+                                 for e in kin) / dt))
+    for _ in range(iterations):
+        r = respond(crane, t, u, q_start, kin, t_end=t[-1])
+        x, _ = crane.stroke(r.state.q)
+        e = x_des - x
+        ahead = np.vstack([e[lead:], np.repeat(e[-1:], lead, axis=0)])
+        u = np.clip(u + 0.5 * ahead / (g * dt * lead), -1.0, 1.0)
+    return t, u

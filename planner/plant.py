@@ -1,0 +1,227 @@
+"""The "true" plant: the nominal open-loop replay plus effects from :mod:`planner.effects`.
+
+:func:`respond` runs the stages in order (see :mod:`planner.effects`):
+
+1. commands — what the valves act on (delay, spool lag);
+2. valves — :func:`planner.simulate.replay` with the effects' valve and pump parameters
+   (pressure-compensated valves, dead band, flow sharing, end stops) -> strokes x(t);
+3. forces — actuator forces from the model's inverse dynamics at the replayed states (payload
+   from the effects) plus the effects' extra forces (friction, actuator mass); chamber pressures
+   from the forces (:func:`chamber_pressures`, the load-holding model of
+   :mod:`planner.model.hydraulics`);
+4. strokes — pressure-driven extra motion (leakage), integrated on the sample grid; forces and
+   pressures are then recomputed once at the drifted states (one fixed-point pass: the drift
+   changes the pressures by far less than it changes the positions);
+5. sensors — what the transducers report (offsets). Noise is added by the caller
+   (:func:`planner.simulate.measured_table`).
+
+With ``q_fit`` (measured positions) the initial strokes are not taken from ``q0`` but fitted to
+the measurement (least squares per joint on ``fit_mask``): the start pose is a nuisance
+parameter of every model, as in any calibration. The replay itself does not depend on the start
+(valve flows depend on the commands only), so re-anchoring is exact, except at end stops.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .simulate import Plant, _differences, _stroke_stops, replay
+from .trajectory import Trajectory
+
+__all__ = ["PlantState", "Response", "respond", "chamber_pressures"]
+
+_UNIT_MASS = 100.0     # [kg] step for the (exactly linear) actuator-mass force regressor
+_UNIT_CACHE: dict = {}
+
+
+def chamber_pressures(crane, force):
+    """Chamber pressures p_a, p_b (N, n) [Pa] from actuator forces (N, n), load-holding model
+    (F ≥ 0: the piston side carries it, the rod side at tank; F < 0 the other way round;
+    single-acting: piston side only). The hydraulic transformer is not modelled here."""
+    spec = crane.spec
+    if spec.transformer is not None and spec.transformer.enabled:
+        raise ValueError(f"crane '{spec.id}': the plant with effects does not model the "
+                         "hydraulic transformer; disable it in the spec ([transformer] "
+                         "enabled = false)")
+    pt = spec.pump.tank_pressure
+    Aa = np.array([j.actuator.area_a for j in spec.joints])
+    Ab = np.array([j.actuator.area_b for j in spec.joints])
+    single = np.array([j.actuator.acting == "single" for j in spec.joints])
+    F = np.atleast_2d(force)
+    pos = F >= 0
+    p_a = np.where(pos, (F + Ab * pt) / Aa, pt)
+    p_b = np.where(pos, pt, (Aa * pt - F) / Ab)
+    p_a = np.where(single, pt + np.maximum(F, 0) / Aa, p_a)
+    p_b = np.where(single, pt, p_b)
+    return p_a, p_b
+
+
+@dataclass
+class PlantState:
+    """The true plant at every sample: q, qd, qdd (N, n), strokes x, xd, actuator forces
+    (model + effects), chamber pressures p_a, p_b [Pa], payload [kg]."""
+    crane: object
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    x: np.ndarray
+    xd: np.ndarray
+    force_model: np.ndarray
+    payload: float
+    force: np.ndarray = None
+    p_a: np.ndarray = None
+    p_b: np.ndarray = None
+
+    def unit_actuator_force(self, i: int) -> np.ndarray:
+        """Actuator forces (N, n) per kg of extra mass of actuator i (lumped as the model
+        lumps it); inverse dynamics is linear in the masses, so one difference is exact."""
+        from dataclasses import replace
+
+        from .model import Crane
+        spec = self.crane.spec
+        key = (spec.id, spec.joints[i].actuator.mass, i)
+        if key not in _UNIT_CACHE:
+            j = spec.joints[i]
+            j2 = replace(j, actuator=replace(j.actuator, mass=j.actuator.mass + _UNIT_MASS))
+            _UNIT_CACHE[key] = Crane(replace(spec, joints=spec.joints[:i] + (j2,)
+                                             + spec.joints[i + 1:]))
+        heavy = _UNIT_CACHE[key].hydraulics(self.q, self.qd, self.qdd, self.payload)["force"]
+        return (np.atleast_2d(heavy) - self.force_model) / _UNIT_MASS
+
+
+@dataclass
+class Response:
+    """What the plant did (``state``) and what its sensors report: ``q`` (N, n), ``p_a``,
+    ``p_b`` (N, n) [Pa], at the sample times ``t`` with the commanded ``u`` (N, n) in effect."""
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    p_a: np.ndarray
+    p_b: np.ndarray
+    state: PlantState
+    sim: Trajectory
+    effects: tuple = ()
+    meta: dict = field(default_factory=dict)
+
+
+def _by_stage(effects, stage):
+    return [e for e in effects if e.stage == stage]
+
+
+def _fit_start(crane, dx, x_guess, q_meas, bias, mask, iters: int = 4):
+    """Initial strokes (n,) so that q(x0 + dx) + bias fits q_meas on mask (per joint, Gauss-
+    Newton on the 1-D problems)."""
+    x0 = x_guess.copy()
+    qm = (q_meas - bias)[mask]
+    d_m = dx[mask]
+    for _ in range(iters):
+        q = crane.joint_from_stroke(x0 + d_m)
+        _, dxdq = crane.stroke(q)
+        J = 1.0 / dxdq
+        r = qm - q
+        step = np.sum(J * r, axis=0) / np.maximum(np.sum(J * J, axis=0), 1e-300)
+        x0 = x0 + step
+        if np.all(np.abs(step) < 1e-12 * (1 + np.abs(x0))):
+            break
+    return x0
+
+
+def _q_from_strokes(crane, x, lo, hi):
+    x = np.clip(x, lo, hi)
+    q = crane.joint_from_stroke(x)
+    for _ in range(2):
+        xq, d = crane.stroke(q)
+        q = q - (xq - x) / d
+    L = crane.limit_arrays()
+    return np.clip(q, L["q_min"], L["q_max"]), x
+
+
+def _forces(crane, effects, t, q, dt, x, payload):
+    qd, qdd = _differences(q, dt)
+    _, dxdq = crane.stroke(q)
+    xd = dxdq * qd
+    Fm = np.atleast_2d(crane.hydraulics(q, qd, qdd, payload)["force"])
+    s = PlantState(crane, t, q, qd, qdd, x, xd, Fm, payload)
+    F = Fm.copy()
+    for e in _by_stage(effects, "forces"):
+        dF = e.force(crane, s)
+        if dF is not None:
+            F = F + dF
+    s.force = F
+    s.p_a, s.p_b = chamber_pressures(crane, F)
+    return s
+
+
+def respond(crane, t_u, u, q0, effects=(), *, dt: float | None = None,
+            t_end: float | None = None, q_fit=None, fit_mask=None,
+            replay_cache: dict | None = None) -> Response:
+    """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
+    (or from the start fitted to ``q_fit`` (N, n) measured on the sample grid, rows
+    ``fit_mask``), with ``effects`` (a sequence of :class:`planner.effects.Effect`).
+    ``replay_cache``: a dict reused between calls that differ only in force/sensor effects
+    (the fitting loop)."""
+    from .effects import effect_from_dict
+    # the spec's own (calibrated) effects are part of the model
+    effects = tuple(effect_from_dict(d) for d in crane.spec.effects) + tuple(effects)
+    t_u = np.asarray(t_u, float)
+    u = np.atleast_2d(np.asarray(u, float))
+    u_eff = u
+    for e in _by_stage(effects, "commands"):
+        u_eff = e.commands(crane, t_u, u_eff)
+    plant = Plant()
+    for e in _by_stage(effects, "valves"):
+        plant = e.plant(crane, plant)
+    key = tuple(e for e in effects if e.stage in ("commands", "valves"))
+    if replay_cache is not None and key in replay_cache:
+        sim = replay_cache[key]
+    else:
+        sim = replay(crane, t_u, u_eff, q0, plant, dt=dt, t_end=t_end)
+        if replay_cache is not None:
+            replay_cache[key] = sim
+    dt = sim.meta["dt"]
+    t = sim.t
+    x_sim, _ = crane.stroke(sim.q)
+    dx = x_sim - x_sim[0]
+    lo, hi = _stroke_stops(crane)
+    payload = crane.spec.payload.total
+    for e in _by_stage(effects, "forces"):
+        payload = e.payload(crane, payload)
+    sensors = _by_stage(effects, "sensors")
+    bias = np.zeros((1, crane.n))
+    for e in sensors:
+        bias = e.sense_q(crane, bias)
+    mask = np.ones(len(t), bool) if fit_mask is None else np.asarray(fit_mask, bool)
+
+    def anchor(dx):
+        if q_fit is None:
+            return x_sim[0]
+        return _fit_start(crane, dx, x_sim[0], np.asarray(q_fit, float), bias, mask)
+
+    x0 = anchor(dx)
+    q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
+    s = _forces(crane, effects, t, q, dt, x, payload)
+    drifting = _by_stage(effects, "strokes")
+    if drifting:
+        rate = sum(d for d in (e.drift(crane, s) for e in drifting) if d is not None)
+        if not np.isscalar(rate):
+            # trapezoid integral of the extra stroke rate on the sample grid
+            drift = np.vstack([np.zeros((1, crane.n)),
+                               np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None],
+                                         axis=0)])
+            dx = dx + drift
+            x0 = anchor(dx)
+            q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
+            s = _forces(crane, effects, t, q, dt, x, payload)
+    q_s = q
+    for e in sensors:
+        q_s = e.sense_q(crane, q_s)
+    p_a, p_b = s.p_a, s.p_b
+    for e in sensors:
+        p_a, p_b = e.sense_p(crane, p_a, p_b)
+    # the commanded u in effect at each sample (not what the valves saw)
+    j = np.clip(np.searchsorted(t_u, t + 1e-9 * dt, side="right") - 1, 0, len(t_u) - 1)
+    return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=effects,
+                    meta=dict(pump=sim.meta["pump"], clipped=sim.meta["clipped"], dt=dt,
+                              payload=payload))

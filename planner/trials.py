@@ -1,0 +1,189 @@
+"""Hidden-effect trials: recordings of a plant with a hidden effect, for testing the discrepancy
+workflow (:mod:`planner.discrepancy`), which sees only the measured CSV and the commands.
+
+:func:`excitation` builds the commanded trajectory of a recording: rest-to-rest moves (Ruckig,
+every joint at once) between random poses in the inner part of the joint ranges, at random
+speeds (30–100 % of the limits), with holds of 0.5–2 s between them — the kind of test sequence
+a calibration run uses (motion in both directions, several speeds, loads held at rest).
+:func:`hidden_trial` draws an effect and a realistic magnitude, records the plant with it and
+with sensor noise, and returns the recording with the truth.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .effects import CATALOGUE, Effect, make
+from .feedforward import commands
+from .methods.smoothing import rest_to_rest
+from .trajectory import Trajectory
+
+__all__ = ["excitation", "Recording", "record", "hidden_trial", "TRIAL_MAGNITUDES"]
+
+# Realistic magnitudes of the hidden effects in the trials: (low, high) of |value − neutral|,
+# drawn uniformly, sign random where both signs are physical. Assumed — typical of a worn or
+# mis-calibrated mobile crane, and large enough to stand out of seed 001's sensor noise over a
+# 60 s recording (the workflow's job is to name effects that are there, not to find the
+# undetectable).
+TRIAL_MAGNITUDES = {
+    "joint_offset": (math.radians(1.0), math.radians(3.0)),  # rad (m: /10 for prismatic)
+    "flow_gain": (0.05, 0.20),            # relative gain error
+    "valve_deadband": (0.08, 0.20),       # absolute width (spec's is smaller or zero)
+    "valve_lag": (0.08, 0.25),            # s
+    "time_delay": (0.06, 0.20),           # s
+    "pump_flow_limit": (0.25, 0.45),      # relative shortfall of the pump
+    "leakage": (2e-12, 8e-12),            # m³/(s·Pa)
+    "coulomb_friction": (0.3, 1.0),       # × 5 % of the actuator's force at 10 MPa
+    "viscous_friction": (0.3, 1.0),       # × the coefficient giving 1 MPa at full speed
+    "payload_mass": (300.0, 1500.0),      # kg
+    "actuator_mass": (150.0, 600.0),      # kg
+    "pressure_offset": (0.3e6, 1.0e6),    # Pa
+}
+
+
+@dataclass
+class Recording:
+    """A measured recording on the sample grid: t (N,), commands u (N, n) in effect at t,
+    positions q (N, n), pressures p_a, p_b (N, n) [Pa] or None (positions only)."""
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    p_a: np.ndarray | None = None
+    p_b: np.ndarray | None = None
+
+    @classmethod
+    def from_csv(cls, path, crane) -> "Recording":
+        from .simulate import read_measured_csv
+        d = read_measured_csv(path, tuple(crane.names))
+        if d["u"] is None:
+            raise ValueError(f"{path}: line 1: no command columns u_<joint>; the discrepancy "
+                             "workflow replays the measured commands")
+        return cls(d["t"], d["u"], d["q"], d["p_a"], d["p_b"])
+
+    def to_csv(self, path, crane):
+        from .io import atomic_write_text
+        names = tuple(crane.names)
+        cols = (["t"] + [f"u_{j}" for j in names] + [f"q_{j}" for j in names])
+        blocks = [self.t[:, None], self.u, self.q]
+        if self.p_a is not None:
+            cols += [f"p_{j}_{s}" for j in names for s in ("a", "b")]
+            P = np.empty((len(self.t), 2 * crane.n))
+            P[:, 0::2], P[:, 1::2] = self.p_a, self.p_b
+            blocks.append(P)
+        M = np.hstack(blocks)
+        lines = [",".join(cols)] + [",".join(f"{v:.10g}" for v in row) for row in M]
+        atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
+               margin: float = 0.15) -> tuple[Trajectory, object]:
+    """(plan, feed-forward) of a test sequence at least ``duration`` [s] long (see module doc).
+    Poses are drawn in [margin, 1 − margin] of every joint range."""
+    rng = np.random.default_rng(seed)
+    L = crane.limit_arrays()
+    lo = L["q_min"] + margin * (L["q_max"] - L["q_min"])
+    hi = L["q_max"] - margin * (L["q_max"] - L["q_min"])
+    q = 0.5 * (lo + hi)
+    ts, qs, qds, qdds = [np.zeros(1)], [q[None]], [np.zeros((1, crane.n))], \
+        [np.zeros((1, crane.n))]
+    t_now = 0.0
+
+    def hold(T):
+        nonlocal t_now
+        k = max(1, int(round(T * rate)))
+        tt = t_now + np.arange(1, k + 1) / rate
+        ts.append(tt)
+        qs.append(np.repeat(qs[-1][-1:], k, axis=0))
+        qds.append(np.zeros((k, crane.n)))
+        qdds.append(np.zeros((k, crane.n)))
+        t_now = float(tt[-1])
+
+    hold(rng.uniform(0.5, 1.0))
+    while t_now < duration:
+        goal = rng.uniform(lo, hi)
+        seg = rest_to_rest(crane, q, goal, scale=float(rng.uniform(0.3, 1.0))).trajectory
+        ts.append(t_now + seg.t[1:] - seg.t[0])
+        qs.append(seg.q[1:])
+        qds.append(seg.qd[1:])
+        qdds.append(seg.qdd[1:])
+        t_now = float(ts[-1][-1])
+        q = goal
+        hold(rng.uniform(0.5, 2.0))
+    plan = Trajectory(np.concatenate(ts), np.vstack(qs), np.vstack(qds), np.vstack(qdds),
+                      joint_names=tuple(crane.names), method="excitation",
+                      meta=dict(seed=seed, duration=duration))
+    return plan, commands(crane, plan, rate)
+
+
+def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
+           positions_only: bool = False) -> Recording:
+    """Replay ``ff`` on the plant with ``effects`` from the plan's start; sensor noise at
+    seed 001's levels (``noise`` as in :func:`planner.simulate.measured_table`)."""
+    from .plant import respond
+    from .simulate import _noise_levels
+    r = respond(crane, ff.t, ff.u, plan.q[0], effects, t_end=ff.t[-1])
+    q, pa, pb = r.q.copy(), r.p_a.copy(), r.p_b.copy()
+    levels = _noise_levels(noise)
+    if levels is not None:
+        rng = np.random.default_rng(seed)
+        sq = np.array([levels["angle"] if j.revolute else levels["length"]
+                       for j in crane.spec.joints])
+        q = q + rng.normal(size=q.shape) * sq
+        pa = pa + rng.normal(size=pa.shape) * levels["pressure"]
+        pb = pb + rng.normal(size=pb.shape) * levels["pressure"]
+    if positions_only:
+        pa = pb = None
+    return Recording(r.t, r.u, q, pa, pb)
+
+
+def _draw(crane, name: str, rng, joint=None) -> Effect:
+    lo, hi = TRIAL_MAGNITUDES[name]
+    mag = float(rng.uniform(lo, hi))
+    sign = 1.0 if rng.uniform() < 0.5 else -1.0
+    cls = CATALOGUE[name]
+    if cls.per_joint and joint is None:
+        joint = crane.names[int(rng.integers(crane.n))]
+    i = list(crane.names).index(joint) if joint else None
+    act = crane.spec.joints[i].actuator if i is not None else None
+    if name == "joint_offset":
+        v = dict(offset=sign * (mag if crane.spec.joints[i].revolute else mag / 10))
+    elif name == "flow_gain":
+        v = dict(scale=1.0 + sign * mag)
+    elif name == "valve_deadband":
+        v = dict(width=min(act.deadband + mag, 0.4))
+    elif name in ("valve_lag",):
+        v = dict(tau=mag)
+    elif name == "time_delay":
+        v = dict(delay=mag)
+    elif name == "pump_flow_limit":
+        v = dict(scale=1.0 - mag)
+    elif name == "leakage":
+        v = dict(coefficient=mag)
+    elif name == "coulomb_friction":
+        v = dict(force=min(mag * 0.05 * 10e6 * act.area_a, 3.0e4))
+    elif name == "viscous_friction":
+        vmax = act.flow_gain / act.area_a
+        v = dict(coefficient=min(mag * 1e6 * act.area_a / vmax, 5.0e5))
+    elif name == "payload_mass":
+        v = dict(mass=sign * mag if sign > 0 else -min(mag, crane.spec.payload.mass))
+    elif name == "actuator_mass":
+        v = dict(mass=mag)
+    elif name == "pressure_offset":
+        v = dict(offset_a=sign * mag) if rng.uniform() < 0.5 else dict(offset_b=sign * mag)
+    else:  # pragma: no cover - every catalogue name is handled above
+        raise ValueError(name)
+    return make(name, joint, **v)
+
+
+def hidden_trial(crane, effect: str | None, seed: int, duration: float = 60.0,
+                 joint: str | None = None, noise=True):
+    """(recording, plan, feed-forward, truth) — ``truth`` the injected effect (None: clean)."""
+    if effect is not None and effect not in CATALOGUE:
+        raise ValueError(f"unknown effect {effect!r}; known: {', '.join(CATALOGUE)}")
+    rng = np.random.default_rng(seed + 7919)
+    plan, ff = excitation(crane, duration, seed=seed)
+    truth = _draw(crane, effect, rng, joint) if effect else None
+    rec = record(crane, plan, ff, (truth,) if truth else (), noise=noise, seed=seed)
+    return rec, plan, ff, truth

@@ -45,7 +45,7 @@ from .plant import respond
 from .trials import Recording
 
 __all__ = ["Discrepancy", "DiscrepancyResult", "noise_floor", "locate", "compensate",
-           "calibrated_spec_text"]
+           "closed_loop", "calibrated_spec_text"]
 
 PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
 POSITION_FLOOR = 1e-6    # [rad | m]
@@ -246,7 +246,9 @@ class Discrepancy:
         if J0 <= best_J:
             best_z = z0
         try:
-            sol = least_squares(resid, best_z, bounds=(0.0, 1.0), x_scale=1.0,
+            # start strictly inside: trf does not leave a bound it starts on
+            sol = least_squares(resid, np.clip(best_z, 0.01, 0.99), bounds=(0.0, 1.0),
+                                x_scale=1.0,
                                 diff_step=1e-3, max_nfev=40, method="trf")
             z, jac, nfev = sol.x, sol.jac, nfev + sol.nfev
         except Exception:  # a failed local fit keeps the best grid point
@@ -463,31 +465,88 @@ def calibrated_spec_text(crane, effects, source: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 8, q0=None):
-    """Feed-forward commands for ``plan`` that make the plant *with* ``effects`` follow it:
-    the nominal commands, then iterative learning on the calibrated model (per joint, the
-    stroke error a few samples ahead corrected through the nominal valve gain). Returns
-    (t, u) at ``rate``. Sensor offsets shift the start (the crane is positioned with biased
-    sensors); pressure-only effects need no change."""
+def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
+    """Re-plan the feed-forward of ``plan`` on the calibrated model (the plant *with*
+    ``effects``). Returns (plan_used, t, u, q0_reading):
+
+    - a pump that gives less than the plan needs (pump_flow_limit): the plan is slowed
+      uniformly until its peak pump demand fits the calibrated pump (+2 % margin) — no command
+      can make the true plant follow the original timing;
+    - kinematic effects (gain, dead band, lag, delay, leakage): the nominal commands, then
+      iterative learning on the calibrated model: per joint, the stroke-rate error ``d``
+      samples ahead (d from the delays and lags) corrected through the nominal valve gain
+      (D-type ILC: the plant is an integrator, so rate errors fixed leave no position error);
+    - sensor offsets: the crane is positioned before the move until its sensors read the
+      plan's start plus the offsets (``q0_reading``);
+    - pressure-only effects need no change of the commands."""
     from .feedforward import _command_to_stroke_rate, commands, valve_parameters
+    from .methods.nlp import stretch
+    from .simulate import Plant, stroke_rates
+    effects = tuple(effects)
+    bias = np.zeros((1, crane.n))
+    for e in effects:
+        bias = e.sense_q(crane, bias)
+    plant = Plant()
+    for e in effects:
+        if e.stage == "valves":
+            plant = e.plant(crane, plant)
     ff = commands(crane, plan, rate)
+    _, demand, _ = stroke_rates(crane, ff.u)          # nominal valves: what the plan asks
+    avail = crane.spec.pump.max_flow * plant.pump_flow_scale
+    peak = float(np.max(demand)) if len(demand) else 0.0
+    raw = np.abs(_command_to_stroke_rate(ff.u, valve_parameters(crane)))
+    if plant.pump_flow_scale < 1.0:
+        from .feedforward import _flow_to_command  # noqa: F401  (same valve model)
+        need = float(np.max(np.sum(raw * np.where(ff.u > 0, valve_parameters(crane).area_extend,
+                                                  valve_parameters(crane).area_retract),
+                                   axis=1))) if len(raw) else 0.0
+        peak = max(peak, need)
+        if peak > avail:
+            plan = stretch(plan, plan.duration * 1.02 * peak / avail)
+            ff = commands(crane, plan, rate)
     t, u = ff.t, ff.u.copy()
-    q_start = plan.q[0] if q0 is None else np.asarray(q0, float)
+    q0_reading = plan.q[0] + bias[0]
     kin = tuple(e for e in effects if e.kinematic)
     if not kin:
-        return t, u
-    x_des, _ = crane.stroke(plan.sample(t)[0])
+        return plan, t, u, q0_reading
+    x_des = crane.stroke(plan.sample(t)[0])[0]
     vp = valve_parameters(crane)
-    # stroke rate per unit command (nominal, either direction: the mean)
     g = 0.5 * (_command_to_stroke_rate(np.ones((1, crane.n)), vp)[0]
                - _command_to_stroke_rate(-np.ones((1, crane.n)), vp)[0])
     dt = 1.0 / rate
-    lead = 1 + int(math.ceil(sum(getattr(e, "delay", 0.0) + getattr(e, "tau", 0.0)
-                                 for e in kin) / dt))
+    d = int(round(sum(e.delay if e.name == "time_delay" else
+                      e.tau if e.name == "valve_lag" else 0.0 for e in kin) / dt))
     for _ in range(iterations):
-        r = respond(crane, t, u, q_start, kin, t_end=t[-1])
-        x, _ = crane.stroke(r.state.q)
-        e = x_des - x
-        ahead = np.vstack([e[lead:], np.repeat(e[-1:], lead, axis=0)])
-        u = np.clip(u + 0.5 * ahead / (g * dt * lead), -1.0, 1.0)
-    return t, u
+        r = respond(crane, t, u, plan.q[0], kin, t_end=t[-1])
+        e_x = x_des - crane.stroke(r.state.q)[0]
+        e_ahead = np.vstack([e_x[d:], np.repeat(e_x[-1:], d, axis=0)]) if d else e_x
+        rate_err = np.vstack([np.diff(e_ahead, axis=0) / dt, np.zeros((1, crane.n))])
+        u = np.clip(u + 0.7 * rate_err / g, -1.0, 1.0)
+    return plan, t, u, q0_reading
+
+
+def closed_loop(crane, plan, calibrated, plant_effects=None, rate: float = 50.0) -> dict:
+    """Open-loop tracking of ``plan`` on a plant with ``plant_effects`` (default: the
+    calibrated effects themselves — a prediction), with the nominal feed-forward and with the
+    feed-forward re-planned on the calibrated model (:func:`compensate`). The crane is
+    positioned at the start with its (possibly biased) sensors. Tip error [m] vs the plan:
+    max and RMS, before and after."""
+    from .feedforward import commands
+    truth = tuple(calibrated if plant_effects is None else plant_effects)
+    bias = np.zeros((1, crane.n))
+    for e in truth:
+        bias = e.sense_q(crane, bias)
+
+    def run(p, t, u, q_read):
+        q_true0 = q_read - bias[0]     # positioned until the sensors read q_read
+        r = respond(crane, t, u, q_true0, truth, t_end=t[-1])
+        e = np.linalg.norm(crane.fk(r.state.q) - crane.fk(p.sample(r.t)[0]), axis=1)
+        return dict(max_m=float(e.max()), rms_m=float(np.sqrt(np.mean(e ** 2))),
+                    final_m=float(e[-1]), duration_s=float(p.duration))
+    ff = commands(crane, plan, rate)
+    before = run(plan, ff.t, ff.u, plan.q[0])
+    p2, t, u, q_read = compensate(crane, plan, calibrated, rate)
+    after = run(p2, t, u, q_read)
+    return dict(before=before, after=after, predicted=plant_effects is None,
+                reduction=(1.0 - after["rms_m"] / before["rms_m"]) if before["rms_m"] > 0
+                else 0.0)

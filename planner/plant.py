@@ -33,6 +33,57 @@ __all__ = ["PlantState", "Response", "respond", "chamber_pressures"]
 
 _UNIT_MASS = 100.0     # [kg] step for the (exactly linear) actuator-mass force regressor
 _UNIT_CACHE: dict = {}
+_MAP_CACHE: dict = {}
+
+
+class StrokeMap:
+    """Per-joint stroke maps x(q), dx/dq and the inverse q(x) as cubic splines on 4001 points
+    of each joint range (every actuator's stroke depends on its own joint only): the fitting
+    loop calls them thousands of times, and numpy splines are ~50× cheaper than the symbolic
+    model's calls. Agreement with ``crane.stroke`` is checked at construction (≤ 1e-9 of the
+    stroke range at the midpoints)."""
+
+    def __init__(self, crane, points: int = 4001):
+        from scipy.interpolate import CubicSpline
+        L = crane.limit_arrays()
+        Q = np.linspace(L["q_min"], L["q_max"], points)
+        X, D = crane.stroke(Q)
+        self.fwd, self.inv = [], []
+        for i in range(crane.n):
+            sgn = np.sign(D[points // 2, i])
+            if not np.all(np.sign(D[:, i]) == sgn):
+                raise ValueError(f"crane '{crane.spec.id}': stroke map of joint "
+                                 f"'{crane.names[i]}' is not monotone")
+            self.fwd.append(CubicSpline(Q[:, i], X[:, i]))
+            order = np.argsort(X[:, i])
+            self.inv.append(CubicSpline(X[order, i], Q[order, i]))
+        mid = 0.5 * (Q[1:] + Q[:-1])
+        err = np.abs(self.x(mid) - crane.stroke(mid)[0]).max(axis=0)
+        if np.any(err > 1e-9 * (np.ptp(X, axis=0) + 1e-12)):
+            raise ValueError(f"crane '{crane.spec.id}': stroke spline error {err.max():.3g}")
+        self.n = crane.n
+        self.stops = _stroke_stops(crane)
+
+    def x(self, q):
+        q = np.atleast_2d(q)
+        return np.column_stack([f(q[:, i]) for i, f in enumerate(self.fwd)])
+
+    def dxdq(self, q):
+        q = np.atleast_2d(q)
+        return np.column_stack([f(q[:, i], 1) for i, f in enumerate(self.fwd)])
+
+    def q(self, x):
+        x = np.atleast_2d(x)
+        return np.column_stack([f(x[:, i]) for i, f in enumerate(self.inv)])
+
+
+def stroke_map(crane) -> StrokeMap:
+    """The crane's :class:`StrokeMap` (cached per model object; the cache holds the model, so
+    its id cannot be reused)."""
+    hit = _MAP_CACHE.get(id(crane))
+    if hit is None or hit[0] is not crane:
+        hit = _MAP_CACHE[id(crane)] = (crane, StrokeMap(crane))
+    return hit[1]
 
 
 def chamber_pressures(crane, force):
@@ -81,14 +132,16 @@ class PlantState:
 
         from .model import Crane
         spec = self.crane.spec
-        key = (spec.id, spec.joints[i].actuator.mass, i)
-        if key not in _UNIT_CACHE:
+        key = (id(self.crane), i)
+        hit = _UNIT_CACHE.get(key)
+        if hit is None or hit[0] is not self.crane:
             j = spec.joints[i]
             j2 = replace(j, actuator=replace(j.actuator, mass=j.actuator.mass + _UNIT_MASS))
-            _UNIT_CACHE[key] = Crane(replace(spec, joints=spec.joints[:i] + (j2,)
-                                             + spec.joints[i + 1:]))
-        heavy = _UNIT_CACHE[key].hydraulics(self.q, self.qd, self.qdd, self.payload)["force"]
-        return (np.atleast_2d(heavy) - self.force_model) / _UNIT_MASS
+            hit = _UNIT_CACHE[key] = (self.crane, Crane(replace(
+                spec, joints=spec.joints[:i] + (j2,) + spec.joints[i + 1:])))
+        tau = hit[1].inverse_dynamics(self.q, self.qd, self.qdd, self.payload)
+        heavy = np.atleast_2d(tau) / stroke_map(self.crane).dxdq(self.q)
+        return (heavy - self.force_model) / _UNIT_MASS
 
 
 @dataclass
@@ -113,13 +166,13 @@ def _by_stage(effects, stage):
 def _fit_start(crane, dx, x_guess, q_meas, bias, mask, iters: int = 4):
     """Initial strokes (n,) so that q(x0 + dx) + bias fits q_meas on mask (per joint, Gauss-
     Newton on the 1-D problems)."""
+    sm = stroke_map(crane)
     x0 = x_guess.copy()
     qm = (q_meas - bias)[mask]
     d_m = dx[mask]
     for _ in range(iters):
-        q = crane.joint_from_stroke(x0 + d_m)
-        _, dxdq = crane.stroke(q)
-        J = 1.0 / dxdq
+        q = sm.q(x0 + d_m)
+        J = 1.0 / sm.dxdq(q)
         r = qm - q
         step = np.sum(J * r, axis=0) / np.maximum(np.sum(J * J, axis=0), 1e-300)
         x0 = x0 + step
@@ -130,19 +183,17 @@ def _fit_start(crane, dx, x_guess, q_meas, bias, mask, iters: int = 4):
 
 def _q_from_strokes(crane, x, lo, hi):
     x = np.clip(x, lo, hi)
-    q = crane.joint_from_stroke(x)
-    for _ in range(2):
-        xq, d = crane.stroke(q)
-        q = q - (xq - x) / d
+    q = stroke_map(crane).q(x)
     L = crane.limit_arrays()
     return np.clip(q, L["q_min"], L["q_max"]), x
 
 
 def _forces(crane, effects, t, q, dt, x, payload):
     qd, qdd = _differences(q, dt)
-    _, dxdq = crane.stroke(q)
+    dxdq = stroke_map(crane).dxdq(q)
     xd = dxdq * qd
-    Fm = np.atleast_2d(crane.hydraulics(q, qd, qdd, payload)["force"])
+    # actuator force by virtual work, F = τ / (dx/dq), as in planner.model.hydraulics
+    Fm = np.atleast_2d(crane.inverse_dynamics(q, qd, qdd, payload)) / dxdq
     s = PlantState(crane, t, q, qd, qdd, x, xd, Fm, payload)
     F = Fm.copy()
     for e in _by_stage(effects, "forces"):
@@ -154,14 +205,15 @@ def _forces(crane, effects, t, q, dt, x, payload):
     return s
 
 
-def respond(crane, t_u, u, q0, effects=(), *, dt: float | None = None,
-            t_end: float | None = None, q_fit=None, fit_mask=None,
+def respond(crane, t_u, u, q0, effects=(), *, plant: Plant = Plant(),
+            dt: float | None = None, t_end: float | None = None, q_fit=None, fit_mask=None,
             replay_cache: dict | None = None) -> Response:
     """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
     (or from the start fitted to ``q_fit`` (N, n) measured on the sample grid, rows
     ``fit_mask``), with ``effects`` (a sequence of :class:`planner.effects.Effect`).
-    ``replay_cache``: a dict reused between calls that differ only in force/sensor effects
-    (the fitting loop)."""
+    ``plant``: further valve/pump deviations (:class:`planner.simulate.Plant`; its payload and
+    start offset are not used here). ``replay_cache``: a dict reused between calls that differ
+    only in force/sensor effects (the fitting loop)."""
     from .effects import effect_from_dict
     # the spec's own (calibrated) effects are part of the model
     effects = tuple(effect_from_dict(d) for d in crane.spec.effects) + tuple(effects)
@@ -170,10 +222,9 @@ def respond(crane, t_u, u, q0, effects=(), *, dt: float | None = None,
     u_eff = u
     for e in _by_stage(effects, "commands"):
         u_eff = e.commands(crane, t_u, u_eff)
-    plant = Plant()
     for e in _by_stage(effects, "valves"):
         plant = e.plant(crane, plant)
-    key = tuple(e for e in effects if e.stage in ("commands", "valves"))
+    key = (plant,) + tuple(e for e in effects if e.stage in ("commands", "valves"))
     if replay_cache is not None and key in replay_cache:
         sim = replay_cache[key]
     else:
@@ -182,9 +233,9 @@ def respond(crane, t_u, u, q0, effects=(), *, dt: float | None = None,
             replay_cache[key] = sim
     dt = sim.meta["dt"]
     t = sim.t
-    x_sim, _ = crane.stroke(sim.q)
+    x_sim = stroke_map(crane).x(sim.q)
     dx = x_sim - x_sim[0]
-    lo, hi = _stroke_stops(crane)
+    lo, hi = stroke_map(crane).stops
     payload = crane.spec.payload.total
     for e in _by_stage(effects, "forces"):
         payload = e.payload(crane, payload)

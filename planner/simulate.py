@@ -473,20 +473,38 @@ def robustness(crane, traj: Trajectory, perturbations=None, rate: float = 50.0,
 
 # ----------------------------------------------------------------------------- CLI helper
 def simulate_to_csv(crane, traj: Trajectory, out, plant: Plant = Plant(), rate: float = 50.0,
-                    noise=None, seed: int = 0) -> dict:
+                    noise=None, seed: int = 0, effects=()) -> dict:
     """What ``crane-planner simulate`` does: replay ``traj``'s valve commands (its own ``u``
     when it carries them on a uniform grid, else :func:`commands` at ``rate``) on ``plant``
-    and write the measured-data CSV to ``out``. Returns a JSON-ready summary."""
+    with the hidden ``effects`` (:mod:`planner.effects`, through :func:`planner.plant.respond`)
+    and write the measured-data CSV to ``out`` (noise as in :func:`measured_table`). Nothing
+    is written when anything fails. Returns a JSON-ready summary."""
+    from .plant import respond
+    from .trials import Recording
     if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
         t_u, u, src = traj.t, traj.u, "trajectory"
     else:
         ff = commands(crane, traj, rate)
         t_u, u, src = ff.t, ff.u, f"feedforward@{rate:g}Hz"
-    sim = replay(crane, t_u, u, traj.q[0], plant)
-    cols = write_measured_csv(out, crane, sim, noise=noise, seed=seed)
-    q_plan = traj.sample(sim.t)[0]
-    tip_err = np.linalg.norm(crane.fk(sim.q) - crane.fk(q_plan), axis=1)
-    return dict(status="ok", out=str(out), samples=len(sim.t), columns=cols, commands=src,
-                plant=plant.to_dict(), noise=_noise_levels(noise), seed=seed,
+    r = respond(crane, t_u, u, traj.q[0], effects, plant=plant)
+    q, pa, pb = r.q.copy(), r.p_a.copy(), r.p_b.copy()
+    levels = _noise_levels(noise)
+    if levels is not None:
+        rng = np.random.default_rng(seed)
+        sq = np.array([levels["angle"] if j.revolute else levels["length"]
+                       for j in crane.spec.joints])
+        q = q + rng.normal(size=q.shape) * sq
+        pa = pa + rng.normal(size=pa.shape) * levels["pressure"]
+        pb = pb + rng.normal(size=pb.shape) * levels["pressure"]
+    rec = Recording(r.t, r.u, q, pa, pb)
+    rec.to_csv(out, crane)
+    q_plan = traj.sample(r.t)[0]
+    tip_err = np.linalg.norm(crane.fk(r.state.q) - crane.fk(q_plan), axis=1)
+    names = tuple(crane.names)
+    cols = (["t"] + [f"u_{j}" for j in names] + [f"q_{j}" for j in names]
+            + [f"p_{j}_{s}" for j in names for s in ("a", "b")])
+    return dict(status="ok", out=str(out), samples=len(r.t), columns=cols, commands=src,
+                plant=plant.to_dict(), effects=[e.to_dict() for e in r.effects],
+                noise=levels, seed=seed,
                 max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),
-                clipped=sim.meta["clipped"], pump=sim.meta["pump"])
+                clipped=r.meta["clipped"], pump=r.meta["pump"])

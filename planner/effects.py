@@ -276,7 +276,7 @@ class PumpFlowLimit(Effect):
     description = "the pump delivers less than the spec's maximum flow (wear, engine speed)"
     signature = ("only while the functions together ask for more than the pump gives: every "
                  "pump-fed joint slows by the same factor; nothing at low demand")
-    parameters = (Parameter("scale", "1", 0.3, 1.0, 1.0,
+    parameters = (Parameter("scale", "1", 0.1, 1.0, 1.0,
                             "true maximum pump flow / spec maximum flow"),)
     stage, acts_on = "valves", "positions and pressures"
 

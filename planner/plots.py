@@ -123,3 +123,74 @@ def trajectory_figure(crane, ev, path, title: str = "", walls=()):
     fig.suptitle(title or f"{crane.spec.id}: {ev.duration:.3f} s", fontsize=11)
     fig.tight_layout()
     _save(fig, path)
+
+
+# ----------------------------------------------------------------------------- discrepancy
+def _top_channels(res, k):
+    ranked = [c["channel"] for c in res.where["channels"]]
+    return ranked[:k]
+
+
+def discrepancy_residual_figure(res, path, k: int = 4):
+    """Residuals (measured − model) over time, in units of the noise floor, for the k channels
+    that disagree most: nominal model and calibrated model; held-out blocks shaded."""
+    s = res.series
+    cols = list(s["columns"])
+    chans = _top_channels(res, k)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.9 * len(chans) + 0.6), sharex=True,
+                             squeeze=False)
+    t = s["t"] - s["t"][0]
+    for ax, c in zip(axes[:, 0], chans):
+        i = cols.index(c)
+        sig = s["sigma"][i]
+        ax.plot(t, (s["Y"][:, i] - s["Y0"][:, i]) / sig, lw=0.6, color="tab:red",
+                label="nominal model")
+        ax.plot(t, (s["Y"][:, i] - s["Yf"][:, i]) / sig, lw=0.6, color="tab:blue",
+                label="calibrated model")
+        ax.axhspan(-1, 1, color="0.85", zorder=0)
+        te = s["test"]
+        edges = np.flatnonzero(np.diff(np.r_[0, te.astype(int), 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            ax.axvspan(t[a], t[min(b, len(t) - 1)], color="0.95", zorder=-1)
+        ax.set_ylabel(f"{c}\n[σ]", fontsize=8)
+    axes[0, 0].legend(loc="upper right", fontsize=7, ncol=2)
+    axes[-1, 0].set_xlabel("t [s] (light bands: held-out blocks; grey: ±1 σ noise floor)")
+    fig.suptitle(f"Residuals — {res.message[:90]}", fontsize=9)
+    _save(fig, path)
+
+
+def discrepancy_overlay_figure(res, path, k: int = 2):
+    """Measured, nominal and calibrated signals of the k channels that disagree most."""
+    s = res.series
+    cols = list(s["columns"])
+    chans = _top_channels(res, k)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 2.4 * len(chans) + 0.4), sharex=True,
+                             squeeze=False)
+    t = s["t"] - s["t"][0]
+    for ax, c in zip(axes[:, 0], chans):
+        i = cols.index(c)
+        scale, unit = (1e-6, "MPa") if c.startswith("p_") else (1.0, "rad | m")
+        ax.plot(t, s["Y"][:, i] * scale, lw=0.5, color="0.5", label="measured")
+        ax.plot(t, s["Y0"][:, i] * scale, lw=1.0, color="tab:red", label="nominal model")
+        ax.plot(t, s["Yf"][:, i] * scale, lw=1.0, ls="--", color="tab:blue",
+                label="calibrated model")
+        ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
+    axes[0, 0].legend(loc="upper right", fontsize=7, ncol=3)
+    axes[-1, 0].set_xlabel("t [s]")
+    _save(fig, path)
+
+
+def discrepancy_ranking_figure(res, path, k: int = 12):
+    """Held-out score of the best k candidate effects (threshold dashed)."""
+    rows = res.ranking[:k]
+    fig, ax = plt.subplots(figsize=(7, 0.3 * len(rows) + 1.2))
+    names = [r["model"] for r in rows][::-1]
+    sc = [r["score"] for r in rows][::-1]
+    ax.barh(names, sc, color=["tab:blue" if v > 0 else "0.6" for v in sc])
+    ax.set_xscale("symlog", linthresh=10)
+    thr = res.series.get("threshold")
+    if thr is not None:
+        ax.axvline(thr, ls="--", color="k", lw=0.8)
+    ax.set_xlabel("held-out score ΔJ − k·ln n (symlog)")
+    ax.tick_params(axis="y", labelsize=7)
+    _save(fig, path)

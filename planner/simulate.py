@@ -350,48 +350,203 @@ def write_measured_csv(path, crane, traj_sim: Trajectory, u_at_samples=None, noi
 
 
 def read_measured_csv(path, joint_names) -> dict:
-    """Read a measured-data CSV (CONTRACT). Returns dict t (N,), u, q (N, n) (u None when
-    absent), p_a, p_b (N, n) or None ("positions only"). Rejects a missing ``t``, unknown
-    joint names, NaN and non-monotonic time with the line and column."""
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-    if not header or header[0] != "t":
-        raise ValueError(f"{path}: line 1, column 1: first column must be 't', "
-                         f"found {header[0]!r}" if header else f"{path}: empty file")
-    known = set(joint_names)
-    for c, name in enumerate(header[1:], start=2):
-        for pre in ("u_", "q_"):
-            if name.startswith(pre) and name[2:] not in known:
-                raise ValueError(f"{path}: line 1, column {c}: unknown joint {name[2:]!r} "
-                                 f"(joints: {', '.join(joint_names)})")
-        if name.startswith("p_") and name[-2:] in ("_a", "_b") and name[2:-2] not in known:
-            raise ValueError(f"{path}: line 1, column {c}: unknown joint {name[2:-2]!r} "
-                             f"(joints: {', '.join(joint_names)})")
-    data = np.genfromtxt(path, delimiter=",", skip_header=1, ndmin=2)
-    if data.shape[1] != len(header):
-        raise ValueError(f"{path}: rows have {data.shape[1]} values, header {len(header)}")
-    if np.isnan(data).any():
-        r, c = np.argwhere(np.isnan(data))[0]
-        raise ValueError(f"{path}: line {r + 2}, column {c + 1} ({header[c]}): not a number")
-    t = data[:, 0]
-    if np.any(np.diff(t) <= 0):
-        r = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise ValueError(f"{path}: line {r + 2}, column 1 (t): time not increasing "
-                         f"({t[r - 1]} -> {t[r]})")
-    col = {c: i for i, c in enumerate(header)}
+    """Read a measured-data CSV (CONTRACT, see :func:`write_measured_csv`): a header row;
+    ``t`` [s] first; ``u_<joint>`` (valve command, −1…1), ``q_<joint>`` [rad | m] and
+    ``p_<joint>_a``, ``p_<joint>_b`` [Pa, absolute]; other columns are ignored (not parsed).
 
-    def block(fmt):
-        keys = [fmt.format(j) for j in joint_names]
-        if not all(k in col for k in keys):
+    Returns dict t (N,), u (N, n) or None (no command columns), q (N, n), p_a, p_b (N, n) or
+    None (no pressure columns: "positions only") and columns (the header names, a list).
+
+    A missing or unreadable file raises OSError. Every other rejection is a ValueError that
+    starts with the path and names the line (1-based, header = line 1), the column (number and
+    name), the value found and what is allowed: an empty file, a blank header or fewer than
+    2 data rows; a first column other than ``t``; duplicate column names; ``u_``/``q_``/``p_``
+    columns of unknown joints; a missing ``q_<joint>``; command or pressure columns for some
+    joints only, or one side of a cylinder only; a row with the wrong number of fields or a
+    blank line inside the data; a used cell that is not a number, or NaN/inf; time not strictly
+    increasing; a time step off the median step by more than 1e-6 relative (plus 1e-9·|t|,
+    the rounding of the 10 significant digits :func:`write_measured_csv` prints), since the
+    workflow needs a fixed sample rate; |u| > 1 + 1e-9; a pressure below −1e6 Pa or above
+    1e9 Pa (wrong unit). Blank lines at the end of the file and a UTF-8 BOM are ignored."""
+    import csv
+    import io
+
+    names = tuple(joint_names)
+    n = len(names)
+    joints = ", ".join(names)
+
+    def fail(msg):
+        return ValueError(f"{path}: {msg}")
+
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise fail(f"line {line}: byte {raw[e.start:e.start + 1]!r} is not UTF-8 text; "
+                   "expected a UTF-8 (or ASCII) comma-separated file") from None
+    reader = csv.reader(io.StringIO(text, newline=""))
+
+    def read():
+        """(first physical line of the row, row) or None at the end of the file."""
+        before = reader.line_num
+        try:
+            row = next(reader)
+        except StopIteration:
             return None
-        return data[:, [col[k] for k in keys]]
-    q = block("q_{}")
-    if q is None:
-        missing = [f"q_{j}" for j in joint_names if f"q_{j}" not in col]
-        raise ValueError(f"{path}: line 1: missing column(s) {', '.join(missing)}")
-    return dict(t=t, u=block("u_{}"), q=q, p_a=block("p_{}_a"), p_b=block("p_{}_b"),
-                columns=header)
+        except csv.Error as e:
+            raise fail(f"line {reader.line_num}: not valid CSV ({e})") from None
+        return before + 1, row
 
+    def blank(row):
+        return not row or (len(row) == 1 and not row[0].strip())
+
+    # ------------------------------------------------------------------ header
+    first = read()
+    if first is None or blank(first[1]):
+        rest = read()
+        while rest is not None and blank(rest[1]):
+            rest = read()
+        if rest is None:
+            raise fail("line 1: empty file; expected a header row starting with 't' and at "
+                       "least 2 data rows")
+        raise fail("line 1: blank line where the header row is expected (first column 't')")
+    header = [c.strip() for c in first[1]]
+    if header[0] != "t":
+        hint = (" (the file must be comma-separated)"
+                if any(d in header[0] for d in ";\t|") else "")
+        raise fail(f"line 1, column 1: first column must be 't' (time in s), "
+                   f"found {header[0]!r}{hint}")
+    col = {}
+    for c, name in enumerate(header):
+        if name and name in col:
+            raise fail(f"line 1, column {c + 1}: duplicate column name {name!r} (also column "
+                       f"{col[name] + 1}); every column name must be unique")
+        col.setdefault(name, c)
+        if name.startswith(("u_", "q_")):
+            joint = name[2:]
+        elif name.startswith("p_") and name.endswith(("_a", "_b")):
+            joint = name[2:-2]
+        else:
+            continue                                         # extra column: ignored
+        if joint not in names:
+            raise fail(f"line 1, column {c + 1}: unknown joint {joint!r} in column name "
+                       f"{name!r} (joints: {joints})")
+    missing = [f"q_{j}" for j in names if f"q_{j}" not in col]
+    if missing:
+        raise fail(f"line 1: missing column(s) {', '.join(missing)}; every joint needs its "
+                   f"q_<joint> column (joints: {joints})")
+    u_cols = [f"u_{j}" for j in names]
+    has_u = [k for k in u_cols if k in col]
+    if has_u and len(has_u) < n:
+        raise fail(f"line 1: command column(s) {', '.join(k for k in u_cols if k not in col)} "
+                   f"missing (found {', '.join(has_u)}); give u_<joint> for every joint or "
+                   "for none")
+    for j in names:
+        a, b = f"p_{j}_a", f"p_{j}_b"
+        if (a in col) != (b in col):
+            have, lack = (a, b) if a in col else (b, a)
+            raise fail(f"line 1, column {col[have] + 1} ({have}): {lack} missing; a cylinder "
+                       f"needs both {a} and {b}")
+    p_joints = [j for j in names if f"p_{j}_a" in col]
+    if p_joints and len(p_joints) < n:
+        lack = [j for j in names if j not in p_joints]
+        raise fail(f"line 1: pressure columns missing for joint(s) {', '.join(lack)} ("
+                   + ", ".join(f"p_{j}_{s}" for j in lack for s in "ab")
+                   + "); give p_<joint>_a and p_<joint>_b for every joint, or none "
+                   "(positions only)")
+    used = [0] + ([col[k] for k in u_cols] if has_u else []) + [col[f"q_{j}"] for j in names]
+    if p_joints:
+        used += [col[f"p_{j}_a"] for j in names] + [col[f"p_{j}_b"] for j in names]
+
+    # ------------------------------------------------------------------ data rows
+    width = len(header)
+    rows, lines = [], []
+    blank_line = None
+    while (item := read()) is not None:
+        line, row = item
+        if blank(row):
+            blank_line = blank_line or line
+            continue
+        if blank_line is not None:
+            raise fail(f"line {blank_line}: blank line inside the data; expected {width} "
+                       "fields (only blank lines at the end of the file are ignored)")
+        if len(row) != width:
+            raise fail(f"line {line}: {len(row)} field(s), expected {width} (as many as the "
+                       "header, line 1)")
+        try:
+            vals = [float(row[i]) for i in used]
+        except ValueError:
+            vals = None
+        if vals is None or not all(map(math.isfinite, vals)):
+            for i in used:
+                s = row[i].strip()
+                where = f"line {line}, column {i + 1} ({header[i]})"
+                try:
+                    v = float(s)
+                except ValueError:
+                    what = "empty cell" if not s else f"{s!r} is not a number"
+                    raise fail(f"{where}: {what}; expected a decimal number") from None
+                if not math.isfinite(v):
+                    raise fail(f"{where}: {s!r} is not a finite number; NaN and inf are "
+                               "not allowed")
+        rows.append(vals)
+        lines.append(line)
+    if len(rows) < 2:
+        at = f"line {lines[0]}: only 1 data row" if rows else "line 1: header only, no data rows"
+        raise fail(f"{at}; at least 2 data rows are needed (fixed sample rate)")
+
+    # ------------------------------------------------------------------ values
+    A = np.array(rows, dtype=float)
+
+    def first_bad(mask, a0):
+        """(line, header column, value) of the first True of mask (N, k) over A[:, a0:a0+k],
+        in file order."""
+        r = int(np.argmax(mask.any(axis=1)))
+        c = min(used[a0 + j] for j in np.flatnonzero(mask[r]))
+        return lines[r], c, float(A[r, used.index(c)])
+
+    t = A[:, 0].copy()
+    dt = np.diff(t)
+    k = np.flatnonzero(dt <= 0)
+    if k.size:
+        k = int(k[0])
+        raise fail(f"line {lines[k + 1]}, column 1 (t): time {float(t[k + 1])!r} is not after "
+                   f"{float(t[k])!r} (line {lines[k]}); time must increase strictly")
+    h = float(np.median(dt))
+    k = np.flatnonzero(np.abs(dt - h) > 1e-6 * h + 1e-9 * np.abs(t[1:]))
+    if k.size:
+        k = int(k[0])
+        raise fail(f"line {lines[k + 1]}, column 1 (t): time step {float(dt[k]):.9g} s (from "
+                   f"{float(t[k])!r} to {float(t[k + 1])!r}) differs from the median step "
+                   f"{h:.9g} s by more than 1e-6 relative; a fixed sample rate is required "
+                   "(resample the recording)")
+    a = 1
+    u = None
+    if has_u:
+        u = A[:, a:a + n].copy()
+        bad = np.abs(u) > 1.0 + 1e-9
+        if bad.any():
+            line, c, v = first_bad(bad, a)
+            raise fail(f"line {line}, column {c + 1} ({header[c]}): command {v!r} outside "
+                       "[-1, 1]; valve commands are normalised to -1...1")
+        a += n
+    q = A[:, a:a + n].copy()
+    a += n
+    p_a = p_b = None
+    if p_joints:
+        P = A[:, a:]
+        bad = (P < -1e6) | (P > 1e9)
+        if bad.any():
+            line, c, v = first_bad(bad, a)
+            why = ("below -1e6 Pa: not an absolute pressure in Pa (MPa or bar given?)" if v < 0
+                   else "above 1e9 Pa (10 000 bar): not a pressure in Pa (wrong unit or "
+                   "scale factor?)")
+            raise fail(f"line {line}, column {c + 1} ({header[c]}): pressure {v!r} Pa is "
+                       f"{why}; allowed: -1e6 ... 1e9 Pa")
+        p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
+    return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header)
 
 # ----------------------------------------------------------------------------- robustness
 def default_perturbations(crane, angle=math.radians(1.0), length=0.02, gain=0.02,

@@ -2,9 +2,10 @@
 workflow (:mod:`planner.discrepancy`), which sees only the measured CSV and the commands.
 
 :func:`excitation` builds the commanded trajectory of a recording: rest-to-rest moves (Ruckig,
-every joint at once) between random poses in the inner part of the joint ranges, at random
-speeds (30–100 % of the limits), with holds of 0.5–2 s between them — the kind of test sequence
-a calibration run uses (motion in both directions, several speeds, loads held at rest).
+every joint at once) between random poses in the inner part of the joint ranges — the first
+one across the whole inner range at full speed, the others at random speeds (30–100 % of the
+limits) — with holds of 0.5–2 s between them: the kind of test sequence a calibration run uses
+(motion in both directions, several speeds, the pump at its limit, loads held at rest).
 :func:`hidden_trial` draws an effect and a realistic magnitude, records the plant with it and
 with sensor noise, and returns the recording with the truth.
 """
@@ -28,12 +29,12 @@ __all__ = ["excitation", "Recording", "record", "hidden_trial", "TRIAL_MAGNITUDE
 # 60 s recording (the workflow's job is to name effects that are there, not to find the
 # undetectable).
 TRIAL_MAGNITUDES = {
-    "joint_offset": (math.radians(1.0), math.radians(3.0)),  # rad (m: /10 for prismatic)
+    "joint_offset": (math.radians(1.0), math.radians(3.0)),  # rad; prismatic: same in m
     "flow_gain": (0.05, 0.20),            # relative gain error
     "valve_deadband": (0.08, 0.20),       # absolute width (spec's is smaller or zero)
     "valve_lag": (0.08, 0.25),            # s
     "time_delay": (0.06, 0.20),           # s
-    "pump_flow_limit": (0.25, 0.45),      # relative shortfall of the pump
+    "pump_flow_limit": (0.15, 0.40),      # shortfall relative to the sequence's peak demand
     "leakage": (2e-12, 8e-12),            # m³/(s·Pa)
     "coulomb_friction": (0.3, 1.0),       # × 5 % of the actuator's force at 10 MPa
     "viscous_friction": (0.3, 1.0),       # × the coefficient giving 1 MPa at full speed
@@ -101,9 +102,15 @@ def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
         t_now = float(tt[-1])
 
     hold(rng.uniform(0.5, 1.0))
+    first = True
     while t_now < duration:
-        goal = rng.uniform(lo, hi)
-        seg = rest_to_rest(crane, q, goal, scale=float(rng.uniform(0.3, 1.0))).trajectory
+        if first:   # one long full-speed move of every joint: the pump gets to its limit
+            side = rng.uniform(size=crane.n) < 0.5
+            goal, scale = np.where(side, lo, hi), 1.0
+            first = False
+        else:
+            goal, scale = rng.uniform(lo, hi), float(rng.uniform(0.3, 1.0))
+        seg = rest_to_rest(crane, q, goal, scale=scale).trajectory
         ts.append(t_now + seg.t[1:] - seg.t[0])
         qs.append(seg.q[1:])
         qds.append(seg.qd[1:])
@@ -138,17 +145,31 @@ def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
     return Recording(r.t, r.u, q, pa, pb)
 
 
-def _draw(crane, name: str, rng, joint=None) -> Effect:
+# Joints on which an effect leaves no trace in joint positions and actuator pressures, so no
+# data of this kind can name it: a position offset of the slew about its vertical axis (gravity
+# does not depend on it; seed 001 needed an external calibrator for such offsets), and leakage
+# of the slew drive (it holds no gravity load, so nothing drives a leak), and the slew drive's
+# own mass (lumped near the axis, it adds almost nothing to the slew inertia). Trials do not draw
+# these; the catalogue still offers them (a tilted machine would show them).
+UNOBSERVABLE = {("joint_offset", 0), ("leakage", 0), ("actuator_mass", 0)}
+
+
+def observable_joints(crane, name: str) -> list[str]:
+    return [j for i, j in enumerate(crane.names) if (name, i) not in UNOBSERVABLE]
+
+
+def _draw(crane, name: str, rng, joint=None, peak_demand: float = 1.0) -> Effect:
     lo, hi = TRIAL_MAGNITUDES[name]
     mag = float(rng.uniform(lo, hi))
     sign = 1.0 if rng.uniform() < 0.5 else -1.0
     cls = CATALOGUE[name]
     if cls.per_joint and joint is None:
-        joint = crane.names[int(rng.integers(crane.n))]
+        js = observable_joints(crane, name)
+        joint = js[int(rng.integers(len(js)))]
     i = list(crane.names).index(joint) if joint else None
     act = crane.spec.joints[i].actuator if i is not None else None
-    if name == "joint_offset":
-        v = dict(offset=sign * (mag if crane.spec.joints[i].revolute else mag / 10))
+    if name == "joint_offset":   # prismatic: the same number in m (1.7–5.2 cm)
+        v = dict(offset=sign * mag)
     elif name == "flow_gain":
         v = dict(scale=1.0 + sign * mag)
     elif name == "valve_deadband":
@@ -158,7 +179,8 @@ def _draw(crane, name: str, rng, joint=None) -> Effect:
     elif name == "time_delay":
         v = dict(delay=mag)
     elif name == "pump_flow_limit":
-        v = dict(scale=1.0 - mag)
+        # a pump short of what the test sequence asks at its peak (else it never shows)
+        v = dict(scale=max(peak_demand * (1.0 - mag), 0.1))
     elif name == "leakage":
         v = dict(coefficient=mag)
     elif name == "coulomb_friction":
@@ -184,6 +206,10 @@ def hidden_trial(crane, effect: str | None, seed: int, duration: float = 60.0,
         raise ValueError(f"unknown effect {effect!r}; known: {', '.join(CATALOGUE)}")
     rng = np.random.default_rng(seed + 7919)
     plan, ff = excitation(crane, duration, seed=seed)
-    truth = _draw(crane, effect, rng, joint) if effect else None
+    peak = 1.0
+    if effect == "pump_flow_limit":
+        from .simulate import stroke_rates
+        peak = float(np.max(stroke_rates(crane, ff.u)[1])) / crane.spec.pump.max_flow
+    truth = _draw(crane, effect, rng, joint, peak) if effect else None
     rec = record(crane, plan, ff, (truth,) if truth else (), noise=noise, seed=seed)
     return rec, plan, ff, truth

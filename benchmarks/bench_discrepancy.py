@@ -4,7 +4,8 @@ magnitude (planner.trials.TRIAL_MAGNITUDES) is injected into the plant of severa
 the recording — must name it; clean recordings must give "none". Measured: hit rate (effect,
 and effect + joint), false alarms on clean data, above-noise residual removed on the held-out
 blocks, runtime, and the open-loop tracking error of the recording's own trajectory before and
-after re-planning the feed-forward on the calibrated model (on the true plant).
+after re-planning the feed-forward on the calibrated model (on the true plant; the trajectory
+slowed where needed so that the nominal plant could follow it: planner.trials.trackable).
 
     python benchmarks/bench_discrepancy.py [--per-machine 3,2,2,2] [--clean 10] [--workers 2]
 """
@@ -32,7 +33,7 @@ MACHINES = ("cat215b", "s100f", "umea-lab", "cranab850")
 def trial(machine, effect, seed, duration):
     from planner import Crane
     from planner.discrepancy import Discrepancy, closed_loop
-    from planner.trials import hidden_trial
+    from planner.trials import hidden_trial, trackable
     crane = Crane.from_id(machine)
     rec, plan, _, truth = hidden_trial(crane, effect, seed, duration)
     t0 = time.perf_counter()
@@ -50,7 +51,8 @@ def trial(machine, effect, seed, duration):
     out["correct_joint"] = out["correct"] and (truth is None or truth.joint is None
                                                or truth.joint == res.joint)
     if truth is not None and res.effects:
-        out["closed_loop"] = closed_loop(crane, plan, res.effects, plant_effects=(truth,))
+        out["closed_loop"] = closed_loop(crane, trackable(crane, plan), res.effects,
+                                         plant_effects=(truth,))
     return out
 
 

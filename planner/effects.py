@@ -201,9 +201,10 @@ class TimeDelay(Effect):
         idx = np.arange(len(u))
         a = u[np.clip(idx - m, 0, None)]
         b = u[np.clip(idx - m - 1, 0, None)]
-        out = (1.0 - f) * a + f * b
-        out[idx - m < 0] = u[0]  # before the record: the first command held
-        return out
+        # before the record the valves were closed (a recording starts at rest)
+        a = np.where((idx - m < 0)[:, None], 0.0, a)
+        b = np.where((idx - m - 1 < 0)[:, None], 0.0, b)
+        return (1.0 - f) * a + f * b
 
 
 class ValveLag(Effect):
@@ -222,7 +223,7 @@ class ValveLag(Effect):
         i = self.index(crane)
         dt = np.diff(t_u, append=t_u[-1] + (t_u[-1] - t_u[-2] if len(t_u) > 1 else 1.0))
         out = u.copy()
-        y = float(u[0, i])
+        y = 0.0                      # closed before the record (it starts at rest)
         for k in range(len(u)):      # exact for held inputs: mean of y over each period
             a = math.exp(-dt[k] / tau)
             uk = u[k, i]

@@ -21,7 +21,8 @@ from .feedforward import commands
 from .methods.smoothing import rest_to_rest
 from .trajectory import Trajectory
 
-__all__ = ["excitation", "Recording", "record", "hidden_trial", "TRIAL_MAGNITUDES"]
+__all__ = ["excitation", "Recording", "record", "hidden_trial", "trackable",
+           "TRIAL_MAGNITUDES"]
 
 # Realistic magnitudes of the hidden effects in the trials: (low, high) of |value − neutral|,
 # drawn uniformly, sign random where both signs are physical. Assumed — typical of a worn or
@@ -122,6 +123,20 @@ def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
                       joint_names=tuple(crane.names), method="excitation",
                       meta=dict(seed=seed, duration=duration))
     return plan, commands(crane, plan, rate)
+
+
+def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) -> Trajectory:
+    """``plan`` slowed uniformly until its nominal feed-forward asks at most ``margin`` of
+    every valve (|u|) and of the pump: a plan the nominal plant can follow open loop (as every
+    library entry is), for judging re-planned feed-forward on a calibrated model."""
+    from .methods.nlp import stretch
+    from .simulate import stroke_rates
+    ff = commands(crane, plan, rate)
+    need = max(float(np.max(np.abs(ff.u_raw))),
+               float(np.max(stroke_rates(crane, ff.u_raw)[1])) / crane.spec.pump.max_flow)
+    if need <= margin:
+        return plan
+    return stretch(plan, plan.duration * need / margin)
 
 
 def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,

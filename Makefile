@@ -28,6 +28,8 @@ bench: install
 	$(BIN)/python benchmarks/seed003_paths.py
 	$(BIN)/python benchmarks/seed003_nlp.py
 	cd benchmarks && ../$(BIN)/python bench_pareto.py
+	$(BIN)/python benchmarks/bench_library.py
+	$(BIN)/python benchmarks/bench_discrepancy.py
 
 clean:
 	rm -rf $(VENV) demo-output build *.egg-info

@@ -315,8 +315,8 @@ def cmd_discrepancy(args):
     from .model import Crane
     from .trials import Recording
     crane = Crane.from_id(args.crane)
-    rec = Recording.from_csv(args.measured, crane)
     plan = _read_trajectory(crane, args.trajectory) if args.trajectory else None
+    rec = Recording.from_csv(args.measured, crane, plan)
     if args.effects:
         names = [x.strip() for x in args.effects.split(",") if x.strip()]
     else:

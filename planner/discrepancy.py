@@ -345,7 +345,6 @@ class Discrepancy:
 
     # ------------------------------------------------------------------ report
     def _report(self, Y0, Yf, final, chosen, second, ranking, t0):
-        crane = self.crane
         te = self._test
         cols = self._cols
         sig = self._sig
@@ -366,14 +365,12 @@ class Discrepancy:
         params, unc, eff, joint = {}, {}, None, None
         ident = True
         if final is not None:
-            e = final.effects[0] if chosen is not None else None
             first = next(x for x in final.effects if chosen and x.name == chosen.effects[0].name
                          and x.joint == chosen.effects[0].joint)
             eff, joint = first.name, first.joint
             params = dict(first.values, **({"joint": first.joint} if first.joint else {}))
             unc = {p.name: final.std.get(f"{first.name}.{p.name}") for p in first.parameters}
             ident = bool(final.cond < 1e8 and final.excited)
-            del e
         sec = None
         if second is not None:
             s = second.effects[-1]
@@ -506,7 +503,7 @@ def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
     - pressure-only effects need no change of the commands."""
     from .feedforward import _command_to_stroke_rate, commands, valve_parameters
     from .methods.nlp import stretch
-    from .simulate import Plant, stroke_rates
+    from .simulate import Plant
     effects = tuple(effects)
     bias = np.zeros((1, crane.n))
     for e in effects:
@@ -516,18 +513,14 @@ def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
         if e.stage == "valves":
             plant = e.plant(crane, plant)
     ff = commands(crane, plan, rate)
-    _, demand, _ = stroke_rates(crane, ff.u)          # nominal valves: what the plan asks
-    avail = crane.spec.pump.max_flow * plant.pump_flow_scale
-    peak = float(np.max(demand)) if len(demand) else 0.0
-    raw = np.abs(_command_to_stroke_rate(ff.u, valve_parameters(crane)))
     if plant.pump_flow_scale < 1.0:
-        from .feedforward import _flow_to_command  # noqa: F401  (same valve model)
-        need = float(np.max(np.sum(raw * np.where(ff.u > 0, valve_parameters(crane).area_extend,
-                                                  valve_parameters(crane).area_retract),
-                                   axis=1))) if len(raw) else 0.0
-        peak = max(peak, need)
-        if peak > avail:
-            plan = stretch(plan, plan.duration * 1.02 * peak / avail)
+        # pump flow the plan asks for (valve flows of the functions fed by the pump)
+        single = np.array([j.actuator.acting == "single" for j in crane.spec.joints])
+        draws = (ff.flow > 0) | ~single
+        need = float(np.max(np.sum(np.where(draws, np.abs(ff.flow), 0.0), axis=1)))
+        avail = crane.spec.pump.max_flow * plant.pump_flow_scale
+        if need > avail:
+            plan = stretch(plan, plan.duration * 1.02 * need / avail)
             ff = commands(crane, plan, rate)
     t, u = ff.t, ff.u.copy()
     q0_reading = plan.q[0] + bias[0]

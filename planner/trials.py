@@ -56,13 +56,27 @@ class Recording:
     p_b: np.ndarray | None = None
 
     @classmethod
-    def from_csv(cls, path, crane) -> "Recording":
+    def from_csv(cls, path, crane, plan: Trajectory | None = None) -> "Recording":
+        """Read a measured CSV. Without command columns, the commands are the nominal
+        feed-forward of ``plan`` (the commanded trajectory) at the file's sample rate, which
+        must then start with the plan."""
         from .simulate import read_measured_csv
         d = read_measured_csv(path, tuple(crane.names))
-        if d["u"] is None:
-            raise ValueError(f"{path}: line 1: no command columns u_<joint>; the discrepancy "
-                             "workflow replays the measured commands")
-        return cls(d["t"], d["u"], d["q"], d["p_a"], d["p_b"])
+        u = d["u"]
+        if u is None:
+            if plan is None:
+                raise ValueError(f"{path}: line 1: no command columns u_<joint>; give the "
+                                 "commanded trajectory (--trajectory) to derive them")
+            t = d["t"]
+            dt = float(np.median(np.diff(t)))
+            if abs(t[0] - plan.t[0]) > 1e-6 * max(1.0, abs(t[0])):
+                raise ValueError(f"{path}: line 2, column 1 (t): the recording starts at "
+                                 f"{t[0]:g} s, the commanded trajectory at {plan.t[0]:g} s; "
+                                 "without u_<joint> columns they must start together")
+            ff = commands(crane, plan, 1.0 / dt)
+            k = np.clip(np.round((t - ff.t[0]) / dt).astype(int), 0, len(ff.t) - 1)
+            u = ff.u[k]
+        return cls(d["t"], u, d["q"], d["p_a"], d["p_b"])
 
     def to_csv(self, path, crane):
         from .io import atomic_write_text

@@ -159,3 +159,20 @@ def test_same_inputs_same_outputs(tmp_path):
     b = Discrepancy(crane, second=False).fit(rec)
     assert a.to_json()["parameters"] == b.to_json()["parameters"]
     assert a.rms_after == b.rms_after and math.isfinite(a.gap_reduction)
+
+
+def test_commands_come_from_the_trajectory_when_the_csv_has_none(tmp_path):
+    from planner.effects import make
+    from planner.trials import Recording, record
+    crane = Crane.from_id("cat215b")
+    plan, ff = excitation(crane, DUR, seed=9)
+    rec = record(crane, plan, ff, (make("flow_gain", "boom", scale=1.1),), seed=9)
+    path = tmp_path / "m.csv"
+    rec.to_csv(path, crane)
+    lines = path.read_text().splitlines()
+    keep = [i for i, c in enumerate(lines[0].split(",")) if not c.startswith("u_")]
+    path.write_text("\n".join(",".join(r.split(",")[i] for i in keep) for r in lines) + "\n")
+    with pytest.raises(ValueError, match="no command columns"):
+        Recording.from_csv(path, crane)
+    back = Recording.from_csv(path, crane, plan)
+    np.testing.assert_allclose(back.u, rec.u, atol=1e-12)

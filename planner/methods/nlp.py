@@ -39,12 +39,15 @@ import casadi as ca
 import numpy as np
 
 from ..bounds import lower_bound
-from ..obstacles import Plate, Wall  # noqa: F401  (re-exported: the NLP's obstacle types)
+from ..obstacles import Plate, Wall
 from ..paths import tip_to_xyz
 from ..trajectory import Trajectory
 from .smoothing import rest_to_rest
 
 STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+OBSTACLE_TYPES = (Wall, Plate)   # the obstacles MoveNLP accepts (re-exported here)
 
 
 @dataclass

@@ -47,6 +47,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scaling-moves", type=int, default=40)
     ap.add_argument("--skip-full", action="store_true")
+    ap.add_argument("--skip-scaling", action="store_true",
+                    help="keep the Dask scaling numbers of the previous run")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
     out = Path(args.out)
@@ -64,8 +66,8 @@ def main():
             s["audit"] = audit(lib, crane, meta["obstacles"])
             report["full"] = s
             print(json.dumps(s["audit"]), f"{s['seconds']:.0f} s", s["statuses"])
-        scal = {}
-        for w in (1, 2):
+        scal = report.get("dask", {}) if args.skip_scaling else {}
+        for w in (() if args.skip_scaling else (1, 2)):
             lib = Path(tmp) / f"dask{w}.h5"
             t0 = time.perf_counter()
             s = build("s100f", "forwarder-cycle", lib, objectives=("time", "energy"),
@@ -73,7 +75,9 @@ def main():
             scal[str(w)] = dict(seconds=time.perf_counter() - t0, entries=s["planned"],
                                 statuses=s["statuses"])
             print(w, scal[str(w)])
-        scal["speedup"] = scal["1"]["seconds"] / scal["2"]["seconds"]
+        if not args.skip_scaling:
+            scal["speedup"] = scal["1"]["seconds"] / scal["2"]["seconds"]
+            scal["date"] = report["date"]
         report["dask"] = scal
     atomic_write_text(out / "library_build.json", json.dumps(report, indent=2, default=float))
     f, d = report["full"], report["dask"]

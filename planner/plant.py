@@ -9,9 +9,10 @@
    from the effects) plus the effects' extra forces (friction, actuator mass); chamber pressures
    from the forces (:func:`chamber_pressures`, the load-holding model of
    :mod:`planner.model.hydraulics`);
-4. strokes — pressure-driven extra motion (leakage), integrated on the sample grid; forces and
-   pressures are then recomputed once at the drifted states (one fixed-point pass: the drift
-   changes the pressures by far less than it changes the positions);
+4. strokes — pressure-driven extra motion (leakage), integrated on the sample grid;
+   fixed-point passes (drift from the pressures of the drifted states, forces and pressures
+   recomputed) until the drift settles, at most six (it converges fast: the drift changes the
+   pressures far less than it changes the positions);
 5. sensors — what the transducers report (offsets). Noise is added by the caller
    (:func:`planner.simulate.measured_table`).
 
@@ -254,17 +255,28 @@ def respond(crane, t_u, u, q0, effects=(), *, plant: Plant = Plant(),
     q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
     s = _forces(crane, effects, t, q, dt, x, payload)
     drifting = _by_stage(effects, "strokes")
-    if drifting:
+    dx_cmd = dx
+    prev = None
+    for _ in range(6 if drifting else 0):
+        # fixed-point passes: the drift from the pressures of the current (drifted, re-anchored)
+        # states, until it settles (1e-7 of the stroke range): the plant and a fit with a
+        # fitted start then reach the same fixed point
         rate = sum(d for d in (e.drift(crane, s) for e in drifting) if d is not None)
-        if not np.isscalar(rate):
-            # trapezoid integral of the extra stroke rate on the sample grid
-            drift = np.vstack([np.zeros((1, crane.n)),
-                               np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None],
-                                         axis=0)])
-            dx = dx + drift
-            x0 = anchor(dx)
-            q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
-            s = _forces(crane, effects, t, q, dt, x, payload)
+        if np.isscalar(rate):
+            break
+        # trapezoid integral of the extra stroke rate on the sample grid
+        drift = np.vstack([np.zeros((1, crane.n)),
+                           np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None],
+                                     axis=0)])
+        settled = prev is not None and np.all(np.abs(drift - prev).max(axis=0)
+                                              <= 1e-7 * (hi - lo))
+        prev = drift
+        dx = dx_cmd + drift
+        x0 = anchor(dx)
+        q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
+        s = _forces(crane, effects, t, q, dt, x, payload)
+        if settled:
+            break
     q_s = q
     for e in sensors:
         q_s = e.sense_q(crane, q_s)

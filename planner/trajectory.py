@@ -123,6 +123,12 @@ class Trajectory:
         qd = (v0 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))) / h
         qdd = (2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))) / h ** 2
         qddd = (6 * c3 + s * (24 * c4 + s * 60 * c5)) / h ** 3
+        # on very short intervals (< 1 ms, e.g. a plan's node next to a control instant) the
+        # quintic's third derivative is dominated by round-off in q (∝ ε·|q|/h³): take the mean
+        # jerk (qdd₁ − qdd₀)/h there, exact for the piecewise-cubic motion of a jerk-limited plan
+        short = (h < 1e-3)[:, 0]
+        if short.any():
+            qddd[short] = ((self.qdd[k + 1] - self.qdd[k]) / h)[short]
         return q, qd, qdd, qddd
 
     def resample(self, rate: float = 1000.0) -> np.ndarray:

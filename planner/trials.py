@@ -24,8 +24,10 @@ from .trajectory import Trajectory
 __all__ = ["excitation", "Recording", "record", "hidden_trial", "trackable",
            "TRIAL_MAGNITUDES"]
 
-# Realistic magnitudes of the hidden effects in the trials: (low, high) of |value − neutral|,
-# drawn uniformly, sign random where both signs are physical. Assumed — typical of a worn or
+# Realistic magnitudes of the hidden effects in the trials: (low, high) of |value − neutral| in
+# the unit given per line — several relative to the machine, so that a lab crane and a log
+# loader get comparable effects — drawn uniformly, sign random where both signs are physical.
+# Assumed — typical of a worn or
 # mis-calibrated mobile crane, and large enough to stand out of seed 001's sensor noise over a
 # 60 s recording (the workflow's job is to name effects that are there, not to find the
 # undetectable).
@@ -36,11 +38,11 @@ TRIAL_MAGNITUDES = {
     "valve_lag": (0.08, 0.25),            # s
     "time_delay": (0.06, 0.20),           # s
     "pump_flow_limit": (0.15, 0.40),      # shortfall relative to the sequence's peak demand
-    "leakage": (2e-12, 8e-12),            # m³/(s·Pa)
+    "leakage": (0.5e-3, 2e-3),            # m/s: drift speed of the held cylinder at 10 MPa
     "coulomb_friction": (0.3, 1.0),       # × 5 % of the actuator's force at 10 MPa
     "viscous_friction": (0.3, 1.0),       # × the coefficient giving 1 MPa at full speed
-    "payload_mass": (300.0, 1500.0),      # kg
-    "actuator_mass": (150.0, 600.0),      # kg
+    "payload_mass": (0.3, 1.0),           # × the spec's payload + tool (lighter: ≤ the load)
+    "actuator_mass": (0.1, 0.4),          # × the mass of the link the actuator drives
     "pressure_offset": (0.3e6, 1.0e6),    # Pa
 }
 
@@ -210,17 +212,18 @@ def _draw(crane, name: str, rng, joint=None, peak_demand: float = 1.0) -> Effect
     elif name == "pump_flow_limit":
         # a pump short of what the test sequence asks at its peak (else it never shows)
         v = dict(scale=max(peak_demand * (1.0 - mag), 0.1))
-    elif name == "leakage":
-        v = dict(coefficient=mag)
+    elif name == "leakage":      # C = v·A / p: the drift speed at 10 MPa above tank
+        v = dict(coefficient=mag * act.area_a / 10e6)
     elif name == "coulomb_friction":
         v = dict(force=min(mag * 0.05 * 10e6 * act.area_a, 3.0e4))
     elif name == "viscous_friction":
         vmax = act.flow_gain / act.area_a
         v = dict(coefficient=min(mag * 1e6 * act.area_a / vmax, 5.0e5))
     elif name == "payload_mass":
-        v = dict(mass=sign * mag if sign > 0 else -min(mag, crane.spec.payload.mass))
+        m = mag * crane.spec.payload.total
+        v = dict(mass=m if sign > 0 else -min(m, crane.spec.payload.mass))
     elif name == "actuator_mass":
-        v = dict(mass=mag)
+        v = dict(mass=mag * crane.spec.joints[i].mass)
     elif name == "pressure_offset":
         v = dict(offset_a=sign * mag) if rng.uniform() < 0.5 else dict(offset_b=sign * mag)
     else:  # pragma: no cover - every catalogue name is handled above

@@ -90,3 +90,16 @@ def test_stored_samples_reproduce_the_plan_and_hold_the_commands():
     k = np.clip(np.searchsorted(tr.t, ff.t, side="right") - 1, 0, len(tr.t) - 1)
     np.testing.assert_array_equal(tr.u[k], ff.u)
     assert set(ff.t) <= set(tr.t)
+
+
+def test_jerk_on_a_tiny_interval_is_not_round_off():
+    """A cubic piece (constant jerk 3) sampled with one interval of 50 µs: the reported jerk
+    stays 3 (the quintic's third derivative there would be round-off ∝ ε·|q|/h³)."""
+    from planner.trajectory import Trajectory
+    t = np.array([0.0, 0.02, 0.04, 0.04005, 0.06, 0.08])
+    j = 3.0
+    q = 3.0 + j * t ** 3 / 6
+    tr = Trajectory(t, q[:, None], (j * t ** 2 / 2)[:, None], (j * t)[:, None],
+                    joint_names=("a",))
+    jerk = tr.sample(np.linspace(0, 0.08, 801))[3][:, 0]
+    np.testing.assert_allclose(jerk, j, rtol=1e-6)

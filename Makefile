@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test install bench clean
+.PHONY: demo test install bench notebooks clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,10 @@ bench: install
 	cd benchmarks && ../$(BIN)/python bench_pareto.py
 	$(BIN)/python benchmarks/bench_library.py
 	$(BIN)/python benchmarks/bench_discrepancy.py
+
+# the notebook studies with their full settings, executed into build/notebooks (not in place)
+notebooks: install
+	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 
 clean:
 	rm -rf $(VENV) demo-output build *.egg-info

@@ -79,7 +79,7 @@ def main():
         for f in tqdm(as_completed(futs), total=len(futs), desc="trials", unit="trial"):
             results.append(f.result())
     wall = time.perf_counter() - t0
-    # runtime on an otherwise idle machine: one process, one recording per effect (cat215b)
+    # runtime of one process at a time (no trial pool alongside): one recording per effect (cat215b)
     quiet = []
     for name in tqdm([None] + list(CATALOGUE), desc="runtime (sequential)", unit="run"):
         r = trial("cat215b", name, 7000 + len(quiet), args.duration)
@@ -137,7 +137,7 @@ def main():
           f"| named correctly with ≥ 50 % of the above-noise held-out residual removed | "
           f"{100 * gap_ok:.1f} % (median {100 * (summary['gap_reduction_median'] or 0):.0f} %, "
           f"min {100 * (summary['gap_reduction_min'] or 0):.0f} %) | ≥ 50 % removed |",
-          f"| runtime per {args.duration:g} s recording, one process on an idle machine "
+          f"| runtime per {args.duration:g} s recording, one process at a time "
           f"(cat215b, one per effect + clean; median / max) | "
           f"{summary['runtime_quiet_median_s']:.1f} s / {summary['runtime_quiet_max_s']:.1f} s "
           "| ≤ 60 s |",

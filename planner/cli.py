@@ -9,7 +9,6 @@ import argparse
 import dataclasses
 import math
 import sys
-from pathlib import Path
 
 from .spec import SpecError, parse_angle
 
@@ -457,67 +456,36 @@ def _method(text):
         + ", ".join(f"law:{k}" for k in reg))
 
 
-def cmd_demo(args):
-    from tqdm import tqdm
+def cmd_bench(args):
+    """DP vs NLP vs local laws on the seeds' suites (planner/bench.py): bench.md, bench.json
+    and figures in --out."""
+    from .bench import parse_suites, run_bench
+    try:
+        suites = parse_suites(args.suite)
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+    if args.repeats is not None and args.repeats < 1:
+        raise CLIError(f"--repeats must be >= 1, got {args.repeats}")
+    res = run_bench(suites, args.out, repeats=args.repeats, quick=args.quick)
+    _emit(args, res)
+    if args.json != "-":
+        print(f"bench written to {args.out}/ (bench.md, bench.json, figures): "
+              + "; ".join(f"{n} {s['wall_time_s']:.0f} s" for n, s in res["suites"].items())
+              + f"; total {res['wall_time_s']:.0f} s")
+    return 0
 
-    from problems import crane_ids
-    from .bounds import lower_bound
-    from .model import Crane
-    from .plots import workspace_figure
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    lines = ["# crane-planner demo", "", "| machine | joints | max reach [m] | pump [L/min] | "
-             "figure |", "| --- | --- | --- | --- | --- |"]
-    summary = []
-    for cid in tqdm(crane_ids(), desc="machines", unit="machine"):
-        crane = Crane.from_id(cid)
-        fig = out / f"workspace_{cid}.png"
-        info = workspace_figure(crane, fig)
-        s = crane.spec
-        lines.append(f"| {s.name} | {', '.join(s.joint_names)} | {info['r_max']:.2f} | "
-                     f"{s.pump.max_flow * 6e4:.0f} | [{fig.name}]({fig.name}) |")
-        summary.append(dict(id=cid, figure=str(fig), **info))
-    from .methods.dp import dp
-    from .methods.laws import LAWS, follow
-    from .paths import Line
-    from .plots import trajectory_figure
-    from .trajectory import evaluate
-    crane = Crane.from_id("cranab850")
-    lines += ["", "## Seed 000 moves on cranab850 (times in s, every trajectory judged by "
-              "evaluate())", "",
-              "| move | velocity bound | DP | seed DP | max-velocity 2.5 m/s | seed | "
-              "least-norm 2.5 m/s | max-velocity 1 m/s | seed |",
-              "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    pts = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))
-    seed = {"AB": (1.15, 1.6, 4.00), "BC": (0.89, 1.6, 4.00), "AC": (1.18, 2.28, 5.67)}
-    moves = [("A", "B"), ("B", "C"), ("A", "C")]
-    for a, b in tqdm(moves, desc="seed-000 moves", unit="move"):
-        line = Line(pts[a], pts[b])
-        n = int(round(max(abs(pts[b][0] - pts[a][0]), abs(pts[b][1] - pts[a][1])) / 0.01))
-        lb = lower_bound(crane, pts[a], pts[b])
-        res = dp(crane, line, stages=n)
-        ev = evaluate(crane, res.trajectory)
-        mv25 = follow(crane, line, LAWS["max_velocity"](), 2.5)
-        ln25 = follow(crane, line, LAWS["least_norm"](), 2.5)
-        mv10 = follow(crane, line, LAWS["max_velocity"](), 1.0)
-        sd = seed[a + b]
-        lines.append(f"| {a}–{b} | {lb.velocity_s:.3f} | {res.duration_s:.3f} | {sd[0]:.2f} | "
-                     f"{mv25.duration_s:.3f} | {sd[1]:.2f} | {ln25.duration_s:.3f} | "
-                     f"{mv10.duration_s:.3f} | {sd[2]:.2f} |")
-        summary.append(dict(move=f"{a}-{b}", dp_s=res.duration_s,
-                            dp_max_limit_violation=ev.max_limit_violation,
-                            max_velocity_2_5_s=mv25.duration_s, least_norm_2_5_s=ln25.duration_s,
-                            max_velocity_1_0_s=mv10.duration_s, **lb.as_dict()))
-        if a + b == "AC":
-            trajectory_figure(crane, ev, out / "dp_A-C.png",
-                              f"cranab850 A–C, minimum-time DP: {res.duration_s:.3f} s "
-                              f"(seed 1.18 s)")
-    lines += ["", "![DP A–C](dp_A-C.png)"]
-    from .io import atomic_write_text
-    atomic_write_text(out / "summary.md", "\n".join(lines) + "\n")
+def cmd_demo(args):
+    """The main job (planner/demo.py): machines, seed 000, a small library, the short
+    benchmark and a calibration, into ``--out``."""
+    from .demo import run_demo
+    if args.library_moves < 1 or args.workers < 1:
+        raise CLIError("--library-moves and --workers must be >= 1")
+    summary = run_demo(args.out, library_moves=args.library_moves, workers=args.workers,
+                       progress=not (args.json == "-"))
     _emit(args, summary)
-    print(f"demo written to {out}/ (summary.md, {len(crane_ids())} workspace figures, "
-          "the DP A–C figure)")
+    if not args.json:
+        print(f"demo written to {args.out}/ (summary.md and figures)")
+    return 0
 
 
 # ----------------------------------------------------------------------------- parser
@@ -642,8 +610,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the calibrated machine spec (spec + [[effects]])")
     _json_arg(p)
     p.set_defaults(func=cmd_discrepancy)
-    p = sub.add_parser("demo", help="the main job: machines, workspaces, seed-000 DP vs laws")
+    p = sub.add_parser("bench", help="DP vs NLP vs local laws on the seeds' suites "
+                                     "(markdown + JSON + figures)")
+    p.add_argument("--suite", action="append", metavar="NAME[,NAME]",
+                   help="suite to run, repeatable or a comma list: seed000-abc, seed002-hvd, "
+                        "seed003-paths, forwarder-cycle (default: all)")
+    p.add_argument("--out", default="benchmarks/results/bench",
+                   help="output folder (default benchmarks/results/bench)")
+    p.add_argument("--repeats", type=int,
+                   help="timed solves of every method faster than 2 s (3; --quick: 1)")
+    p.add_argument("--quick", action="store_true",
+                   help="small settings for tests and the demo: fewer moves, coarser grids")
+    _json_arg(p)
+    p.set_defaults(func=cmd_bench)
+    p = sub.add_parser("demo", help="the main job: machines, seed 000, a small library, a short "
+                                    "benchmark, a calibration")
     p.add_argument("--out", default="demo-output", help="output folder (default demo-output)")
+    p.add_argument("--library-moves", type=int, default=6,
+                   help="moves of the forwarder cycle in the demo library (6)")
+    p.add_argument("--workers", type=int, default=2, help="library build processes (2)")
     _json_arg(p)
     p.set_defaults(func=cmd_demo)
     return ap

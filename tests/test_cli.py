@@ -206,7 +206,8 @@ def test_parse_point():
 # ----------------------------------------------------------------------------- demo
 def test_demo_writes_summary_and_figures(capsys, tmp_path):
     out_dir = tmp_path / "demo"
-    rc, out, err = _run(capsys, "demo", "--out", str(out_dir))
+    rc, out, err = _run(capsys, "demo", "--out", str(out_dir), "--library-moves", "2",
+                        "--workers", "1")
     assert rc == 0
     summary = (out_dir / "summary.md").read_text("utf-8")
     assert summary.startswith("# crane-planner demo")
@@ -217,6 +218,10 @@ def test_demo_writes_summary_and_figures(capsys, tmp_path):
         assert f"]({name})" in summary
     for move in ("A–B", "B–C", "A–C"):
         assert f"| {move} |" in summary
+    for f in ("library.h5", "library_entry.png", "bench/bench.md", "discrepancy/report.md",
+              "discrepancy/residuals.png"):
+        assert (out_dir / f).stat().st_size > 0, f
+    assert "4 entries, 4 ok" in summary and "flow_gain" in summary
     assert f"demo written to {out_dir}/" in out
 
 

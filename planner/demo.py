@@ -1,0 +1,158 @@
+"""The main job (``crane-planner demo``, the README's first command): a few minutes on a laptop.
+
+1. the machines: spec summary and workspace figure of each;
+2. seed 000 revisited on cranab850: the DP against the seed's tables and the local laws;
+3. a small feed-forward library for the default machine (s100f, the first moves of the
+   forwarder cycle, time- and energy-optimal, clear of the headboard), with one entry's figure;
+4. the short benchmark (``crane-planner bench --suite seed000-abc --quick``);
+5. a calibration: a hidden effect in a recording of cat215b, found, named and fixed;
+and a ``summary.md`` with the headline numbers and links to every figure.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+DEFAULT_CRANE = "s100f"
+
+
+def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = True) -> dict:
+    """Write the demo into ``out`` (created). Returns a JSON-ready summary."""
+    from tqdm import tqdm
+
+    from problems import crane_ids
+
+    from .bounds import lower_bound
+    from .io import atomic_write_text
+    from .methods.dp import dp
+    from .methods.laws import LAWS, follow
+    from .model import Crane
+    from .paths import Line
+    from .plots import trajectory_figure, workspace_figure
+    from .trajectory import evaluate
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    steps = tqdm(total=5, desc="demo", unit="step", disable=not progress)
+    summary: dict = dict(machines=[])
+    L = ["# crane-planner demo", "",
+         "## The machines", "",
+         "| machine | joints | max reach [m] | pump [L/min] | figure |",
+         "| --- | --- | --- | --- | --- |"]
+    for cid in crane_ids():
+        crane = Crane.from_id(cid)
+        fig = out / f"workspace_{cid}.png"
+        info = workspace_figure(crane, fig)
+        s = crane.spec
+        L.append(f"| {s.name} | {', '.join(s.joint_names)} | {info['r_max']:.2f} | "
+                 f"{s.pump.max_flow * 6e4:.0f} | [{fig.name}]({fig.name}) |")
+        summary["machines"].append(dict(id=cid, figure=str(fig), **info))
+    steps.update(1)
+
+    # ---------------------------------------------------------------- seed 000
+    crane = Crane.from_id("cranab850")
+    L += ["", "## Seed 000 moves on cranab850 (times in s, judged by evaluate())", "",
+          "| move | velocity bound | DP | seed DP | max-velocity 2.5 m/s | seed | "
+          "least-norm 2.5 m/s | max-velocity 1 m/s | seed |",
+          "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    pts = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))
+    seed = {"AB": (1.15, 1.6, 4.00), "BC": (0.89, 1.6, 4.00), "AC": (1.18, 2.28, 5.67)}
+    summary["seed000"] = []
+    for a, b in (("A", "B"), ("B", "C"), ("A", "C")):
+        line = Line(pts[a], pts[b])
+        n = int(round(max(abs(pts[b][0] - pts[a][0]), abs(pts[b][1] - pts[a][1])) / 0.01))
+        lb = lower_bound(crane, pts[a], pts[b])
+        res = dp(crane, line, stages=n)
+        ev = evaluate(crane, res.trajectory)
+        mv25 = follow(crane, line, LAWS["max_velocity"](), 2.5)
+        ln25 = follow(crane, line, LAWS["least_norm"](), 2.5)
+        mv10 = follow(crane, line, LAWS["max_velocity"](), 1.0)
+        sd = seed[a + b]
+        L.append(f"| {a}–{b} | {lb.velocity_s:.3f} | {res.duration_s:.3f} | {sd[0]:.2f} | "
+                 f"{mv25.duration_s:.3f} | {sd[1]:.2f} | {ln25.duration_s:.3f} | "
+                 f"{mv10.duration_s:.3f} | {sd[2]:.2f} |")
+        summary["seed000"].append(dict(move=f"{a}-{b}", dp_s=res.duration_s,
+                                       dp_max_limit_violation=ev.max_limit_violation,
+                                       max_velocity_2_5_s=mv25.duration_s,
+                                       least_norm_2_5_s=ln25.duration_s,
+                                       max_velocity_1_0_s=mv10.duration_s, **lb.as_dict()))
+        if a + b == "AC":
+            trajectory_figure(crane, ev, out / "dp_A-C.png",
+                              f"cranab850 A–C, minimum-time DP: {res.duration_s:.3f} s "
+                              f"(seed 1.18 s)")
+    L += ["", "![DP A–C](dp_A-C.png)"]
+    steps.update(1)
+
+    # ---------------------------------------------------------------- library
+    from .library import build
+    from .store import LibraryStore
+    lib = out / "library.h5"
+    s = build(DEFAULT_CRANE, "forwarder-cycle", lib, objectives=("time", "energy"),
+              workers=workers, limit=library_moves, progress=False)
+    info = s["info"]
+    crane = Crane.from_id(DEFAULT_CRANE)
+    with LibraryStore.open(lib, "r") as db:
+        rows = db.index_rows()
+        ok = [r for r in rows if r["status"] == "ok"]
+        first = ok[0]["id"] if ok else None
+        if first:
+            ev = evaluate(crane, db.trajectory(first))
+            trajectory_figure(crane, ev, out / "library_entry.png",
+                              f"{DEFAULT_CRANE} {first}: {ev.duration:.2f} s, "
+                              f"{ev.energy_J / 1e3:.1f} kJ")
+        rob = [r["robustness"] for r in ok]
+    L += ["", f"## A small library ({DEFAULT_CRANE}, forwarder cycle, first {library_moves} "
+              "moves × time, energy)", "",
+          f"{info['entries']} entries, {info['ok']} ok, failures {info['failures'] or 'none'}; "
+          f"built in {s['seconds']:.0f} s with {workers} workers. Mean duration "
+          f"{info['duration_s']['mean']:.2f} s, mean pump energy "
+          f"{info['energy_J']['mean'] / 1e3:.1f} kJ; open-loop robustness (worst tip drift under "
+          f"27 perturbed replays) {min(rob):.3f}–{max(rob):.3f} m. Every entry is within its "
+          "limits and clear of the headboard. File: [library.h5](library.h5) "
+          "(`crane-planner library info|query|export`).", "",
+          "![library entry](library_entry.png)"]
+    summary["library"] = dict(entries=info["entries"], ok=info["ok"], seconds=s["seconds"],
+                              duration_s=info["duration_s"], energy_J=info["energy_J"])
+    steps.update(1)
+
+    # ---------------------------------------------------------------- benchmark
+    from .bench import run_bench
+    b = run_bench(["seed000-abc"], out / "bench", quick=True)
+    L += ["", "## Short benchmark (seed 000 moves, every method judged by evaluate())", "",
+          "| method | success | median duration [s] | median pump energy [kJ] | "
+          "median solve [s] |", "| --- | ---: | ---: | ---: | ---: |"]
+    rows = b["suites"]["seed000-abc"]["summary"]
+    for m, r in rows.items():
+        if r.get("applicable") and r.get("runs"):
+            def f(v, k=1.0, fmt=".3f"):
+                return "–" if v is None else format(v * k, fmt)
+            L.append(f"| {m} | {r['successes']}/{r['runs']} | {f(r.get('median_duration_s'))} "
+                     f"| {f(r.get('median_energy_J'), 1e-3, '.1f')} | "
+                     f"{f(r.get('median_solve_s'))} |")
+    L += ["", "Full table, acceptance checks and figures: [bench/bench.md](bench/bench.md)."]
+    summary["bench"] = dict(wall_time_s=b.get("wall_time_s"), seed000=rows)
+    steps.update(1)
+
+    # ---------------------------------------------------------------- calibration
+    from .discrepancy import Discrepancy, closed_loop, write_report
+    from .trials import hidden_trial, trackable
+    cat = Crane.from_id("cat215b")
+    rec, plan, _, truth = hidden_trial(cat, "flow_gain", seed=2, duration=30.0)
+    res = Discrepancy(cat).fit(rec)
+    cl = closed_loop(cat, trackable(cat, plan), res.effects, plant_effects=(truth,))
+    write_report(res, out / "discrepancy", crane=cat, measured="(hidden-effect recording)",
+                 closed=dict(cl, predicted=False))
+    L += ["", "## Calibration: a hidden effect found, named and fixed (cat215b)", "",
+          f"Hidden in the plant: `{truth}`. The workflow, seeing only the 30 s recording: "
+          f"**{res.message}**. Re-planning the feed-forward on the calibrated model cuts the "
+          f"open-loop tip tracking error on the true plant from "
+          f"{1e3 * cl['before']['rms_m']:.1f} to {1e3 * cl['after']['rms_m']:.1f} mm RMS. "
+          "Report: [discrepancy/report.md](discrepancy/report.md).", "",
+          "![residuals](discrepancy/residuals.png)"]
+    summary["discrepancy"] = dict(hidden=truth.to_dict(), named=res.effect, joint=res.joint,
+                                  parameters=res.parameters, gap_reduction=res.gap_reduction,
+                                  tracking_rms_before_m=cl["before"]["rms_m"],
+                                  tracking_rms_after_m=cl["after"]["rms_m"])
+    steps.update(1)
+    steps.close()
+    atomic_write_text(out / "summary.md", "\n".join(L) + "\n")
+    return summary

@@ -307,6 +307,22 @@ def _noise_levels(noise):
     return levels
 
 
+def add_noise(crane, q, p_a, p_b, noise=None, seed: int = 0):
+    """Sensor readings (new arrays) with Gaussian noise at ``noise``'s levels (see
+    :func:`measured_table`): q (N, n) per joint type, p_a, p_b (N, n) [Pa]; drawn from
+    ``numpy.random.default_rng(seed)`` in that order (deterministic)."""
+    q, p_a, p_b = np.array(q, float), np.array(p_a, float), np.array(p_b, float)
+    levels = _noise_levels(noise)
+    if levels is not None:
+        rng = np.random.default_rng(seed)
+        sq = np.array([levels["angle"] if j.revolute else levels["length"]
+                       for j in crane.spec.joints])
+        q = q + rng.normal(size=q.shape) * sq
+        p_a = p_a + rng.normal(size=p_a.shape) * levels["pressure"]
+        p_b = p_b + rng.normal(size=p_b.shape) * levels["pressure"]
+    return q, p_a, p_b
+
+
 def measured_table(crane, sim: Trajectory, u_at_samples=None, noise=None, seed: int = 0,
                    payload=None):
     """(column names, (N, cols) array) of the measured-data CSV contract (see
@@ -316,17 +332,8 @@ def measured_table(crane, sim: Trajectory, u_at_samples=None, noise=None, seed: 
     u = sim.u if u_at_samples is None else np.atleast_2d(np.asarray(u_at_samples, float))
     if u is None or u.shape != sim.q.shape:
         raise ValueError(f"measured_table: commands needed at every sample, shape {sim.q.shape}")
-    q = sim.q.copy()
     pa, pb = pressures(crane, sim, payload)
-    pa, pb = pa.copy(), pb.copy()
-    levels = _noise_levels(noise)
-    if levels is not None:
-        rng = np.random.default_rng(seed)
-        sq = np.array([levels["angle"] if j.revolute else levels["length"]
-                       for j in crane.spec.joints])
-        q = q + rng.normal(size=q.shape) * sq
-        pa = pa + rng.normal(size=pa.shape) * levels["pressure"]
-        pb = pb + rng.normal(size=pb.shape) * levels["pressure"]
+    q, pa, pb = add_noise(crane, sim.q, pa, pb, noise, seed)
     cols = (["t"] + [f"u_{j}" for j in names] + [f"q_{j}" for j in names]
             + [f"p_{j}_{s}" for j in names for s in ("a", "b")])
     P = np.empty((len(sim.t), 2 * n))
@@ -642,15 +649,8 @@ def simulate_to_csv(crane, traj: Trajectory, out, plant: Plant = Plant(), rate: 
         ff = commands(crane, traj, rate)
         t_u, u, src = ff.t, ff.u, f"feedforward@{rate:g}Hz"
     r = respond(crane, t_u, u, traj.q[0], effects, plant=plant)
-    q, pa, pb = r.q.copy(), r.p_a.copy(), r.p_b.copy()
+    q, pa, pb = add_noise(crane, r.q, r.p_a, r.p_b, noise, seed)
     levels = _noise_levels(noise)
-    if levels is not None:
-        rng = np.random.default_rng(seed)
-        sq = np.array([levels["angle"] if j.revolute else levels["length"]
-                       for j in crane.spec.joints])
-        q = q + rng.normal(size=q.shape) * sq
-        pa = pa + rng.normal(size=pa.shape) * levels["pressure"]
-        pb = pb + rng.normal(size=pb.shape) * levels["pressure"]
     rec = Recording(r.t, r.u, q, pa, pb)
     rec.to_csv(out, crane)
     q_plan = traj.sample(r.t)[0]

@@ -160,17 +160,9 @@ def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
     """Replay ``ff`` on the plant with ``effects`` from the plan's start; sensor noise at
     seed 001's levels (``noise`` as in :func:`planner.simulate.measured_table`)."""
     from .plant import respond
-    from .simulate import _noise_levels
+    from .simulate import add_noise
     r = respond(crane, ff.t, ff.u, plan.q[0], effects, t_end=ff.t[-1])
-    q, pa, pb = r.q.copy(), r.p_a.copy(), r.p_b.copy()
-    levels = _noise_levels(noise)
-    if levels is not None:
-        rng = np.random.default_rng(seed)
-        sq = np.array([levels["angle"] if j.revolute else levels["length"]
-                       for j in crane.spec.joints])
-        q = q + rng.normal(size=q.shape) * sq
-        pa = pa + rng.normal(size=pa.shape) * levels["pressure"]
-        pb = pb + rng.normal(size=pb.shape) * levels["pressure"]
+    q, pa, pb = add_noise(crane, r.q, r.p_a, r.p_b, noise, seed)
     if positions_only:
         pa = pb = None
     return Recording(r.t, r.u, q, pa, pb)

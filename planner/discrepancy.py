@@ -443,14 +443,9 @@ def locate(d: Discrepancy, Y0: np.ndarray, window_s: float = 2.0) -> dict:
     r = d.response(())
     s = r.state
     n = crane.n
-    share = np.ones(len(t))
     # the nominal replay's pump sharing factor at each sample (from its command intervals)
-    try:
-        from .simulate import stroke_rates
-        _, _, sh = stroke_rates(crane, rec.u)
-        share = sh
-    except Exception:  # pragma: no cover - diagnostics only
-        pass
+    from .simulate import stroke_rates
+    share = stroke_rates(crane, rec.u)[2]
     conditions = {}
     for i, j in enumerate(crane.names):
         idx = [i] + ([n + 2 * i, n + 2 * i + 1] if d._has_p else [])

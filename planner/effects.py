@@ -103,6 +103,14 @@ class Effect:
     def bounds(self):
         return ([p.low for p in self.parameters], [p.high for p in self.parameters])
 
+    def _on_own_joint(self, crane, like, column_of) -> np.ndarray:
+        """An (N, n) array shaped like ``like``: zero except this effect's joint column,
+        ``column_of(i)`` (the per-joint force and drift hooks)."""
+        i = self.index(crane)
+        out = np.zeros_like(like)
+        out[:, i] = column_of(i)
+        return out
+
     def index(self, crane) -> int:
         try:
             return list(crane.names).index(self.joint)
@@ -305,10 +313,8 @@ class CoulombFriction(Effect):
     per_joint, stage, acts_on = True, "forces", "pressures"
 
     def force(self, crane, s):
-        i = self.index(crane)
-        out = np.zeros_like(s.force_model)
-        out[:, i] = self.force_value * _smooth_sign(crane, i, s.xd[:, i])
-        return out
+        return self._on_own_joint(crane, s.force_model, lambda i: self.force_value
+                                  * _smooth_sign(crane, i, s.xd[:, i]))
 
     @property
     def force_value(self):
@@ -327,10 +333,7 @@ class ViscousFriction(Effect):
     per_joint, stage, acts_on = True, "forces", "pressures"
 
     def force(self, crane, s):
-        i = self.index(crane)
-        out = np.zeros_like(s.force_model)
-        out[:, i] = self.coefficient * s.xd[:, i]
-        return out
+        return self._on_own_joint(crane, s.force_model, lambda i: self.coefficient * s.xd[:, i])
 
 
 class PayloadMass(Effect):
@@ -371,14 +374,14 @@ class Leakage(Effect):
     per_joint, stage, acts_on = True, "strokes", "positions and pressures"
 
     def drift(self, crane, s):
-        i = self.index(crane)
-        a = crane.spec.joints[i].actuator
         pt = crane.spec.pump.tank_pressure
-        out = np.zeros_like(s.xd)
-        loaded_a = s.force[:, i] >= 0
-        out[:, i] = np.where(loaded_a, -self.coefficient * (s.p_a[:, i] - pt) / a.area_a,
-                             self.coefficient * (s.p_b[:, i] - pt) / a.area_b)
-        return out
+
+        def rate(i):   # out of the loaded chamber: towards the load
+            a = crane.spec.joints[i].actuator
+            return np.where(s.force[:, i] >= 0,
+                            -self.coefficient * (s.p_a[:, i] - pt) / a.area_a,
+                            self.coefficient * (s.p_b[:, i] - pt) / a.area_b)
+        return self._on_own_joint(crane, s.xd, rate)
 
 
 # ===================================================================== sensors stage

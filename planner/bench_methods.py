@@ -13,11 +13,13 @@ Method names (:data:`METHODS`): ``law:NAME`` the seeds' local laws (:mod:`.metho
 clock (``follow_command``); ``ruckig`` jerk-limited rest-to-rest joint move; ``dp:time`` Bellman
 minimum time along the path; ``dp:energy`` / ``dp:energy-pinned`` the energy DP along a cycle's
 sections at the cycle's tip speed, telescope chained (first section free / pinned to the laws'
-start); ``topp:dp`` / ``topp:law`` TOPP-RA (velocity, acceleration, pump) on the DP's / the
-max-velocity law's joint path; ``nlp:time-free`` / ``nlp:time-path`` minimum-time MoveNLP, free
-path / on the suite's line or curve; ``nlp:time-free-kin`` the same free-path NLP with the
+start); ``topp:dp`` TOPP-RA (velocity, acceleration, pump) on the DP's joint path;
+``topp:law`` the same on every law's joint path, the fastest feasible one (the laws made
+feasible under the spec's limits); ``nlp:time-free`` / ``nlp:time-path`` minimum-time MoveNLP,
+free path / on the suite's line or curve; ``nlp:time-free-kin`` the same free-path NLP with the
 seed-000 limit set (acceleration and jerk ×:attr:`Settings.kin_factor`, judged like the laws on
-position, velocity and pump flow); ``nlp:energy-free`` least pump energy within
+position, velocity and pump flow); ``nlp:time-free-acc`` the same without a jerk limit
+(TOPP-RA's limit set, to compare with ``topp:law``); ``nlp:energy-free`` least pump energy within
 :attr:`Settings.energy_budget` × the minimum time (``energy_optimal``); ``nlp:energy-path`` per
 cycle section, the least pump energy on the line within the section's time, telescope chained;
 ``nlp:kin-line`` the velocity-only line NLP (``kinematic_line_nlp``, seed 000's model).
@@ -36,8 +38,8 @@ from .trajectory import evaluate
 
 METHODS = ("law:least_norm", "law:max_velocity", "law:max_lift", "law:jla", "law:p_optimal",
            "ruckig", "dp:time", "dp:energy", "dp:energy-pinned", "topp:dp", "topp:law",
-           "nlp:time-free", "nlp:time-free-kin", "nlp:time-path", "nlp:energy-free",
-           "nlp:energy-path", "nlp:kin-line")
+           "nlp:time-free", "nlp:time-free-kin", "nlp:time-free-acc", "nlp:time-path",
+           "nlp:energy-free", "nlp:energy-path", "nlp:kin-line")
 BASE_KINDS = ("position", "velocity", "pump_flow")  # every method is judged on at least these
 
 
@@ -116,17 +118,21 @@ class Ctx:
         k = self.settings.kin_factor
         return self.variant(k, k)
 
-    def nlp(self, objective, path, N, *, kin=False, obstacles=True, wall=None, key=None):
+    def nlp(self, objective, path, N, *, kin=False, acc=False, obstacles=True, wall=None,
+            key=None):
+        """The MoveNLP, built once: on the spec's limits, ``kin`` the seed-000 limit set
+        (:meth:`kin_crane`), ``acc`` the spec's limits without jerk (TOPP-RA's limit set)."""
         from .methods.nlp import MoveNLP
-        crane = self.kin_crane() if kin else self.crane
+        crane = self.kin_crane() if kin else self.variant(1.0, float("inf")) if acc else self.crane
         obs = self.obstacles if obstacles else ()
         wall = wall or self.settings.nlp_wall_s
-        k = (objective, key or path, N, kin, obs, wall)
+        k = (objective, key or path, N, kin, acc, obs, wall)
         if k not in self._nlp:
             t0 = _time.perf_counter()
             self._nlp[k] = MoveNLP(crane, objective, path, N=N, obstacles=obs,
                                    ipopt_options={"max_wall_time": wall})
-            label = f"{objective}/{key or path}/N={N}" + ("/kin" if kin else "")
+            label = f"{objective}/{key or path}/N={N}" + ("/kin" if kin else "/acc" if acc
+                                                          else "")
             self.build_s[label] = _time.perf_counter() - t0
         return self._nlp[k]
 
@@ -181,12 +187,33 @@ def topp_dp(ctx, move):
 
 
 def topp_law(ctx, move):
-    """TOPP-RA on the joint path of the max-velocity law."""
+    """Every local law's joint path made feasible under the spec's limits: TOPP-RA rest to rest
+    (velocity, acceleration, pump) on each law's path; the fastest that evaluate() passes wins.
+    ``info["per_law_s"]`` holds each law's retimed duration (or why it has none)."""
     from .methods.topp import retime
-    r = law_runner("max_velocity")(ctx, move)
-    if not r.ok:
-        return Outcome(r.status, f"max-velocity law: {r.reason}")
-    return _from(retime(ctx.crane, r.pieces[0][1].q))
+    names = [m[4:] for m in METHODS if m.startswith("law:")]
+    best, per = None, {}
+    for name in names:
+        r = law_runner(name)(ctx, move)
+        if not r.ok:
+            per[name] = f"law: {r.status}"
+            continue
+        t = retime(ctx.crane, r.pieces[0][1].q)
+        if not t.ok:
+            per[name] = f"TOPP-RA: {t.status}"
+            continue
+        tr = t.trajectory
+        ev = evaluate(ctx.crane, tr, kinds=tuple(dict.fromkeys(tuple(tr.limits) + BASE_KINDS)))
+        if ev.max_limit_violation > 1e-3:
+            per[name] = f"exceeds limits by {100 * ev.max_limit_violation:.2f} %"
+            continue
+        per[name] = t.trajectory.duration
+        if best is None or t.trajectory.duration < best[1].trajectory.duration:
+            best = (name, t)
+    if best is None:
+        return Outcome("infeasible", "no law path could be retimed: " + "; ".join(
+            f"{k}: {v}" for k, v in per.items()), info=dict(per_law_s=per))
+    return _from(best[1], law=best[0], per_law_s=per)
 
 
 # ------------------------------------------------------------------------------ NLPs
@@ -201,6 +228,17 @@ def nlp_time_free_kin(ctx, move):
         out.pieces[0][1].limits = BASE_KINDS
         out.notes.append(f"acceleration and jerk limits ×{ctx.settings.kin_factor:g} (seed 000 "
                          "is kinematic); judged on position, velocity and pump flow like the laws")
+    return out
+
+
+def nlp_time_free_acc(ctx, move):
+    """The free-path minimum-time NLP without a jerk limit: TOPP-RA's limit set (velocity,
+    acceleration, pump), to compare with ``topp:law`` on equal limits."""
+    out = _from(ctx.nlp("time", "free", ctx.settings.nlp_N, acc=True).solve(move.start,
+                                                                            move.goal))
+    if out.ok:
+        out.pieces[0][1].limits = ("position", "velocity", "acceleration", "pump_flow")
+        out.notes.append("no jerk limit (TOPP-RA's limit set)")
     return out
 
 

@@ -96,8 +96,9 @@ def seed000(settings: bm.Settings) -> Suite:
         return dict(stages=n, tele_step=0.01, window=5)
     run = {**_laws(*ALL_LAWS), "ruckig": bm.ruckig, "dp:time": bm.dp_time, "topp:dp": bm.topp_dp,
            "topp:law": bm.topp_law, "nlp:time-free": bm.nlp_time_free,
-           "nlp:time-free-kin": bm.nlp_time_free_kin, "nlp:time-path": bm.nlp_time_path,
-           "nlp:energy-free": bm.nlp_energy_free, "nlp:kin-line": bm.nlp_kin_line}
+           "nlp:time-free-kin": bm.nlp_time_free_kin, "nlp:time-free-acc": bm.nlp_time_free_acc,
+           "nlp:time-path": bm.nlp_time_path, "nlp:energy-free": bm.nlp_energy_free,
+           "nlp:kin-line": bm.nlp_kin_line}
     return Suite("seed000-abc", "cranab850",
                  "seed 000's moves A–B, B–C, A–C on the Cranab 850 (straight tip lines for the "
                  "path methods; laws at the seed's 2.5 m/s)", "p2p", moves,
@@ -198,6 +199,7 @@ def forwarder(settings: bm.Settings) -> Suite:
     meths["nlp:time-path"] = ("the path (r, z, slew interpolated over the headboard) has no "
                               "symbolic face for MoveNLP's path mode")
     meths["nlp:time-free-kin"] = "seed-000 setting only (velocity limits as the laws)"
+    meths["nlp:time-free-acc"] = "seed-000 comparison with topp:law only"
     meths["nlp:kin-line"] = "the straight Cartesian line passes near the slew axis: not used here"
     for m in ("dp:energy", "dp:energy-pinned", "nlp:energy-path"):
         meths[m] = "energy methods on timed paths: seed-002 cycles only"

@@ -79,6 +79,27 @@ def test_nlp_beats_the_laws_on_seed000(bench):
     assert res["acceptance"]["seed000_nlp_vs_laws"]["nlp:time-free-kin"]["passed"]
 
 
+def test_nlp_beats_every_law_path_retimed_on_equal_limits(bench):
+    """topp:law is the fastest law path made feasible under velocity, acceleration and pump
+    limits; the free-path NLP on the same limit set is faster on every seed-000 move."""
+    _, res = bench
+    by = {}
+    for r in res["suites"]["seed000-abc"]["rows"]:
+        by.setdefault(r["move"], {})[r["method"]] = r
+    for move, R in by.items():
+        t, n = R["topp:law"], R["nlp:time-free-acc"]
+        assert t["success"] and n["success"], move
+        assert {"acceleration", "velocity", "pump_flow"} <= set(t["checked"]) & set(n["checked"])
+        retimed = {k: v for k, v in t["info"]["per_law_s"].items() if isinstance(v, float)}
+        assert "law:" + t["info"]["law"] in LAWS
+        assert t["duration_s"] == pytest.approx(min(retimed.values()), rel=1e-9)
+        for law, dur in retimed.items():     # retiming under acceleration limits is slower
+            if R["law:" + law]["success"]:
+                assert dur > R["law:" + law]["duration_s"], (move, law)
+        assert n["duration_s"] < t["duration_s"], move
+    assert res["acceptance"]["seed000_nlp_vs_laws"]["nlp:time-free-acc vs topp:law"]["passed"]
+
+
 def test_bad_suite_name_exits_2_listing_the_suites(capsys):
     rc = main(["bench", "--suite", "seed000-abc,nope"])
     err = capsys.readouterr().err

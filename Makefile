@@ -30,6 +30,7 @@ bench: install
 	cd benchmarks && ../$(BIN)/python bench_pareto.py
 	$(BIN)/python benchmarks/bench_library.py
 	$(BIN)/python benchmarks/bench_discrepancy.py
+	$(BIN)/python benchmarks/bench_scaling.py
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
 
 # the notebook studies with their full settings, executed into build/notebooks (not in place)

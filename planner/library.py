@@ -98,6 +98,12 @@ def _nlp(crane, objective, N, obstacles=()):
     return _NLP_CACHE[key]
 
 
+def clear_nlp_cache() -> None:
+    """Forget the MoveNLPs built in this process (worker processes forked afterwards build
+    their own; benchmarks use it to time a build from scratch)."""
+    _NLP_CACHE.clear()
+
+
 def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
                robustness: bool = True, obstacles: tuple = ()) -> dict:
     """Plan one library entry (runs in a worker). Never raises for planning failures: they come
@@ -239,4 +245,4 @@ def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write):
             cluster.close()
 
 
-__all__ = ["Move", "load_suite", "plan_entry", "build", "OBJECTIVES"]
+__all__ = ["Move", "load_suite", "plan_entry", "build", "clear_nlp_cache", "OBJECTIVES"]

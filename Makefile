@@ -32,6 +32,7 @@ bench: install
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_scaling.py
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
+	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 
 # the notebook studies with their full settings, executed into build/notebooks (not in place)
 notebooks: install

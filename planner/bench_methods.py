@@ -191,9 +191,9 @@ def topp_law(ctx, move):
     (velocity, acceleration, pump) on each law's path; the fastest that evaluate() passes wins.
     ``info["per_law_s"]`` holds each law's retimed duration (or why it has none)."""
     from .methods.topp import retime
-    names = [m[4:] for m in METHODS if m.startswith("law:")]
+    names = [m[4:] for m in METHODS if m.startswith("law:") and callable(ctx.suite.methods[m])]
     best, per = None, {}
-    for name in names:
+    for name in names:   # the laws this suite runs (max_lift needs the machine's table)
         r = law_runner(name)(ctx, move)
         if not r.ok:
             per[name] = f"law: {r.status}"

@@ -128,7 +128,16 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
             L.append(f"| {m} | {r['successes']}/{r['runs']} | {f(r.get('median_duration_s'))} "
                      f"| {f(r.get('median_energy_J'), 1e-3, '.1f')} | "
                      f"{f(r.get('median_solve_s'))} |")
-    L += ["", "Full table, acceptance checks and figures: [bench/bench.md](bench/bench.md)."]
+    n = b["acceptance"].get("seed000_nlp_vs_laws") or {}
+
+    def margins(key):
+        ms = [m["margin_pct"] for m in n.get(key, {}).get("moves", [])]
+        return "–" if not ms or None in ms else f"{min(ms):+.0f} to {max(ms):+.0f} %"
+    L += ["", "On equal limits the free-path minimum-time NLP is faster than every local law: "
+          f"{margins('nlp:time-free-kin')} with the laws' velocity-only limits, "
+          f"{margins('nlp:time-free-acc vs topp:law')} against every law's path retimed under "
+          "the acceleration and pump limits (quick settings).",
+          "", "Full table, acceptance checks and figures: [bench/bench.md](bench/bench.md)."]
     summary["bench"] = dict(wall_time_s=b.get("wall_time_s"), seed000=rows)
     steps.update(1)
 

@@ -127,6 +127,52 @@ def _pair_bounds(crane: Crane, qs, qg):
     return T_vel, T_r2r, T_pump, E
 
 
+def _end_grids(crane: Crane, tip, q, grids):
+    """Candidate configurations for one end at every telescope value of ``grids`` (S, G), all
+    S grids in one IK call: joints (S, G, n), telescope values (S, G) and the reachable mask;
+    a fixed end (``q`` given) is the one configuration (S, 1, n). Raises like
+    :func:`_end_configs` when a grid has no reachable point."""
+    S, G = grids.shape
+    if q is not None:
+        q = np.asarray(q, float)
+        return (np.broadcast_to(q, (S, 1, crane.n)), np.full((S, 1), np.nan),
+                np.ones((S, 1), bool))
+    tip = np.asarray(tip, float)
+    qq, reason = crane.ik_batch(np.tile(tip, (S * G, 1)), grids.ravel(), explain=False)
+    ok = (reason == "").reshape(S, G)
+    for s in np.flatnonzero(~ok.any(axis=1)):
+        _end_configs(crane, tip, None, grids[s])  # raises with the explained reason
+    return qq.reshape(S, G, crane.n), grids, ok
+
+
+def _pair_bounds_batch(crane: Crane, A, B):
+    """:func:`_pair_bounds` for S grid pairs at once: ends ``A`` = (joints (S, Gs, n),
+    telescopes, mask) from :func:`_end_grids` and ``B`` likewise; returns (S, Gs, Gg) arrays,
+    +inf where an end is unreachable."""
+    (qs, _, oks), (qg, _, okg) = A, B
+    L = crane.limit_arrays()
+    spec = crane.spec
+
+    def per_config(Q, ok):  # strokes and potential energy of the reachable configurations
+        x = np.full(Q.shape[:2] + (crane.n,), np.nan)
+        e = np.full(Q.shape[:2], np.nan)
+        x[ok] = crane.stroke(Q[ok])[0]
+        e[ok] = crane.potential_energy(Q[ok])
+        return x, e
+    xs, es = per_config(qs, oks)
+    xg, eg = per_config(qg, okg)
+    dq = qg[:, None, :, :] - qs[:, :, None, :]
+    v = np.where(dq >= 0, L["qd_max"], -L["qd_min"])
+    with np.errstate(invalid="ignore"):
+        T_vel = np.max(np.abs(dq) / v, axis=-1)
+        T_r2r = np.max(rest_to_rest_time(dq, v, L["qdd_max"], L["qddd_max"]), axis=-1)
+        V = swept_volume(spec, xg[:, None, :, :] - xs[:, :, None, :])
+        T_pump = V.sum(axis=-1) / spec.pump.max_flow
+        E = np.maximum(eg[:, None, :] - es[:, :, None], 0) / spec.pump.efficiency
+    bad = ~(oks[:, :, None] & okg[:, None, :])
+    return tuple(np.where(bad, np.inf, m) for m in (T_vel, T_r2r, T_pump, E))
+
+
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
                 n_grid: int = 121, refine: int = 3, starts: int = 8) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
@@ -134,7 +180,8 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
 
     Free telescope values are searched on an ``n_grid`` grid at each free end; the best grid
     pairs of every bound (they are not convex in the telescope values: several basins) are then
-    refined ``refine`` times on 5× finer local grids; the smallest values found are returned."""
+    refined ``refine`` times on 5× finer local grids; the smallest values found are returned.
+    The refinements of all starting pairs run together (one IK call per end and level)."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
@@ -149,31 +196,38 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
     if tr:
         # every reported bound is minimised on its own: refine around the best grid pairs of
         # each (the combined one gets ``starts`` of them, the others 3)
-        step0 = (tr[1] - tr[0]) / (n_grid - 1)
+        step = (tr[1] - tr[0]) / (n_grid - 1)
         metrics = dict(comb=comb, vel=Tv, r2r=Tr, pump=Tp, E=E)
         seeds = [(key, flat) for key, m in metrics.items()
                  for flat in np.argsort(m, axis=None)[:starts if key == "comb" else 3]]
-        for key, flat in seeds:
-            i, k = np.unravel_index(flat, comb.shape)
-            c0 = (ts[i], tg[k])
-            step = step0
-            for _ in range(refine):
-                grids = tuple(np.clip(np.linspace(c - 2 * step, c + 2 * step, 21), *tr)
-                              if not np.isnan(c) else grid for c in c0)
-                qs2, ts2 = _end_configs(crane, start, q_start, grids[0])
-                qg2, tg2 = _end_configs(crane, goal, q_goal, grids[1])
-                Tv2, Tr2, Tp2, E2 = _pair_bounds(crane, qs2, qg2)
-                comb2 = np.maximum(Tr2, Tp2)
-                m2 = dict(comb=comb2, vel=Tv2, r2r=Tr2, pump=Tp2, E=E2)[key]
-                a, b = np.unravel_index(np.argmin(m2), m2.shape)
-                c0 = (ts2[a], tg2[b])
-                ac, bc = np.unravel_index(np.argmin(comb2), comb2.shape)
-                if comb2[ac, bc] < best["comb"]:
-                    arg = (ts2[ac], tg2[bc])
-                best = dict(vel=min(best["vel"], Tv2.min()), r2r=min(best["r2r"], Tr2.min()),
-                            pump=min(best["pump"], Tp2.min()),
-                            comb=min(best["comb"], comb2.min()), E=min(best["E"], E2.min()))
-                step /= 5
+        keys = [key for key, _ in seeds]
+        centres = np.array([(ts[i], tg[k]) for i, k in
+                            (np.unravel_index(flat, comb.shape) for _, flat in seeds)])
+        levels = []   # per level: (telescope grids, comb (S, Gs, Gg)) for the arg update
+        for _ in range(refine):
+            grids = [np.clip(np.linspace(c - 2 * step, c + 2 * step, 21, axis=1), *tr)
+                     for c in centres.T]   # a fixed end (NaN centre) ignores its grid
+            A = _end_grids(crane, start, q_start, grids[0])
+            B = _end_grids(crane, goal, q_goal, grids[1])
+            Tv2, Tr2, Tp2, E2 = _pair_bounds_batch(crane, A, B)
+            comb2 = np.maximum(Tr2, Tp2)
+            m2 = dict(comb=comb2, vel=Tv2, r2r=Tr2, pump=Tp2, E=E2)
+            for s, key in enumerate(keys):   # each start moves to its own metric's minimum
+                a, b = np.unravel_index(np.argmin(m2[key][s]), comb2.shape[1:])
+                centres[s] = (A[1][s, a], B[1][s, b])
+            levels.append((A[1], B[1], comb2))
+            best = dict(vel=min(best["vel"], Tv2.min()), r2r=min(best["r2r"], Tr2.min()),
+                        pump=min(best["pump"], Tp2.min()), comb=min(best["comb"], comb2.min()),
+                        E=min(best["E"], E2.min()))
+            step /= 5
+        # the telescopes of the smallest combined bound, in the order the starts were
+        # refined one after another (start-major: the first strict improvement wins ties)
+        run = float(comb.min())
+        for s in range(len(seeds)):
+            for ga, gb, c2 in levels:
+                ac, bc = np.unravel_index(np.argmin(c2[s]), c2.shape[1:])
+                if c2[s, ac, bc] < run:
+                    arg, run = (ga[s, ac], gb[s, bc]), float(c2[s, ac, bc])
 
     def none_if_nan(v):
         return None if (not tr or np.isnan(v)) else float(v)

@@ -106,3 +106,24 @@ def test_unreachable_end_is_reported():
     crane = Crane.from_id("s100f")
     with pytest.raises(UnreachableError, match="every telescope value"):
         lower_bound(crane, (30.0, 0.0, 0.0), (5.0, 1.0, 0.0))
+
+
+def test_batched_refinement_equals_pair_by_pair():
+    """The refinement evaluates all its grids in one batch; every grid pair must give what the
+    single-pair evaluation gives on the reachable configurations (unreachable ones: +inf)."""
+    from planner.bounds import _end_configs, _end_grids, _pair_bounds, _pair_bounds_batch
+    crane = Crane.from_id("s100f")
+    start, goal = (8.5, -1.0, 0.0), (3.0, 2.5, 1.5)   # far reach: some telescopes fail
+    lo, hi = crane.tele_range
+    rng = np.random.default_rng(3)
+    gs = np.sort(rng.uniform(lo, hi, (4, 9)), axis=1)
+    gg = np.sort(rng.uniform(lo, hi, (4, 7)), axis=1)
+    A, B = _end_grids(crane, start, None, gs), _end_grids(crane, goal, None, gg)
+    assert not A[2].all()                              # the case with holes is exercised
+    batch = _pair_bounds_batch(crane, A, B)
+    for s in range(4):
+        qs, _ = _end_configs(crane, start, None, gs[s])
+        qg, _ = _end_configs(crane, goal, None, gg[s])
+        for m_b, m_1 in zip(batch, _pair_bounds(crane, qs, qg)):
+            assert np.all(np.isinf(m_b[s][~A[2][s]])) and np.all(np.isinf(m_b[s][:, ~B[2][s]]))
+            np.testing.assert_array_equal(m_b[s][np.ix_(A[2][s], B[2][s])], m_1)

@@ -217,13 +217,22 @@ def topp_law(ctx, move):
 
 
 # ------------------------------------------------------------------------------ NLPs
+def _winner_note(res, out):
+    if out.ok and res.stats.get("winner") == "ruckig":
+        out.info["winner"] = "ruckig"
+        out.notes.append("the exact jerk-limited Ruckig move: feasible and faster than the "
+                         f"N-interval solution ({res.trajectory.meta.get('nlp')})")
+    return out
+
+
 def nlp_time_free(ctx, move):
-    return _from(ctx.nlp("time", "free", ctx.settings.nlp_N).solve(move.start, move.goal))
+    res = ctx.nlp("time", "free", ctx.settings.nlp_N).solve(move.start, move.goal)
+    return _winner_note(res, _from(res))
 
 
 def nlp_time_free_kin(ctx, move):
     res = ctx.nlp("time", "free", ctx.settings.nlp_N, kin=True).solve(move.start, move.goal)
-    out = _from(res)
+    out = _winner_note(res, _from(res))
     if out.ok:  # judged against the real crane on the laws' limit set
         out.pieces[0][1].limits = BASE_KINDS
         out.notes.append(f"acceleration and jerk limits ×{ctx.settings.kin_factor:g} (seed 000 "
@@ -234,8 +243,8 @@ def nlp_time_free_kin(ctx, move):
 def nlp_time_free_acc(ctx, move):
     """The free-path minimum-time NLP without a jerk limit: TOPP-RA's limit set (velocity,
     acceleration, pump), to compare with ``topp:law`` on equal limits."""
-    out = _from(ctx.nlp("time", "free", ctx.settings.nlp_N, acc=True).solve(move.start,
-                                                                            move.goal))
+    res = ctx.nlp("time", "free", ctx.settings.nlp_N, acc=True).solve(move.start, move.goal)
+    out = _winner_note(res, _from(res))
     if out.ok:
         out.pieces[0][1].limits = ("position", "velocity", "acceleration", "pump_flow")
         out.notes.append("no jerk limit (TOPP-RA's limit set)")

@@ -117,3 +117,46 @@ def test_curve_mode_keeps_the_tip_on_seed_003s_circle():
     rad = np.hypot(X[:, 0] - 3.0, X[:, 2] - 2.5)
     assert np.abs(rad - 0.7).max() < 0.01 and np.abs(X[:, 1]).max() < 1e-6
     np.testing.assert_allclose(X[[0, -1]], [[3.0, 0, 1.8], [3.0, 0, 3.2]], atol=1e-6)
+
+
+def test_a_long_slew_move_is_never_slower_than_its_feasible_ruckig_move(s100f):
+    """d01-p00 of the forwarder suite: the slew dominates and the pump does not bind. The N = 40
+    grid loses about one interval against the exact jerk switches; the solver then returns the
+    Ruckig move, which sits on the rest-to-rest bound, within every limit and clear of the
+    headboard, represented exactly by its switch times."""
+    from planner.library import load_suite
+    from planner.methods.smoothing import rest_to_rest
+    info, moves = load_suite("forwarder-cycle")
+    m = next(m for m in moves if m.id == "d01-p00")
+    nlp = MoveNLP(s100f, "time", "free", N=40, obstacles=info["obstacles"])
+    own = nlp.solve(m.start, m.goal, w0=nlp.default_guess(m.start, m.goal)[0])
+    r = nlp.solve(m.start, m.goal)
+    lb = lower_bound(s100f, m.start, m.goal)
+    rk = rest_to_rest(s100f, s100f.ik(m.start, lb.tele_start), s100f.ik(m.goal, lb.tele_goal))
+    assert own.ok and r.ok and rk.ok
+    assert own.duration_s > 1.01 * rk.duration_s                 # the grid's loss
+    assert r.stats["winner"] == "ruckig"
+    assert r.duration_s == pytest.approx(rk.duration_s, rel=1e-12)
+    assert r.duration_s >= lb.combined_s * (1 - 1e-4)
+    ev = evaluate(s100f, r.trajectory)                            # pump flow included
+    assert ev.max_limit_violation <= 1e-4 and "pump_flow" in ev.checked
+    assert nlp.clears(r.trajectory)
+    t = np.linspace(0, r.duration_s, 997)                        # exact between switch times
+    np.testing.assert_allclose(r.trajectory.sample(t)[0], rk.trajectory.sample(t)[0], atol=1e-9)
+
+
+def test_the_nlp_keeps_its_own_solution_when_ruckig_exceeds_the_pump(s100f):
+    """p01-d03: the jerk-limited Ruckig move needs more oil than the pump gives; the NLP's
+    solution (the pump as a constraint) is returned."""
+    from planner.library import load_suite
+    info, moves = load_suite("forwarder-cycle")
+    m = next(m for m in moves if m.id == "p01-d03")
+    from planner.methods.smoothing import rest_to_rest
+    r = MoveNLP(s100f, "time", "free", N=40, obstacles=info["obstacles"]).solve(m.start, m.goal)
+    lb = lower_bound(s100f, m.start, m.goal)
+    rk = rest_to_rest(s100f, s100f.ik(m.start, lb.tele_start), s100f.ik(m.goal, lb.tele_goal))
+    assert rk.duration_s < r.duration_s                           # faster, but not feasible:
+    assert evaluate(s100f, rk.trajectory, kinds=("pump_flow",)).max_limit_violation > 1e-3
+    assert r.ok and "winner" not in r.stats
+    assert len(r.trajectory.t) == 41
+    assert evaluate(s100f, r.trajectory).max_limit_violation <= 1e-3

@@ -72,8 +72,9 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
         return RuckigResult("failed", f"Ruckig: {res.name}",
                             solve_time_s=_time.perf_counter() - t0)
     T = traj.duration
+    sw = np.array([0.0, max(T, 1e-9)])
     if T <= 0:
-        t = np.array([0.0, 1e-9])
+        t = sw
     else:
         sw = np.unique(_switch_times(traj))
         sw = sw[np.concatenate([[True], np.diff(sw) > 1e-6])]  # near-duplicates: 1/h³ noise
@@ -87,6 +88,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
     tr = Trajectory(t, [p[0] for p in s], [p[1] for p in s], [p[2] for p in s],
                     joint_names=tuple(crane.names), method="ruckig", objective="time",
                     limits=("position", "velocity", "acceleration", "jerk"),
-                    meta=dict(independent_min_durations=list(traj.independent_min_durations)))
+                    meta=dict(independent_min_durations=list(traj.independent_min_durations),
+                              switch_times=sw.tolist()))
     return RuckigResult("ok", trajectory=tr, duration_s=T,
                         solve_time_s=_time.perf_counter() - t0)

@@ -131,17 +131,23 @@ def _top_channels(res, k):
     return ranked[:k]
 
 
+def _channel_axes(res, k, row_height, extra):
+    """One shared-time axis per channel that disagrees most: (fig, axes, t from 0 [s],
+    [(channel, its column)])."""
+    s = res.series
+    cols = list(s["columns"])
+    chans = _top_channels(res, k)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, row_height * len(chans) + extra),
+                             sharex=True, squeeze=False)
+    return fig, axes, s["t"] - s["t"][0], [(c, cols.index(c)) for c in chans]
+
+
 def discrepancy_residual_figure(res, path, k: int = 4):
     """Residuals (measured − model) over time, in units of the noise floor, for the k channels
     that disagree most: nominal model and calibrated model; held-out blocks shaded."""
     s = res.series
-    cols = list(s["columns"])
-    chans = _top_channels(res, k)
-    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.9 * len(chans) + 0.6), sharex=True,
-                             squeeze=False)
-    t = s["t"] - s["t"][0]
-    for ax, c in zip(axes[:, 0], chans):
-        i = cols.index(c)
+    fig, axes, t, rows = _channel_axes(res, k, 1.9, 0.6)
+    for ax, (c, i) in zip(axes[:, 0], rows):
         sig = s["sigma"][i]
         ax.plot(t, (s["Y"][:, i] - s["Y0"][:, i]) / sig, lw=0.6, color="tab:red",
                 label="nominal model")
@@ -162,13 +168,8 @@ def discrepancy_residual_figure(res, path, k: int = 4):
 def discrepancy_overlay_figure(res, path, k: int = 2):
     """Measured, nominal and calibrated signals of the k channels that disagree most."""
     s = res.series
-    cols = list(s["columns"])
-    chans = _top_channels(res, k)
-    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 2.4 * len(chans) + 0.4), sharex=True,
-                             squeeze=False)
-    t = s["t"] - s["t"][0]
-    for ax, c in zip(axes[:, 0], chans):
-        i = cols.index(c)
+    fig, axes, t, rows = _channel_axes(res, k, 2.4, 0.4)
+    for ax, (c, i) in zip(axes[:, 0], rows):
         scale, unit = (1e-6, "MPa") if c.startswith("p_") else (1.0, "rad | m")
         ax.plot(t, s["Y"][:, i] * scale, lw=0.5, color="0.5", label="measured")
         ax.plot(t, s["Y0"][:, i] * scale, lw=1.0, color="tab:red", label="nominal model")

@@ -272,6 +272,7 @@ class MoveNLP:
         self.lbg, self.ubg = np.array(lbg), np.array(ubg)
         self.nw = wv.shape[0]
         self._last = None
+        self._plain = (None, None)   # (key, _plain_traj result) of the last move: built once
 
     # ------------------------------------------------------------------------ guesses
     def guess_from(self, traj) -> np.ndarray:
@@ -324,13 +325,16 @@ class MoveNLP:
 
     def _plain_traj(self, start, goal, lb):
         """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
-        Ruckig move itself)."""
-        crane = self.crane
-        tr = rest_to_rest(crane, crane.ik(start, lb.tele_start),
-                          crane.ik(goal, lb.tele_goal)).trajectory
-        if 1.05 * lb.combined_s > tr.duration:
-            return stretch(tr, 1.05 * lb.combined_s), tr
-        return tr, tr
+        Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
+        key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
+               lb.combined_s)
+        if self._plain[0] != key:
+            crane = self.crane
+            tr = rest_to_rest(crane, crane.ik(start, lb.tele_start),
+                              crane.ik(goal, lb.tele_goal)).trajectory
+            slow = stretch(tr, 1.05 * lb.combined_s) if 1.05 * lb.combined_s > tr.duration else tr
+            self._plain = (key, (slow, tr))
+        return self._plain[1]
 
     def _prefer_exact(self, res, start, goal, lb, t0):
         """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes

@@ -1,11 +1,11 @@
 """Hidden-effect trials of the discrepancy workflow: a randomly drawn effect at a realistic
-magnitude (planner.trials.TRIAL_MAGNITUDES) is injected into the plant of several machines, a
+magnitude (planner.calibration.trials.TRIAL_MAGNITUDES) is injected into the plant of several machines, a
 60 s recording at 50 Hz with seed 001's sensor noise is made, and the workflow — which sees only
 the recording — must name it; clean recordings must give "none". Measured: hit rate (effect,
 and effect + joint), false alarms on clean data, above-noise residual removed on the held-out
 blocks, runtime, and the open-loop tracking error of the recording's own trajectory before and
 after re-planning the feed-forward on the calibrated model (on the true plant; the trajectory
-slowed where needed so that the nominal plant could follow it: planner.trials.trackable).
+slowed where needed so that the nominal plant could follow it: planner.calibration.trials.trackable).
 
     python benchmarks/bench_discrepancy.py [--per-machine 3,2,2,2] [--clean 10] [--workers 2]
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from planner.effects import CATALOGUE
+from planner.simulation.effects import CATALOGUE
 from planner.io import atomic_write_text
 
 MACHINES = ("cat215b", "s100f", "umea-lab", "cranab850")
@@ -31,8 +31,8 @@ MACHINES = ("cat215b", "s100f", "umea-lab", "cranab850")
 
 def trial(machine, effect, seed, duration):
     from planner import Crane
-    from planner.discrepancy import Discrepancy, closed_loop
-    from planner.trials import hidden_trial, trackable
+    from planner.calibration.discrepancy import Discrepancy, closed_loop
+    from planner.calibration.trials import hidden_trial, trackable
     crane = Crane.from_id(machine)
     rec, plan, _, truth = hidden_trial(crane, effect, seed, duration)
     t0 = time.perf_counter()
@@ -127,7 +127,7 @@ def main():
           f"{report['date']}, {platform.platform()}, {os.cpu_count()} CPUs. "
           "`python benchmarks/bench_discrepancy.py`.", "",
           f"{len(eff)} trials with one hidden effect at a realistic magnitude "
-          f"(`planner.trials.TRIAL_MAGNITUDES`) and {len(clean)} clean trials, on "
+          f"(`planner.calibration.trials.TRIAL_MAGNITUDES`) and {len(clean)} clean trials, on "
           f"{', '.join(MACHINES)}; {args.duration:g} s recordings at 50 Hz with seed 001's "
           "sensor noise (0.1°, 2 mm, 0.17 MPa); the workflow sees only the recording.", "",
           "| measure | result | target |", "| --- | ---: | ---: |",

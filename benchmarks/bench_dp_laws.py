@@ -23,7 +23,7 @@ from planner.io import atomic_write_text
 from planner.methods.dp import dp, dp_time_reference
 from planner.methods.laws import LAWS, follow
 from planner.methods.topp import retime
-from planner.paths import Line
+from planner.geometry.paths import Line
 
 A, B, C = (1.5, 1.0, 0.0), (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from planner import Crane
 from planner.io import atomic_write_text
-from planner.library import build, load_suite
-from planner.store import LibraryStore
+from planner.library.build import build, load_suite
+from planner.library.store import LibraryStore
 from planner.trajectory import evaluate
 
 CMD = ("crane-planner library build s100f --tasks forwarder-cycle --objectives time,energy "

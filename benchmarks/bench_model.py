@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 from planner.bounds import lower_bound  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.model import Crane  # noqa: E402
-from planner.spec import load_spec  # noqa: E402
+from planner.model.spec import load_spec  # noqa: E402
 from planner.trajectory import Trajectory, evaluate  # noqa: E402
 from problems import crane_ids, crane_path  # noqa: E402
 

@@ -8,7 +8,7 @@
    solve time (median of repeats) vs the horizon N on every machine (3 or 4 joints), with IPOPT
    iterations, problem size and the duration found; and the same moves on the s100f with its
    telescope frozen (a 3-DOF variant of the 4-DOF crane).
-3. Library build (:func:`planner.library.build`, local processes) vs workers; the Dask numbers
+3. Library build (:func:`planner.library.build.build`, local processes) vs workers; the Dask numbers
    are cited from benchmarks/results/library_build.json, not re-run.
 
 Outputs (atomic writes): scaling.md, scaling.json, scaling_dp.png, scaling_nlp.png,
@@ -33,11 +33,11 @@ import numpy as np
 from tqdm import tqdm
 
 from planner import Crane
-from planner.bench import machine_info
+from planner.bench.run import machine_info
 from planner.io import atomic_write_text, dumps
 from planner.methods.dp import dp
 from planner.methods.nlp import MoveNLP
-from planner.paths import Line, tip_to_xyz, xyz_to_tip
+from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
 
 RESULTS = Path(__file__).parent / "results"
 DASK_JSON = RESULTS / "library_build.json"
@@ -382,7 +382,7 @@ def library_run(workers: int, moves: int, folder, robustness: bool = True) -> di
     """Wall time [s] of one fresh build of the first ``moves`` forwarder-cycle moves on the
     s100f, objective time, with ``workers`` local processes (build()'s own clock: pool start,
     every worker building its NLP, planning, writing)."""
-    from planner import library
+    import planner.library.build as library
     library.clear_nlp_cache()  # forked workers would inherit the parent's built NLPs
     out = Path(folder) / f"w{workers}_{time.monotonic_ns()}.h5"
     s = library.build("s100f", "forwarder-cycle", out, objectives=("time",), workers=workers,

@@ -17,7 +17,7 @@ from planner import Crane
 from planner.io import atomic_write_text
 from planner.methods.dp import dp
 from planner.methods.laws import LAWS, follow
-from planner.paths import Line
+from planner.geometry.paths import Line
 from planner.trajectory import evaluate
 
 POINTS = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))

@@ -4,7 +4,7 @@ a global DP along the same straight sections.
 
     python benchmarks/seed002_table.py [--out benchmarks/results] [--no-gain-check]
 
-For the cycles h, v, d (planner.cycles) × per-axis tip speed 0.5 and 1 m/s × {conventional,
+For the cycles h, v, d (planner.tasks.cycles) × per-axis tip speed 0.5 and 1 m/s × {conventional,
 hydraulic transformer (HT)}:
 
 a) the local laws JLA, Q-optimal, P-optimal n = 1, 1.5, 2 (planner.methods.laws_energy, their
@@ -41,14 +41,14 @@ if str(ROOT) not in sys.path:  # run from a checkout without installing
 
 import numpy as np  # noqa: E402
 
-from planner.cycles import CYCLES, SPEEDS, START, START_REASON, START_TELE, cycle  # noqa: E402
+from planner.tasks.cycles import CYCLES, SPEEDS, START, START_REASON, START_TELE, cycle  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods import laws_energy as le  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
 from planner.methods.laws import follow_command  # noqa: E402
 from planner.model import Crane  # noqa: E402
-from planner.paths import Line  # noqa: E402
-from planner.spec import parse_spec  # noqa: E402
+from planner.geometry.paths import Line  # noqa: E402
+from planner.model.spec import parse_spec  # noqa: E402
 from planner.trajectory import evaluate  # noqa: E402
 from problems import crane_path  # noqa: E402
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from planner import Crane
 from planner.io import atomic_write_text
 from planner.methods.nlp import MoveNLP
-from planner.paths import circle, parabola
+from planner.geometry.paths import circle, parabola
 from planner.trajectory import evaluate
 
 

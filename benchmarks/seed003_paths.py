@@ -319,7 +319,7 @@ def markdown(res):
       f"{pc['plus']['z_at_x0']:.2f} m and z(xend) = {pc['plus']['z_at_xend']:.2f} m (vertex at "
       f"x = −h, off the path); with (θ − h): z(x0) = {pc['minus']['z_at_x0']:.3f} m, "
       f"z(h) = {pc['minus']['z_at_h']:.3f} m, z(xend) = {pc['minus']['z_at_xend']:.3f} m: "
-      "(θ − h) is meant, and is used (as in planner.paths.parabola).")
+      "(θ − h) is meant, and is used (as in planner.geometry.paths.parabola).")
     rs = pc["alpha_seed"]["reasons"]
     A(f"- Reach: at α = −π/3 the tip is at slew −60° (the slew limit is −57.3°) and "
       f"r = x/cos α = 2x = {rs['start']['r']:.2f} … {rs['end']['r']:.2f} m; IK with the "

@@ -195,7 +195,7 @@ A = [
     code(r'''
     from planner.methods.dp import dp
     from planner.methods.nlp import MoveNLP, kinematic_line_nlp
-    from planner.paths import Line
+    from planner.geometry.paths import Line
     from planner.trajectory import evaluate
 
 
@@ -465,7 +465,7 @@ B = [
     '''),
     code(r'''
     from planner import Crane
-    from planner.cycles import START, START_TELE, cycle, labels
+    from planner.tasks.cycles import START, START_TELE, cycle, labels
 
     crane = Crane.from_id("s100f")
     pump = crane.spec.pump
@@ -603,7 +603,7 @@ B = [
     code(r'''
     from planner.methods.dp import dp
     from planner.methods.nlp import MoveNLP, energy_optimal
-    from planner.paths import Line
+    from planner.geometry.paths import Line
 
     vmax_tele = float(crane.limit_arrays()["qd_max"][crane.chain.tele])
 
@@ -1021,7 +1021,7 @@ C = [
     is slowed by flow sharing); the score is the worst maximum over the perturbations.
     '''),
     code(r'''
-    from planner.simulate import robustness
+    from planner.simulation.replay import robustness
 
     ROB = {}
     for name, d in D.items():
@@ -1054,7 +1054,7 @@ C = [
 
     # the circle's tip path on the worst plant vs the plan (x–z plane)
     from planner.feedforward import commands
-    from planner.simulate import default_perturbations, replay
+    from planner.simulation.replay import default_perturbations, replay
 
     d = D["circle"]
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
@@ -1147,7 +1147,7 @@ D = [
     '''),
     code(r'''
     from planner import Crane
-    from planner.effects import catalogue
+    from planner.simulation.effects import catalogue
 
     crane = Crane.from_id("cat215b")
     print(f"{crane.spec.name}: joints {crane.names}")
@@ -1165,7 +1165,7 @@ D = [
     the plant with the hidden effect, sensor noise at seed 001's levels (0.1°, 2 mm, 0.17 MPa).
     '''),
     code(r'''
-    from planner.trials import hidden_trial
+    from planner.calibration.trials import hidden_trial
 
     REC, _HIDDEN = {}, {}
     for label, effect, seed in S["recordings"]:
@@ -1199,7 +1199,7 @@ D = [
     k·ln n) and name the best if its score passes the threshold; else "none".
     '''),
     code(r'''
-    from planner.discrepancy import Discrepancy
+    from planner.calibration.discrepancy import Discrepancy
 
     RES = {}
     for label in REC:
@@ -1264,10 +1264,10 @@ D = [
     (`trackable`). `write_report` writes the whole story (markdown, JSON, figures).
     '''),
     code(r'''
-    from planner.discrepancy import calibrated_spec_text, closed_loop, compensate, write_report
+    from planner.calibration.discrepancy import calibrated_spec_text, closed_loop, compensate, write_report
     from planner.feedforward import commands
-    from planner.plant import respond
-    from planner.trials import trackable
+    from planner.simulation.plant import respond
+    from planner.calibration.trials import trackable
 
     print("\n".join(calibrated_spec_text(crane, res.effects, "(recording A)").splitlines()[-6:]))
     CL = {}

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import Crane, UnreachableError
+from planner.model import Crane, UnreachableError
 
 
 def rest_to_rest_time(d, v, a, j=np.inf):

@@ -21,14 +21,14 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
 
     from problems import crane_ids
 
-    from .bounds import lower_bound
-    from .io import atomic_write_text
-    from .methods.dp import dp
-    from .methods.laws import LAWS, follow
-    from .model import Crane
-    from .paths import Line
-    from .plots import trajectory_figure, workspace_figure
-    from .trajectory import evaluate
+    from planner.bounds import lower_bound
+    from planner.io import atomic_write_text
+    from planner.methods.dp import dp
+    from planner.methods.laws import LAWS, follow
+    from planner.model import Crane
+    from planner.geometry.paths import Line
+    from planner.plots import trajectory_figure, workspace_figure
+    from planner.trajectory import evaluate
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -83,8 +83,8 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     steps.update(1)
 
     # ---------------------------------------------------------------- library
-    from .library import build
-    from .store import LibraryStore
+    from planner.library.build import build
+    from planner.library.store import LibraryStore
     lib = out / "library.h5"
     s = build(DEFAULT_CRANE, "forwarder-cycle", lib, objectives=("time", "energy"),
               workers=workers, limit=library_moves, progress=False)
@@ -115,7 +115,7 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     steps.update(1)
 
     # ---------------------------------------------------------------- benchmark
-    from .bench import run_bench
+    from planner.bench.run import run_bench
     b = run_bench(["seed000-abc"], out / "bench", quick=True)
     L += ["", "## Short benchmark (seed 000 moves, every method judged by evaluate())", "",
           "| method | success | median duration [s] | median pump energy [kJ] | "
@@ -142,8 +142,8 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     steps.update(1)
 
     # ---------------------------------------------------------------- calibration
-    from .discrepancy import Discrepancy, closed_loop, write_report
-    from .trials import hidden_trial, trackable
+    from planner.calibration.discrepancy import Discrepancy, closed_loop, write_report
+    from planner.calibration.trials import hidden_trial, trackable
     cat = Crane.from_id("cat215b")
     rec, plan, _, truth = hidden_trial(cat, "flow_gain", seed=2, duration=30.0)
     res = Discrepancy(cat).fit(rec)

@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import Polynomial
 
-from .trajectory import Trajectory, evaluate
+from planner.trajectory import Trajectory, evaluate
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
            "valve_parameters", "ProgressEstimator", "progress_estimator"]

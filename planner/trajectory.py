@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .io import atomic_write_text
+from planner.io import atomic_write_text
 
 LIMIT_KINDS = ("position", "velocity", "acceleration", "jerk", "pump_flow", "pressure", "tension")
 

@@ -5,9 +5,9 @@ import json
 
 import pytest
 
-from planner.bench import SUITE_NAMES, parse_suites
-from planner.bench_methods import METHODS
-from planner.bench_figures import pareto
+from planner.bench.run import SUITE_NAMES, parse_suites
+from planner.bench.methods import METHODS
+from planner.bench.figures import pareto
 from planner.cli import main
 
 METRICS = ("duration_s", "energy_J", "peak_pump_flow_m3s", "max_limit_violation", "gap_pct",

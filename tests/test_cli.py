@@ -253,8 +253,8 @@ def test_library_commands_on_a_small_database(tmp_path, capsys):
     import json
 
     from planner import Crane
-    from planner.methods.smoothing import rest_to_rest
-    from planner.store import LibraryStore
+    from planner.methods.ruckig import rest_to_rest
+    from planner.library.store import LibraryStore
     from planner.trajectory import evaluate
     crane = Crane.from_id("umea-lab")
     lib = tmp_path / "lib.h5"
@@ -301,8 +301,8 @@ def test_library_query_joins_from_the_current_state(tmp_path, capsys):
     import numpy as np
 
     from planner import Crane
-    from planner.methods.smoothing import rest_to_rest
-    from planner.store import LibraryStore
+    from planner.methods.ruckig import rest_to_rest
+    from planner.library.store import LibraryStore
     from planner.trajectory import Trajectory, evaluate
     crane = Crane.from_id("umea-lab")
     a, b = (3.0, 1.8, 0.0), (2.5, 3.0, -0.5)

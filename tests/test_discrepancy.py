@@ -11,9 +11,9 @@ import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.discrepancy import Discrepancy, closed_loop, noise_floor
-from planner.effects import CATALOGUE
-from planner.trials import excitation, hidden_trial
+from planner.calibration.discrepancy import Discrepancy, closed_loop, noise_floor
+from planner.simulation.effects import CATALOGUE
+from planner.calibration.trials import excitation, hidden_trial
 
 DUR = 25.0
 
@@ -57,8 +57,8 @@ def test_clean_data_give_none(machine, seed):
 
 
 def test_a_second_effect_is_found_on_top(cat):
-    from planner.effects import make
-    from planner.trials import record
+    from planner.simulation.effects import make
+    from planner.calibration.trials import record
     plan, ff = excitation(cat, 40.0, seed=5)
     truth = (make("flow_gain", "stick", scale=0.85), make("coulomb_friction", "boom", force=8e3))
     rec = record(cat, plan, ff, truth, seed=5)
@@ -68,7 +68,7 @@ def test_a_second_effect_is_found_on_top(cat):
 
 
 def test_replanned_feedforward_tracks_the_true_plant_better(cat):
-    from planner.trials import trackable
+    from planner.calibration.trials import trackable
     rec, plan, _, truth = hidden_trial(cat, "flow_gain", 21, DUR)
     res = Discrepancy(cat, second=False).fit(rec)
     cl = closed_loop(cat, trackable(cat, plan), res.effects, plant_effects=(truth,))
@@ -76,9 +76,9 @@ def test_replanned_feedforward_tracks_the_true_plant_better(cat):
 
 
 def test_position_only_recordings_work(cat):
-    from planner.trials import record
+    from planner.calibration.trials import record
     plan, ff = excitation(cat, DUR, seed=8)
-    from planner.effects import make
+    from planner.simulation.effects import make
     rec = record(cat, plan, ff, (make("valve_lag", "boom", tau=0.15),), seed=8,
                  positions_only=True)
     res = Discrepancy(cat, second=False).fit(rec)
@@ -153,7 +153,7 @@ def test_same_inputs_same_outputs(tmp_path):
                      "--out", str(m)]) == 0
         outs.append(m.read_bytes())
     assert outs[0] == outs[1]
-    from planner.trials import Recording
+    from planner.calibration.trials import Recording
     rec = Recording.from_csv(tmp_path / "m0.csv", crane)
     a = Discrepancy(crane, second=False).fit(rec)
     b = Discrepancy(crane, second=False).fit(rec)
@@ -162,8 +162,8 @@ def test_same_inputs_same_outputs(tmp_path):
 
 
 def test_commands_come_from_the_trajectory_when_the_csv_has_none(tmp_path):
-    from planner.effects import make
-    from planner.trials import Recording, record
+    from planner.simulation.effects import make
+    from planner.calibration.trials import Recording, record
     crane = Crane.from_id("cat215b")
     plan, ff = excitation(crane, DUR, seed=9)
     rec = record(crane, plan, ff, (make("flow_gain", "boom", scale=1.1),), seed=9)

@@ -6,7 +6,7 @@ from planner import Crane
 from planner.bounds import lower_bound
 from planner.methods.dp import dp, dp_time_reference
 from planner.methods.laws import MaxVelocity, follow
-from planner.paths import Line, Waypoints, circle
+from planner.geometry.paths import Line, Waypoints, circle
 from planner.trajectory import evaluate
 
 B, C = (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)

@@ -10,7 +10,7 @@ import pytest
 from planner import Crane
 from planner.model.dynamics import rnea
 from planner.model.kinematics import joint_transforms
-from planner.spec import parse_spec
+from planner.model.spec import parse_spec
 from problems import crane_path
 
 from .conftest import random_configs

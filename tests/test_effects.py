@@ -8,10 +8,10 @@ import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.effects import CATALOGUE, catalogue, make, parse_effect
+from planner.simulation.effects import CATALOGUE, catalogue, make, parse_effect
 from planner.feedforward import commands
-from planner.methods.smoothing import rest_to_rest
-from planner.plant import respond
+from planner.methods.ruckig import rest_to_rest
+from planner.simulation.plant import respond
 
 CONTRACT = ["joint_offset", "flow_gain", "valve_deadband", "valve_lag", "time_delay",
             "pump_flow_limit", "leakage", "coulomb_friction", "viscous_friction",
@@ -77,7 +77,7 @@ def test_parse_accepts_degrees_and_prints_back(cat):
 
 
 def test_no_effect_reproduces_the_nominal_replay(cat, move):
-    from planner.simulate import replay
+    from planner.simulation.replay import replay
     q0, t, u = move
     r = respond(cat, t, u, q0)
     sim = replay(cat, t, u, q0)
@@ -120,11 +120,11 @@ def test_valve_lag_is_a_first_order_response(cat):
 
 
 def test_pump_flow_limit_shares_the_flow(cat, move):
-    from planner.simulate import stroke_rates
+    from planner.simulation.replay import stroke_rates
     _, t, u = move
     _, demand, _ = stroke_rates(cat, u)
     e = make("pump_flow_limit", scale=0.2)
-    from planner.simulate import Plant
+    from planner.simulation.replay import Plant
     plant = e.plant(cat, Plant())
     xd, drawn, share = stroke_rates(cat, u, plant)
     Q = 0.2 * cat.spec.pump.max_flow

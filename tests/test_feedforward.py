@@ -8,7 +8,7 @@ import pytest
 from planner import Crane
 from planner.feedforward import (commands, predict_motion, progress_estimator, round_trip,
                                  valve_parameters)
-from planner.methods.smoothing import rest_to_rest
+from planner.methods.ruckig import rest_to_rest
 from planner.trajectory import Trajectory
 
 from .conftest import random_configs

@@ -7,7 +7,7 @@ import pytest
 
 from planner import Crane
 from planner.model.hydraulics import ACTIVE_FLOW
-from planner.spec import parse_spec
+from planner.model.spec import parse_spec
 from planner.trajectory import Trajectory, evaluate
 from problems import crane_path
 

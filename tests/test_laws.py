@@ -8,7 +8,7 @@ from scipy.optimize import minimize
 from planner import Crane
 from planner.methods.laws import (LeastNorm, MaxLift, MaxVelocity, follow, rate_box,
                                   weighted_pinv_saturated)
-from planner.paths import Line
+from planner.geometry.paths import Line
 from planner.trajectory import evaluate
 
 B, C = (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)

@@ -1,4 +1,4 @@
-"""Seed 002's cylinder-space laws (planner.methods.laws_energy) and cycles (planner.cycles)."""
+"""Seed 002's cylinder-space laws (planner.methods.laws_energy) and cycles (planner.tasks.cycles)."""
 import math
 import tomllib
 from pathlib import Path
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from planner import Crane
-from planner.cycles import CYCLES, START, START_TELE, cycle
+from planner.tasks.cycles import CYCLES, START, START_TELE, cycle
 from planner.methods.laws import Step, follow_command, rate_box
 from planner.methods.laws_energy import (JLA, POptimal, QOptimal, cylinder_setup, jla_criterion,
                                          jla_gradient)
-from planner.spec import parse_spec
+from planner.model.spec import parse_spec
 from planner.trajectory import evaluate
 from problems import crane_path
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from planner import Crane
-from planner.library import build, load_suite
-from planner.store import LibraryStore
+from planner.library.build import build, load_suite
+from planner.library.store import LibraryStore
 from planner.trajectory import evaluate
 
 KW = dict(objectives=("time",), robustness=False, progress=False, N=20)
@@ -106,7 +106,7 @@ def test_replay_with_gain_error_and_mismatch_stays_within_the_stored_envelope(tm
     commands) stays within the drift envelope its robustness field predicted."""
     import math
 
-    from planner.simulate import Plant, replay
+    from planner.simulation.replay import Plant, replay
     lib = tmp_path / "lib.h5"
     build("s100f", "forwarder-cycle", lib, limit=2, objectives=("time",), robustness=True,
           progress=False, N=20)

@@ -5,7 +5,7 @@ import pytest
 from planner import Crane
 from planner.bounds import lower_bound
 from planner.methods.nlp import MoveNLP
-from planner.paths import tip_to_xyz
+from planner.geometry.paths import tip_to_xyz
 from planner.trajectory import evaluate
 
 
@@ -60,7 +60,7 @@ def test_kinematic_line_nlp_not_slower_than_the_seed_dp():
     slower than the DP on its grid, and sits on or above the velocity bound."""
     from planner.methods.dp import dp
     from planner.methods.nlp import kinematic_line_nlp
-    from planner.paths import Line
+    from planner.geometry.paths import Line
     crane = Crane.from_id("cranab850")
     a, b = (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)
     d = dp(crane, Line(a, b), stages=400)
@@ -106,7 +106,7 @@ def test_headboard_wall_is_cleared(s100f):
 def test_curve_mode_keeps_the_tip_on_seed_003s_circle():
     import math
 
-    from planner.paths import circle, tip_to_xyz
+    from planner.geometry.paths import circle, tip_to_xyz
     crane = Crane.from_id("umea-lab")
     cv = circle((3.0, 0.0, 2.5), 0.7, -math.pi / 2, math.pi / 2)
     r = MoveNLP(crane, "time", cv, N=30).solve()
@@ -124,8 +124,8 @@ def test_a_long_slew_move_is_never_slower_than_its_feasible_ruckig_move(s100f):
     grid loses about one interval against the exact jerk switches; the solver then returns the
     Ruckig move, which sits on the rest-to-rest bound, within every limit and clear of the
     headboard, represented exactly by its switch times."""
-    from planner.library import load_suite
-    from planner.methods.smoothing import rest_to_rest
+    from planner.library.build import load_suite
+    from planner.methods.ruckig import rest_to_rest
     info, moves = load_suite("forwarder-cycle")
     m = next(m for m in moves if m.id == "d01-p00")
     nlp = MoveNLP(s100f, "time", "free", N=40, obstacles=info["obstacles"])
@@ -148,10 +148,10 @@ def test_a_long_slew_move_is_never_slower_than_its_feasible_ruckig_move(s100f):
 def test_the_nlp_keeps_its_own_solution_when_ruckig_exceeds_the_pump(s100f):
     """p01-d03: the jerk-limited Ruckig move needs more oil than the pump gives; the NLP's
     solution (the pump as a constraint) is returned."""
-    from planner.library import load_suite
+    from planner.library.build import load_suite
     info, moves = load_suite("forwarder-cycle")
     m = next(m for m in moves if m.id == "p01-d03")
-    from planner.methods.smoothing import rest_to_rest
+    from planner.methods.ruckig import rest_to_rest
     r = MoveNLP(s100f, "time", "free", N=40, obstacles=info["obstacles"]).solve(m.start, m.goal)
     lb = lower_bound(s100f, m.start, m.goal)
     rk = rest_to_rest(s100f, s100f.ik(m.start, lb.tele_start), s100f.ik(m.goal, lb.tele_goal))

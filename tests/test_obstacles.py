@@ -1,4 +1,4 @@
-"""Obstacles (planner.obstacles): exact distances, the forwarder headboard kept clear by the NLP,
+"""Obstacles (planner.geometry.obstacles): exact distances, the forwarder headboard kept clear by the NLP,
 suite parsing, and library entries that store the plan exactly."""
 import numpy as np
 import pytest
@@ -6,11 +6,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner import Crane
-from planner.library import load_suite
+from planner.library.build import load_suite
 from planner.methods.nlp import MoveNLP
-from planner.obstacles import Plate, Wall, from_dict
-from planner.paths import tip_to_xyz
-from planner.spec import SpecError
+from planner.geometry.obstacles import Plate, Wall, from_dict
+from planner.geometry.paths import tip_to_xyz
+from planner.model.spec import SpecError
 from planner.trajectory import evaluate
 
 PLATE = Plate(x=-1.2, y_min=-1.5, y_max=1.5, z_bottom=-1.2, z_top=1.3, clearance=0.3)

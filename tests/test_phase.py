@@ -7,8 +7,8 @@ import pytest
 
 from planner import Crane
 from planner.methods import phase as ph
-from planner.paths import circle as shared_circle
-from planner.paths import parabola as shared_parabola
+from planner.geometry.paths import circle as shared_circle
+from planner.geometry.paths import parabola as shared_parabola
 from planner.trajectory import evaluate
 
 # near-optimal coefficients found by benchmarks/seed003_paths.py (feasible on umea-lab)
@@ -44,7 +44,7 @@ def test_parabola_vertex_check():
     printed = ph.parabola_path(alpha=-math.pi / 3, vertex="plus")  # (θ + h) as printed
     zp = printed.xyz(np.array([1.6, 3.07]))[:, 2]
     assert abs(zp[0] - 1.5) > 10 and abs(zp[1] - 1.5) > 10  # the printed form is not the lift
-    # same curve as the shared planner.paths.parabola (whose docstring makes the same choice)
+    # same curve as the shared planner.geometry.paths.parabola (whose docstring makes the same choice)
     shared = shared_parabola(1.6, 3.07, 1.5, 3.0, -math.pi / 3)
     assert np.allclose(shared.p(th), p.xyz(th), atol=1e-12)
 

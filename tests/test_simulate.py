@@ -9,8 +9,8 @@ import pytest
 
 from planner import Crane
 from planner.feedforward import commands
-from planner.methods.smoothing import rest_to_rest
-from planner.simulate import (NOISE_DEFAULTS, Plant, default_perturbations, pressures,
+from planner.methods.ruckig import rest_to_rest
+from planner.simulation.replay import (NOISE_DEFAULTS, Plant, default_perturbations, pressures,
                               read_measured_csv, replay, robustness, simulate_to_csv,
                               stroke_rates, write_measured_csv)
 from planner.trajectory import evaluate

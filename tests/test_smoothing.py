@@ -4,7 +4,7 @@ import pytest
 
 from planner import Crane
 from planner.bounds import lower_bound, rest_to_rest_time
-from planner.methods.smoothing import rest_to_rest
+from planner.methods.ruckig import rest_to_rest
 from planner.trajectory import evaluate
 
 from .conftest import MACHINES, random_configs

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 from planner.model import Crane
-from planner.spec import SpecError, load_spec, parse_angle, parse_spec
+from planner.model.spec import SpecError, load_spec, parse_spec
+from planner.units import parse_angle
 
 UMEA = Path(__file__).resolve().parents[1] / "problems" / "cranes" / "umea-lab.toml"
 FILE = "x.toml"

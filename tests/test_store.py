@@ -1,4 +1,4 @@
-"""The library database (planner.store): round trip, refusals, crash recovery, query, export."""
+"""The library database (planner.library.store): round trip, refusals, crash recovery, query, export."""
 import csv
 import json
 import math
@@ -9,8 +9,8 @@ import pytest
 from scipy.io import loadmat
 
 from planner import Crane
-from planner.methods.smoothing import rest_to_rest
-from planner.store import LibraryStore, StoreError, export
+from planner.methods.ruckig import rest_to_rest
+from planner.library.store import LibraryStore, StoreError, export
 from planner.trajectory import evaluate
 
 
@@ -266,7 +266,7 @@ def test_export(tmp_path, s100f, moves):
 
 
 def test_matlab_names_and_file_stems():
-    from planner.store import _file_stem, matlab_name
+    from planner.library.store import _file_stem, matlab_name
     used = set()
     got = [matlab_name(x, used) for x in ("1abc", "a-b", "a_b", "x" * 80, "é")]
     assert got[0] == "e_1abc" and got[1] == "a_b" and got[2] == "a_b_2"

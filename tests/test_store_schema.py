@@ -20,8 +20,8 @@ GENERATE = textwrap.dedent("""
     import sys
     import numpy as np
     from planner import Crane
-    from planner.methods.smoothing import rest_to_rest
-    from planner.store import LibraryStore
+    from planner.methods.ruckig import rest_to_rest
+    from planner.library.store import LibraryStore
     from planner.trajectory import evaluate
 
     crane = Crane.from_id("s100f")

@@ -5,7 +5,7 @@ import pytest
 from planner import Crane
 from planner.methods.dp import dp
 from planner.methods.topp import retime
-from planner.paths import Line
+from planner.geometry.paths import Line
 from planner.trajectory import evaluate
 
 

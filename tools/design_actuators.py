@@ -16,7 +16,7 @@ import math
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from planner.spec import parse_angle
+from planner.model.spec import parse_angle
 
 MARGIN = 0.02  # assumed: 20 mm of stroke kept free at each end
 

@@ -31,8 +31,8 @@ from scipy.optimize import minimize
 
 from planner.methods.dp import dp
 from planner.model import Crane
-from planner.paths import Line
-from planner.spec import parse_spec
+from planner.geometry.paths import Line
+from planner.model.spec import parse_spec
 from problems import crane_path
 
 POINTS = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))

@@ -1,6 +1,6 @@
 """Bellman dynamic programming along a tip path (seed 000, chapter 7, generalised).
 
-Stages are stations along any :mod:`planner.paths` path; at each stage the redundant coordinate
+Stages are stations along any :mod:`planner.geometry.paths` path; at each stage the redundant coordinate
 (the telescope) is gridded, and every (stage, telescope) node gets its joints from the IK. Between
 consecutive stages the telescope may move by at most ``window`` grid steps (the seed's q).
 
@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..bounds import swept_volume
-from ..paths import Path
-from ..trajectory import Trajectory
+from planner.bounds import swept_volume
+from planner.geometry.paths import Path
+from planner.trajectory import Trajectory
 
 
 @dataclass

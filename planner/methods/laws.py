@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..paths import Path
-from ..trajectory import Trajectory
+from planner.geometry.paths import Path
+from planner.trajectory import Trajectory
 
 
 @dataclass

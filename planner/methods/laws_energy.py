@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .laws import Law, planar_slew_split, scale_into_box
+from planner.methods.laws import Law, planar_slew_split, scale_into_box
 
 K_JLA = -1e-2       # [m²/s] joint-limit-avoidance gain (Chan–Dubey gradient in 1/m)
 K_Q = -5.0          # [-] flow-criterion gain (areas normalised by the largest piston area)

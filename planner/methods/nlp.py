@@ -24,7 +24,7 @@ IPOPT iterations per energy solve; earlier complementarity products (p − p_i)�
 
 Objectives: "time" (free T), "energy" (T ≤ T_max given), "blend" (T + λ·E). Paths: "free" or
 "line" (tip on the straight line between the ends at every node). Obstacles
-(:mod:`planner.obstacles`: a :class:`Wall` in the r–z plane, a :class:`Plate` such as a
+(:mod:`planner.geometry.obstacles`: a :class:`Wall` in the r–z plane, a :class:`Plate` such as a
 forwarder's headboard) are kept clear at the check points; every free-path solution is then
 verified on a 1 kHz resampling, from the plain guess and from a guess over the obstacles the move
 meets, and the fastest one that clears is kept, else status "obstacle" (the over-the-wall guess
@@ -42,11 +42,11 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..bounds import lower_bound
-from ..obstacles import Plate, Wall
-from ..paths import tip_to_xyz
-from ..trajectory import Trajectory
-from .smoothing import rest_to_rest
+from planner.bounds import lower_bound
+from planner.geometry.obstacles import Plate, Wall
+from planner.geometry.paths import tip_to_xyz
+from planner.trajectory import Trajectory
+from planner.methods.ruckig import rest_to_rest
 
 STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
@@ -85,7 +85,7 @@ class MoveNLP:
         if not isinstance(path, str):  # a Curve with a symbolic face: tip on p(θ)
             if getattr(path, "p_sym", None) is None:
                 raise ValueError("a path object needs a symbolic face p_sym(θ) (see "
-                                 "planner.paths.circle / parabola)")
+                                 "planner.geometry.paths.circle / parabola)")
             self.curve, path = path, "curve"
         elif path not in ("free", "line"):
             raise ValueError(f"path must be 'free', 'line' or a Curve, not {path!r}")
@@ -306,9 +306,9 @@ class MoveNLP:
         crane = self.crane
         lb = lower_bound(crane, start, goal)
         if self.path in ("line", "curve"):
-            from ..paths import Line
-            from .dp import dp
-            from .topp import retime
+            from planner.geometry.paths import Line
+            from planner.methods.dp import dp
+            from planner.methods.topp import retime
             geo = self.curve if self.path == "curve" else Line(start, goal)
             d = dp(crane, geo, step=0.05, tele_step=0.05, window=3)
             if not d.ok:
@@ -344,7 +344,7 @@ class MoveNLP:
         to about one interval is lost); Ruckig's switch times are exact. The move is kept at
         its switch times only: between them every joint is a cubic, which the quintic
         interpolation reproduces exactly."""
-        from ..trajectory import evaluate
+        from planner.trajectory import evaluate
         try:
             exact = self._plain_traj(start, goal, lb)[1]
         except ValueError:
@@ -398,7 +398,7 @@ class MoveNLP:
     def _activity(self, w) -> np.ndarray:
         """Which functions draw pump flow at each node (per direction) in the primal ``w``:
         the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
-        from ..model.hydraulics import ACTIVE_FLOW
+        from planner.model.hydraulics import ACTIVE_FLOW
         crane, n, N = self.crane, self.crane.n, self.N
         X = w[:self._nx].reshape(3 * n, N + 1, order="F")
         _, dxdq = crane.stroke(X[:n].T)
@@ -419,7 +419,7 @@ class MoveNLP:
         [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`)."""
         t0 = _time.perf_counter()
         if self.curve is not None and start is None:  # curve mode: the curve's ends
-            from ..paths import xyz_to_tip
+            from planner.geometry.paths import xyz_to_tip
             ends = np.asarray(self.curve.p(np.array(self.curve.u_range)))
             start, goal = xyz_to_tip(ends[0]), xyz_to_tip(ends[1])
         if start is None or goal is None:
@@ -545,8 +545,8 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPRes
     model): piecewise-constant joint rates on N equal time steps, the tip on the line at every
     node, no rest conditions (the seed's DP starts and ends at speed). Warm start: the DP path
     (Δ = 0.02 m) resampled in time, unless ``w0_traj`` is given. For comparisons with the DP."""
-    from ..paths import Line
-    from .dp import dp
+    from planner.geometry.paths import Line
+    from planner.methods.dp import dp
     t0 = _time.perf_counter()
     n = crane.n
     L = crane.limit_arrays()
@@ -610,7 +610,7 @@ def pareto_front(crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int =
     budget, or the previous point itself (it meets any larger budget) — so the front is
     non-increasing by construction, as min-energy-under-a-budget must be. Returns a list of
     (duration [s], pump energy [J], NLPResult, source) with source "nlp" or "carried"."""
-    from ..trajectory import evaluate
+    from planner.trajectory import evaluate
     tn = time_nlp or MoveNLP(crane, "time", "free", N=N)
     en = energy_nlp or MoveNLP(crane, "energy", "free", N=N)
     rt = tn.solve(start, goal)
@@ -652,7 +652,7 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     move. With obstacles (``energy_nlp`` built with them) every NLP result must clear them on a
     fine resampling; the incumbents inherit the time-optimal move's clearance (stretching keeps
     the path). Returns (result, info), info["winner"] in {"nlp", "stretched", "time_optimal"}."""
-    from ..trajectory import evaluate
+    from planner.trajectory import evaluate
     t0 = _time.perf_counter()
     rt = time_result or (time_nlp or MoveNLP(crane, "time", "free", N=N)).solve(start, goal)
     if not rt.ok:

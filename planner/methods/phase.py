@@ -42,8 +42,8 @@ import numpy as np
 import ruckig
 from scipy.optimize import minimize
 
-from ..paths import xyz_to_tip
-from ..trajectory import Trajectory
+from planner.geometry.paths import xyz_to_tip
+from planner.trajectory import Trajectory
 
 __all__ = ["SeedPath", "circle_path", "parabola_path", "FourierTele", "BezierTele",
            "joint_path", "rate_bounds", "envelope", "Envelope", "feasible_band",
@@ -666,7 +666,7 @@ def _ruckig_relaxed(cur, tgt, vmax, vmin, amax, jmax, grow=1.25, tries=30):
 
 
 def _sample(tr, rate):
-    """Uniform samples plus every switching time (as in planner.methods.smoothing)."""
+    """Uniform samples plus every switching time (as in planner.methods.ruckig)."""
     T = tr.duration
     u = np.linspace(0.0, T, max(60, int(math.ceil(T * rate)) + 1))
     sw = _switch_times(tr)

@@ -5,7 +5,7 @@ fixed path the pump demand is ṡ·Σ A_dir,i |dx_i/ds| (piston area extending, 
 retracting, single-acting lowering free), so Q ≤ Q_max is an upper bound on x = ṡ² at each grid
 point (toppra's ``xbound``). Uses ``ParametrizeConstAccel`` (the spline parametrizer overshoots
 acceleration limits by 5–12 %, ../shared/reference/anchors.md). Jerk is not supported by
-TOPP-RA: use :mod:`planner.methods.smoothing`.
+TOPP-RA: use :mod:`planner.methods.ruckig`.
 """
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from ..bounds import swept_volume
-from ..trajectory import Trajectory, evaluate
+from planner.bounds import swept_volume
+from planner.trajectory import Trajectory, evaluate
 
 toppra.setup_logging("ERROR")  # failures are reported as statuses, not log lines
 

@@ -17,12 +17,12 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ..spec import CraneSpec, SpecError, load_spec
-from .actuators import lever_pin, stroke_expr, stroke_range
-from .dynamics import lumped_links, potential_energy, rnea
-from .hydraulics import OUTPUTS, hydraulics
-from .numeric import Batched
-from .kinematics import (UnreachableError, cylindrical, ik_planar, joint_transforms,
+from planner.model.spec import CraneSpec, SpecError, load_spec
+from planner.model.actuators import lever_pin, stroke_expr, stroke_range
+from planner.model.dynamics import lumped_links, potential_energy, rnea
+from planner.model.hydraulics import OUTPUTS, hydraulics
+from planner.model.numeric import Batched
+from planner.model.kinematics import (UnreachableError, cylindrical, ik_planar, joint_transforms,
                          planar_chain, tip_position)
 
 __all__ = ["Crane", "UnreachableError"]

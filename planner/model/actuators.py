@@ -9,7 +9,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..spec import Actuator, Joint
+from planner.model.spec import Actuator, Joint
 
 
 def _rot2(theta, v):

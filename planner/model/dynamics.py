@@ -12,8 +12,8 @@ import math
 import casadi as ca
 import numpy as np
 
-from ..spec import CraneSpec
-from .kinematics import joint_transforms
+from planner.model.spec import CraneSpec
+from planner.model.kinematics import joint_transforms
 
 
 def _rot_z(t):

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..spec import CraneSpec
+from planner.model.spec import CraneSpec
 
 ACTIVE_FLOW = 1e-4  # fraction of the pump's max flow below which a function counts as idle
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..spec import CraneSpec, SpecError
+from planner.model.spec import CraneSpec, SpecError
 
 
 def dh_matrix(theta, d, a, alpha):

@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .bench_methods import METHODS
-from .bench_suites import SEED000_TIMES, SEED002_KJ
-from .io import atomic_write_text, dumps
+from planner.bench.methods import METHODS
+from planner.bench.suites import SEED000_TIMES, SEED002_KJ
+from planner.io import atomic_write_text, dumps
 
-REPO_RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+REPO_RESULTS = Path(__file__).resolve().parents[2] / "benchmarks" / "results"
 LAWS = [m for m in METHODS if m.startswith("law:")]
 GLOBAL_ENERGY = ("dp:energy", "dp:energy-pinned", "nlp:energy-path")  # DP or NLP on the cycles
 SAVING_TARGET = 0.15
@@ -180,7 +180,7 @@ def _acceptance_md(res):
               if r["method"] == "dp:energy" and r["success"]]
         pin = g["methods"].get("dp:energy-pinned", {}).get("mean_saving_vs_jla")
         if st and pin is not None:
-            from .cycles import START_TELE
+            from planner.tasks.cycles import START_TELE
             L += [f"Where the saving comes from: `dp:energy` chooses its first telescope value "
                   f"freely ({min(st):.2f} m" + (f"–{max(st):.2f} m" if max(st) > min(st) else "")
                   + " here) while the laws start at the "
@@ -375,7 +375,7 @@ def markdown(res, figs) -> str:
 
 def write_outputs(res, keep, out: Path, t0: float):
     """Figures, then bench.md and bench.json (atomically) into ``out``."""
-    from .bench_figures import fig_bars, fig_profiles, fig_time_energy
+    from planner.bench.figures import fig_bars, fig_profiles, fig_time_energy
     out.mkdir(parents=True, exist_ok=True)
     figs = {}
     for name, (kp, suite, crane) in keep.items():

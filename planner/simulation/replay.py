@@ -41,9 +41,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .feedforward import _command_to_stroke_rate, commands, valve_parameters
-from .io import atomic_write_text
-from .trajectory import Trajectory
+from planner.feedforward import _command_to_stroke_rate, commands, valve_parameters
+from planner.io import atomic_write_text
+from planner.trajectory import Trajectory
 
 __all__ = ["Plant", "replay", "pressures", "measured_table", "write_measured_csv",
            "read_measured_csv", "default_perturbations", "robustness", "simulate_to_csv",
@@ -638,11 +638,11 @@ def simulate_to_csv(crane, traj: Trajectory, out, plant: Plant = Plant(), rate: 
                     noise=None, seed: int = 0, effects=()) -> dict:
     """What ``crane-planner simulate`` does: replay ``traj``'s valve commands (its own ``u``
     when it carries them on a uniform grid, else :func:`commands` at ``rate``) on ``plant``
-    with the hidden ``effects`` (:mod:`planner.effects`, through :func:`planner.plant.respond`)
+    with the hidden ``effects`` (:mod:`planner.simulation.effects`, through :func:`planner.simulation.plant.respond`)
     and write the measured-data CSV to ``out`` (noise as in :func:`measured_table`). Nothing
     is written when anything fails. Returns a JSON-ready summary."""
-    from .plant import respond
-    from .trials import Recording
+    from planner.simulation.plant import respond
+    from planner.calibration.trials import Recording
     if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
         t_u, u, src = traj.t, traj.u, "trajectory"
     else:

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bench_methods import METHODS
-from .bench_report import _by_move, _ok
+from planner.bench.methods import METHODS
+from planner.bench.report import _by_move, _ok
 
 
 def _colour(m):
@@ -32,7 +32,7 @@ def _grid(n):
 
 
 def fig_time_energy(name, sres, path):
-    from .plots import _save, plt
+    from planner.plots import _save, plt
     R = _by_move(sres)
     rows, cols = _grid(len(R))
     fig, axs = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
@@ -59,7 +59,7 @@ def fig_time_energy(name, sres, path):
 
 
 def fig_bars(name, sres, path):
-    from .plots import _save, plt
+    from planner.plots import _save, plt
     R = _by_move(sres)
     energy = sres["kind"] == "cycle"   # every method runs a cycle's clock: compare energies
     meths = [m for m in METHODS if sres["summary"][m]["applicable"]]
@@ -86,7 +86,7 @@ def fig_bars(name, sres, path):
 
 def fig_profiles(name, keep, crane, move_id, path):
     """Joint positions (left) and cylinder strokes (right) of one move, one line per method."""
-    from .plots import _save, plt
+    from planner.plots import _save, plt
     n = crane.n
     fig, axs = plt.subplots(n, 2, figsize=(12, 2.2 * n), sharex=True, squeeze=False)
     for m, out in keep.items():

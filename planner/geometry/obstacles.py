@@ -103,7 +103,7 @@ class Plate:
         """A via tip 1.5 clearances above the plate's top edge where the tip, moving with r, z
         and slew interpolated linearly (how a slewing crane moves), first comes within a
         clearance of the plate (none if it never does)."""
-        from .paths import tip_to_xyz
+        from planner.geometry.paths import tip_to_xyz
         s = np.linspace(0.0, 1.0, 201)[:, None]
         cyl = np.asarray(start, float) + s * (np.asarray(goal, float) - np.asarray(start, float))
         xyz = tip_to_xyz(cyl)

@@ -4,7 +4,7 @@ Given a machine, a recording (measured CSV: commands, positions, pressures) and 
 commanded trajectory:
 
 1. **Nominal model.** Replay the measured commands on the nominal plant
-   (:func:`planner.plant.respond`); the start pose is fitted to the measured positions (a
+   (:func:`planner.simulation.plant.respond`); the start pose is fitted to the measured positions (a
    nuisance parameter of every model). Residual = measured − simulated, per channel
    (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``).
 2. **Noise floor** from the data: per channel, σ = 1.4826·MAD(Δ²y)/√6 (the second difference
@@ -42,9 +42,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .effects import CATALOGUE, Effect
-from .plant import respond
-from .trials import Recording
+from planner.simulation.effects import CATALOGUE, Effect
+from planner.simulation.plant import respond
+from planner.calibration.trials import Recording
 
 __all__ = ["Discrepancy", "DiscrepancyResult", "noise_floor", "locate", "compensate",
            "closed_loop", "calibrated_spec_text", "write_report"]
@@ -444,7 +444,7 @@ def locate(d: Discrepancy, Y0: np.ndarray, window_s: float = 2.0) -> dict:
     s = r.state
     n = crane.n
     # the nominal replay's pump sharing factor at each sample (from its command intervals)
-    from .simulate import stroke_rates
+    from planner.simulation.replay import stroke_rates
     share = stroke_rates(crane, rec.u)[2]
     conditions = {}
     for i, j in enumerate(crane.names):
@@ -496,9 +496,9 @@ def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
     - sensor offsets: the crane is positioned before the move until its sensors read the
       plan's start plus the offsets (``q0_reading``);
     - pressure-only effects need no change of the commands."""
-    from .feedforward import _command_to_stroke_rate, commands, valve_parameters
-    from .methods.nlp import stretch
-    from .simulate import Plant
+    from planner.feedforward import _command_to_stroke_rate, commands, valve_parameters
+    from planner.methods.nlp import stretch
+    from planner.simulation.replay import Plant
     effects = tuple(effects)
     bias = np.zeros((1, crane.n))
     for e in effects:
@@ -544,7 +544,7 @@ def closed_loop(crane, plan, calibrated, plant_effects=None, rate: float = 50.0)
     feed-forward re-planned on the calibrated model (:func:`compensate`). The crane is
     positioned at the start with its (possibly biased) sensors. Tip error [m] vs the plan:
     max and RMS, before and after."""
-    from .feedforward import commands
+    from planner.feedforward import commands
     truth = tuple(calibrated if plant_effects is None else plant_effects)
     bias = np.zeros((1, crane.n))
     for e in truth:
@@ -578,8 +578,8 @@ def write_report(res: DiscrepancyResult, out_dir, *, crane, measured: str = "",
     written atomically. Returns the paths written."""
     from pathlib import Path
 
-    from .io import atomic_write_text, write_json
-    from .plots import (discrepancy_overlay_figure, discrepancy_ranking_figure,
+    from planner.io import atomic_write_text, write_json
+    from planner.plots import (discrepancy_overlay_figure, discrepancy_ranking_figure,
                         discrepancy_residual_figure)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import ruckig
 
-from ..trajectory import Trajectory
+from planner.trajectory import Trajectory
 
 NO_JERK = 1e6  # stands for "no jerk limit" (Ruckig needs a finite value) [unit/s³]
 

@@ -4,7 +4,7 @@ A runner plans one move of a suite with one method and returns an :class:`Outcom
 "ok" with the trajectory pieces ``[(t0 [s], Trajectory)]`` (one piece for a move, one per
 section for a timed seed-002 cycle), or a failure status with its reason. A runner may use
 ``evaluate()`` to choose among its own candidates (as ``energy_optimal`` does); the verdict comes
-only from :mod:`planner.bench`, which evaluates every piece again. Each runner is
+only from :mod:`planner.bench.run`, which evaluates every piece again. Each runner is
 self-contained (``topp:dp`` runs its DP), so its wall time is the method's whole cost; only NLP
 construction (once per crane and formulation, ``Ctx.nlp``) is excluded and reported separately.
 
@@ -31,10 +31,10 @@ import time as _time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-from .methods.laws import LAWS, follow, follow_command
-from .methods.laws_energy import LAWS_ENERGY
-from .paths import Line
-from .trajectory import evaluate
+from planner.methods.laws import LAWS, follow, follow_command
+from planner.methods.laws_energy import LAWS_ENERGY
+from planner.geometry.paths import Line
+from planner.trajectory import evaluate
 
 METHODS = ("law:least_norm", "law:max_velocity", "law:max_lift", "law:jla", "law:p_optimal",
            "ruckig", "dp:time", "dp:energy", "dp:energy-pinned", "topp:dp", "topp:law",
@@ -105,7 +105,7 @@ class Ctx:
         """The crane with acceleration limits × ``acc`` and jerk limits × ``jerk`` (inf: no
         jerk limit), built once."""
         if (acc, jerk) not in self._variants:
-            from .model import Crane
+            from planner.model import Crane
             s = self.crane.spec
             joints = tuple(dataclasses.replace(j, limits=dataclasses.replace(
                 j.limits, qdd=j.limits.qdd * acc, qddd=j.limits.qddd * jerk)) for j in s.joints)
@@ -122,7 +122,7 @@ class Ctx:
             key=None):
         """The MoveNLP, built once: on the spec's limits, ``kin`` the seed-000 limit set
         (:meth:`kin_crane`), ``acc`` the spec's limits without jerk (TOPP-RA's limit set)."""
-        from .methods.nlp import MoveNLP
+        from planner.methods.nlp import MoveNLP
         crane = self.kin_crane() if kin else self.variant(1.0, float("inf")) if acc else self.crane
         obs = self.obstacles if obstacles else ()
         wall = wall or self.settings.nlp_wall_s
@@ -145,7 +145,7 @@ def law_runner(name: str):
     def run(ctx, move):
         s, crane = ctx.settings, ctx.crane
         if move.cycle:
-            from .cycles import START, START_TELE, cycle
+            from planner.tasks.cycles import START, START_TELE, cycle
             cmd, dur, _ = cycle(*move.cycle)
             c = move.cycle[0]
             res = follow_command(crane, cls(), cmd, dur, q0=crane.ik(START[c], tele=START_TELE[c]),
@@ -160,8 +160,8 @@ def law_runner(name: str):
 # ------------------------------------------------------------------------------ Ruckig, DP, TOPP
 def ruckig(ctx, move):
     """Rest-to-rest joint move between the ends at the lower bound's best telescope values."""
-    from .bounds import lower_bound
-    from .methods.smoothing import rest_to_rest
+    from planner.bounds import lower_bound
+    from planner.methods.ruckig import rest_to_rest
     crane = ctx.crane
     lb = lower_bound(crane, move.start, move.goal)
     return _from(rest_to_rest(crane, crane.ik(move.start, lb.tele_start),
@@ -169,7 +169,7 @@ def ruckig(ctx, move):
 
 
 def _dp(ctx, move):
-    from .methods.dp import dp
+    from planner.methods.dp import dp
     return dp(ctx.crane, move.line_or_path(), **ctx.suite.dp_kw(move))
 
 
@@ -179,7 +179,7 @@ def dp_time(ctx, move):
 
 
 def topp_dp(ctx, move):
-    from .methods.topp import retime
+    from planner.methods.topp import retime
     d = _dp(ctx, move)
     if not d.ok:
         return Outcome(d.status, f"DP: {d.reason}")
@@ -190,7 +190,7 @@ def topp_law(ctx, move):
     """Every local law's joint path made feasible under the spec's limits: TOPP-RA rest to rest
     (velocity, acceleration, pump) on each law's path; the fastest that evaluate() passes wins.
     ``info["per_law_s"]`` holds each law's retimed duration (or why it has none)."""
-    from .methods.topp import retime
+    from planner.methods.topp import retime
     names = [m[4:] for m in METHODS if m.startswith("law:") and callable(ctx.suite.methods[m])]
     best, per = None, {}
     for name in names:   # the laws this suite runs (max_lift needs the machine's table)
@@ -261,7 +261,7 @@ def nlp_time_path(ctx, move):
 
 
 def nlp_energy_free(ctx, move):
-    from .methods.nlp import energy_optimal
+    from planner.methods.nlp import energy_optimal
     s = ctx.settings
     rt = ctx.nlp("time", "free", s.nlp_N).solve(move.start, move.goal)
     if not rt.ok:
@@ -272,7 +272,7 @@ def nlp_energy_free(ctx, move):
 
 
 def nlp_kin_line(ctx, move):
-    from .methods.nlp import kinematic_line_nlp
+    from planner.methods.nlp import kinematic_line_nlp
     return _from(kinematic_line_nlp(ctx.crane, move.start, move.goal))
 
 
@@ -288,8 +288,8 @@ def _dp_chain(ctx, move, tele_start=None):
     """Energy DP on every section of the cycle at its tip speed, the telescope chained (one
     telescope grid for the whole cycle, so consecutive sections share their junction node).
     Returns (Outcome, list of DPResult)."""
-    from .cycles import cycle, labels
-    from .methods.dp import dp
+    from planner.tasks.cycles import cycle, labels
+    from planner.methods.dp import dp
     crane, s = ctx.crane, ctx.settings
     _, _, secs = cycle(*move.cycle)
     ts = min(_dp_tele_step(crane, x.path_speed, s.cycle_dp_step, s.cycle_dp_window)
@@ -320,15 +320,15 @@ def dp_energy_cycle(ctx, move):
 
 
 def dp_energy_cycle_pinned(ctx, move):
-    from .cycles import START_TELE
+    from planner.tasks.cycles import START_TELE
     return _dp_chain(ctx, move, tele_start=START_TELE[move.cycle[0]])[0]
 
 
 def topp_dp_cycle(ctx, move):
     """The free-start energy DP's joint path of every section retimed by TOPP-RA to the
     section's duration (rest to rest; velocity, acceleration, pump)."""
-    from .cycles import cycle
-    from .methods.topp import retime
+    from planner.tasks.cycles import cycle
+    from planner.methods.topp import retime
     out, results = _dp_chain(ctx, move)
     if not out.ok:
         return Outcome(out.status, f"DP: {out.reason}")
@@ -362,8 +362,8 @@ def nlp_energy_cycle(ctx, move):
     minimum-time NLP on the line, stretched to the section's duration (a feasible incumbent),
     then the energy NLP warm-started from it; the lower judged energy within the limits is
     kept and its end telescope pins the next section's start."""
-    from .cycles import cycle, labels
-    from .methods.nlp import stretch
+    from planner.tasks.cycles import cycle, labels
+    from planner.methods.nlp import stretch
     crane, s = ctx.crane, ctx.settings
     ti = crane.chain.tele
     nt = ctx.nlp("time", "line", s.cycle_N, wall=s.cycle_wall_s)

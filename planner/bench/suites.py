@@ -1,7 +1,7 @@
 """The benchmark's task suites: machines, moves, and which method runs on which suite.
 
 A suite is a machine plus a list of :class:`BenchMove` and, for every method of
-:data:`planner.bench_methods.METHODS`, either the runner used on it or the reason why the method
+:data:`planner.bench.methods.METHODS`, either the runner used on it or the reason why the method
 does not apply ("n/a"). Tip points are (r, z, slew) [m, m, rad] in the crane's frame 0.
 
 | suite | machine | moves |
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bench_methods as bm
-from .paths import Curve, Line, circle, parabola, tip_to_xyz
+from planner.bench import methods as bm
+from planner.geometry.paths import Curve, Line, circle, parabola, tip_to_xyz
 
 SUITE_NAMES = ("seed000-abc", "seed002-hvd", "seed003-paths", "forwarder-cycle")
 
@@ -68,7 +68,7 @@ class Suite:
 
 def _methods(crane_id, applicable: dict, default_reason: str) -> dict:
     """Every method of bm.METHODS: its runner if applicable, else the n/a reason."""
-    from .model import Crane
+    from planner.model import Crane
     out = {m: applicable.get(m, default_reason) for m in bm.METHODS}
     if "law:max_lift" in applicable and not Crane.from_id(crane_id).spec.laws.max_lift:
         out["law:max_lift"] = (f"{crane_id} has no [laws] max_lift table: seed 000's "
@@ -108,7 +108,7 @@ def seed000(settings: bm.Settings) -> Suite:
 
 # ------------------------------------------------------------------------------ seed 002
 def seed002(settings: bm.Settings) -> Suite:
-    from .cycles import CYCLES, cycle
+    from planner.tasks.cycles import CYCLES, cycle
     moves = []
     for name in CYCLES:
         for speed in settings.cycle_speeds:
@@ -177,7 +177,7 @@ def cylindrical_path(tips) -> Curve:
 
 
 def forwarder(settings: bm.Settings) -> Suite:
-    from .library import load_suite
+    from planner.library.build import load_suite
     meta, all_moves = load_suite("forwarder-cycle")
     obstacles = meta["obstacles"]
     k = min(settings.forwarder_moves, len(all_moves))
@@ -210,7 +210,7 @@ def forwarder(settings: bm.Settings) -> Suite:
                  obstacles=tuple(obstacles), profile_move=moves[0].id,
                  notes=["Path methods (laws, DP, TOPP-RA) follow r, z and slew interpolated "
                         "linearly, over a via point above the headboard where the move meets it "
-                        "(planner.obstacles.Plate.vias); free-path methods choose their own."])
+                        "(planner.geometry.obstacles.Plate.vias); free-path methods choose their own."])
 
 
 BUILDERS = {"seed000-abc": seed000, "seed002-hvd": seed002, "seed003-paths": seed003,

@@ -1,5 +1,5 @@
 """Hidden-effect trials: recordings of a plant with a hidden effect, for testing the discrepancy
-workflow (:mod:`planner.discrepancy`), which sees only the measured CSV and the commands.
+workflow (:mod:`planner.calibration.discrepancy`), which sees only the measured CSV and the commands.
 
 :func:`excitation` builds the commanded trajectory of a recording: rest-to-rest moves (Ruckig,
 every joint at once) between random poses in the inner part of the joint ranges — the first
@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import CATALOGUE, Effect, make
-from .feedforward import commands
-from .methods.smoothing import rest_to_rest
-from .trajectory import Trajectory
+from planner.simulation.effects import CATALOGUE, Effect, make
+from planner.feedforward import commands
+from planner.methods.ruckig import rest_to_rest
+from planner.trajectory import Trajectory
 
 __all__ = ["excitation", "Recording", "record", "hidden_trial", "trackable",
            "TRIAL_MAGNITUDES"]
@@ -62,7 +62,7 @@ class Recording:
         """Read a measured CSV. Without command columns, the commands are the nominal
         feed-forward of ``plan`` (the commanded trajectory) at the file's sample rate, which
         must then start with the plan."""
-        from .simulate import read_measured_csv
+        from planner.simulation.replay import read_measured_csv
         d = read_measured_csv(path, tuple(crane.names))
         u = d["u"]
         if u is None:
@@ -81,7 +81,7 @@ class Recording:
         return cls(d["t"], u, d["q"], d["p_a"], d["p_b"])
 
     def to_csv(self, path, crane):
-        from .io import atomic_write_text
+        from planner.io import atomic_write_text
         names = tuple(crane.names)
         cols = (["t"] + [f"u_{j}" for j in names] + [f"q_{j}" for j in names])
         blocks = [self.t[:, None], self.u, self.q]
@@ -145,8 +145,8 @@ def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) 
     """``plan`` slowed uniformly until its nominal feed-forward asks at most ``margin`` of
     every valve (|u|) and of the pump: a plan the nominal plant can follow open loop (as every
     library entry is), for judging re-planned feed-forward on a calibrated model."""
-    from .methods.nlp import stretch
-    from .simulate import stroke_rates
+    from planner.methods.nlp import stretch
+    from planner.simulation.replay import stroke_rates
     ff = commands(crane, plan, rate)
     need = max(float(np.max(np.abs(ff.u_raw))),
                float(np.max(stroke_rates(crane, ff.u_raw)[1])) / crane.spec.pump.max_flow)
@@ -158,9 +158,9 @@ def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) 
 def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
            positions_only: bool = False) -> Recording:
     """Replay ``ff`` on the plant with ``effects`` from the plan's start; sensor noise at
-    seed 001's levels (``noise`` as in :func:`planner.simulate.measured_table`)."""
-    from .plant import respond
-    from .simulate import add_noise
+    seed 001's levels (``noise`` as in :func:`planner.simulation.replay.measured_table`)."""
+    from planner.simulation.plant import respond
+    from planner.simulation.replay import add_noise
     r = respond(crane, ff.t, ff.u, plan.q[0], effects, t_end=ff.t[-1])
     q, pa, pb = add_noise(crane, r.q, r.p_a, r.p_b, noise, seed)
     if positions_only:
@@ -232,7 +232,7 @@ def hidden_trial(crane, effect: str | None, seed: int, duration: float = 60.0,
     plan, ff = excitation(crane, duration, seed=seed)
     peak = 1.0
     if effect == "pump_flow_limit":
-        from .simulate import stroke_rates
+        from planner.simulation.replay import stroke_rates
         peak = float(np.max(stroke_rates(crane, ff.u)[1])) / crane.spec.pump.max_flow
     truth = _draw(crane, effect, rng, joint, peak) if effect else None
     rec = record(crane, plan, ff, (truth,) if truth else (), noise=noise, seed=seed)

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from planner.units import parse_angle
+
 __all__ = ["SpecError", "DH", "Limits", "Actuator", "Joint", "Payload", "Pump", "Transformer",
            "LawParams", "CraneSpec", "load_spec", "parse_spec", "parse_angle"]
 
@@ -26,21 +28,6 @@ class SpecError(ValueError):
     def __init__(self, file: str, field: str, value: Any, expected: str):
         self.file, self.field, self.value, self.expected = file, field, value, expected
         super().__init__(f"{file}: field '{field}' = {value!r}: {expected}")
-
-
-def parse_angle(value: Any) -> float:
-    """A number (SI: rad) or a string like ``"30deg"`` / ``"0.5rad"`` -> radians."""
-    if isinstance(value, bool):
-        raise ValueError("expected a number or an angle string like '30deg'")
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
-        s = value.strip().lower()
-        for suffix, scale in (("deg", math.pi / 180.0), ("°", math.pi / 180.0), ("rad", 1.0)):
-            if s.endswith(suffix):
-                return float(s[: -len(suffix)].strip()) * scale
-        return float(s)
-    raise ValueError("expected a number or an angle string like '30deg'")
 
 
 # ----------------------------------------------------------------------------- dataclasses
@@ -183,7 +170,7 @@ class CraneSpec:
     pump: Pump
     transformer: Transformer | None
     laws: LawParams = field(default_factory=LawParams)
-    effects: tuple = ()            # calibrated effects (dicts, planner.effects), see plant.py
+    effects: tuple = ()            # calibrated effects (dicts, planner.simulation.effects), see plant.py
     gravity: float = 9.81
     path: str = "<memory>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -501,7 +488,7 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     if not isinstance(er, list):
         R.fail("effects", er, "expected [[effects]] tables (name, joint, parameters)")
     for i, et in enumerate(er):
-        from .effects import effect_from_dict
+        from planner.simulation.effects import effect_from_dict
         if not isinstance(et, dict):
             R.fail(f"effects[{i}]", et, "expected a table")
         if et.get("joint") is not None and et.get("joint") not in names:

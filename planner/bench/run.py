@@ -1,7 +1,7 @@
 """``crane-planner bench``: global planners vs local laws on the seeds' moves, judged only by
 :func:`planner.trajectory.evaluate`.
 
-Suites (:mod:`planner.bench_suites`) → moves → every method (:mod:`planner.bench_methods`) →
+Suites (:mod:`planner.bench.suites`) → moves → every method (:mod:`planner.bench.methods`) →
 trajectory pieces → ``evaluate()`` of every piece on the limit kinds the method claims plus
 position, velocity and pump flow (what the laws claim) → one row per (suite, move, method):
 ``duration_s`` [s] (a cycle's clock for timed cycles), ``energy_J`` (pump energy, summed over
@@ -13,7 +13,7 @@ kind), ``gap_pct`` to the analytic lower bound (:func:`planner.bounds.lower_boun
 ``build_s``), and ``success``: status ok, ``max_limit_violation`` ≤ 0.1 %, clear of the suite's
 obstacles (≥ 0.96 × clearance on the 1 kHz resampling), and the pieces of a cycle joining
 without a jump. Per suite and method: success rate and medians. Outputs
-(:mod:`planner.bench_report`, :mod:`planner.bench_figures`): ``bench.md``, ``bench.json`` and
+(:mod:`planner.bench.report`, :mod:`planner.bench.figures`): ``bench.md``, ``bench.json`` and
 figures in ``out``.
 
 Python API: :func:`run_bench`.
@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .bench_methods import BASE_KINDS, METHODS, Ctx, Outcome, Settings
-from .bench_suites import SUITE_NAMES, build_suite
-from .trajectory import LIMIT_KINDS, evaluate
+from planner.bench.methods import BASE_KINDS, METHODS, Ctx, Outcome, Settings
+from planner.bench.suites import SUITE_NAMES, build_suite
+from planner.trajectory import LIMIT_KINDS, evaluate
 
 DEFAULT_OUT = Path("benchmarks/results/bench")
 REPEAT_BELOW_S = 2.0      # [s] solves faster than this are repeated (``repeats`` times)
@@ -62,7 +62,7 @@ def machine_info() -> dict:
 
 # ------------------------------------------------------------------------------ one run
 def _status_of(e: Exception) -> str:
-    from .model import UnreachableError
+    from planner.model import UnreachableError
     return "unreachable" if isinstance(e, UnreachableError) else \
         "invalid" if isinstance(e, ValueError) else "error"
 
@@ -111,7 +111,7 @@ def _bound(ctx, move, checked, cache):
     jerk = "jerk" in checked
     key = (move.id, jerk)
     if key not in cache:
-        from .bounds import lower_bound
+        from planner.bounds import lower_bound
         crane = ctx.crane if jerk else ctx.variant(1.0, float("inf"))
         cache[key] = lower_bound(crane, move.start, move.goal)
     lb = cache[key]
@@ -152,7 +152,7 @@ def judge(ctx, move, method, out: Outcome, times, cache) -> dict:
         k = max(checked, key=lambda k: row["violations"][k])
         problems.append(f"exceeds {k} by {100 * row['violations'][k]:.2f} %")
     if ctx.obstacles:
-        from .paths import tip_to_xyz
+        from planner.geometry.paths import tip_to_xyz
         clear = min(float(ob.distance(tip_to_xyz(e.tip), e.tip).min())
                     for e in evs for ob in ctx.obstacles)
         row["clearance_m"] = clear
@@ -207,7 +207,7 @@ def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True
     crane)."""
     from tqdm import tqdm
 
-    from .model import Crane
+    from planner.model import Crane
     suite = build_suite(name, settings)
     crane = Crane.from_id(suite.crane_id)
     ctx = Ctx(crane, settings, suite)
@@ -243,7 +243,7 @@ def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True
 # ------------------------------------------------------------------------------ acceptance
 def acceptance(res: dict) -> dict:
     """The issue's three acceptance items, measured on this run (None when not run)."""
-    from .bench_report import global_vs_local, nlp_vs_laws
+    from planner.bench.report import global_vs_local, nlp_vs_laws
     S = res["suites"]
     acc = dict(seed002_global_energy=global_vs_local(S["seed002-hvd"])
                if "seed002-hvd" in S else None,
@@ -264,7 +264,7 @@ def run_bench(suites=None, out=DEFAULT_OUT, repeats: int | None = None, quick: b
     """Run the benchmark on ``suites`` (None: all of SUITE_NAMES; names or comma lists) and
     write bench.md, bench.json and the figures into ``out``. ``repeats`` (default 3, 1 with
     ``quick``) times every solve faster than REPEAT_BELOW_S that often. Returns the JSON dict."""
-    from .bench_report import write_outputs
+    from planner.bench.report import write_outputs
     names = parse_suites(suites)
     settings = Settings.make(quick)
     repeats = (1 if quick else 3) if repeats is None else int(repeats)

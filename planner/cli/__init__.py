@@ -10,7 +10,8 @@ import dataclasses
 import math
 import sys
 
-from .spec import SpecError, parse_angle
+from planner.model.spec import SpecError
+from planner.units import parse_angle
 
 
 class CLIError(Exception):
@@ -38,7 +39,7 @@ def _json_arg(p):
 
 
 def _emit(args, obj):
-    from .io import write_json
+    from planner.io import write_json
     if getattr(args, "json", None):
         write_json(args.json, obj)
 
@@ -66,8 +67,8 @@ def cmd_problems_show(args):
     d.pop("text", None)
     _emit(args, d)
     if args.plot:
-        from .model import Crane
-        from .plots import workspace_figure
+        from planner.model import Crane
+        from planner.plots import workspace_figure
         info = workspace_figure(Crane(spec), args.plot)
         print(f"workspace figure written to {args.plot} (r_max {info['r_max']:.2f} m)",
               file=sys.stderr if args.json == "-" else sys.stdout)
@@ -86,8 +87,8 @@ def cmd_problems_show(args):
 
 
 def cmd_bound(args):
-    from .bounds import lower_bound
-    from .model import Crane
+    from planner.bounds import lower_bound
+    from planner.model import Crane
     crane = Crane.from_id(args.crane)
     lb = lower_bound(crane, args.start, args.goal)
     _emit(args, dict(status="ok", crane=crane.spec.id, start=args.start, goal=args.goal,
@@ -100,8 +101,8 @@ def cmd_bound(args):
 
 
 def _law_registry():
-    from .methods.laws import LAWS
-    from .methods.laws_energy import LAWS_ENERGY as ENERGY_LAWS
+    from planner.methods.laws import LAWS
+    from planner.methods.laws_energy import LAWS_ENERGY as ENERGY_LAWS
     return {**LAWS, **ENERGY_LAWS}
 
 
@@ -109,10 +110,10 @@ def cmd_plan(args):
     """Plan one move; JSON keys per DESIGN.md. Failures come back as a status with a reason."""
     import time
 
-    from .bounds import lower_bound
-    from .model import Crane, UnreachableError
-    from .paths import Line
-    from .trajectory import evaluate
+    from planner.bounds import lower_bound
+    from planner.model import Crane, UnreachableError
+    from planner.geometry.paths import Line
+    from planner.trajectory import evaluate
     crane = Crane.from_id(args.crane)
     method = args.method
     out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
@@ -122,14 +123,14 @@ def cmd_plan(args):
         args.path = "free" if method in ("nlp", "ruckig") else "line"
     out["path"] = args.path
     if method == "nlp":
-        from .methods.nlp import MoveNLP
+        from planner.methods.nlp import MoveNLP
         if args.objective == "energy" and args.duration is None:
             raise CLIError("--method nlp --objective energy needs --duration T [s] "
                            "(e.g. 1.2 × the minimum time)")
-        from .methods.nlp import Wall
+        from planner.methods.nlp import Wall
         walls = tuple(Wall(*w) for w in (args.wall or []))
         if args.objective == "energy" and args.path == "free" and not walls:
-            from .methods.nlp import energy_optimal
+            from planner.methods.nlp import energy_optimal
             res, info = energy_optimal(crane, args.start, args.goal, args.duration,
                                        N=args.intervals)
             out["energy_winner"] = info.get("winner")
@@ -143,7 +144,7 @@ def cmd_plan(args):
         if args.objective != "time":
             raise CLIError("--method ruckig plans the fastest jerk-limited joint move; "
                            "use --objective time")
-        from .methods.smoothing import rest_to_rest
+        from planner.methods.ruckig import rest_to_rest
         lb0 = lower_bound(crane, args.start, args.goal)  # ends at the bound's best telescope
         res = rest_to_rest(crane, crane.ik(args.start, lb0.tele_start),
                            crane.ik(args.goal, lb0.tele_goal))
@@ -156,15 +157,15 @@ def cmd_plan(args):
         if method == "topp" and args.objective != "time":
             raise CLIError("--method topp retimes for minimum time (or a fixed --duration); "
                            "for energy use --method dp --objective energy")
-        from .methods.dp import dp
+        from planner.methods.dp import dp
         res = dp(crane, path, objective=args.objective if method == "dp" else "time",
                  step=args.step, tele_step=args.tele_step, window=args.window,
                  tip_speed=args.tip_speed, duration=args.duration)
         if method == "topp" and res.ok:
-            from .methods.topp import retime
+            from planner.methods.topp import retime
             res = retime(crane, res.path_q, duration=args.duration)
     else:
-        from .methods.laws import follow
+        from planner.methods.laws import follow
         path = Line(args.start, args.goal)
         if args.objective != "time":
             raise CLIError(f"--objective {args.objective}: local laws follow the path at "
@@ -202,8 +203,8 @@ def cmd_plan(args):
             raise CLIError(f"--out {args.out}: write a trajectory CSV (.csv)")
         res.trajectory.to_csv(args.out)
     if args.plot:
-        from .plots import trajectory_figure
-        from .methods.nlp import Wall
+        from planner.plots import trajectory_figure
+        from planner.methods.nlp import Wall
         trajectory_figure(crane, ev, args.plot,
                           f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s",
                           walls=tuple(Wall(*w) for w in (args.wall or [])))
@@ -233,10 +234,10 @@ def _wall(text):
 
 def _read_trajectory(crane, ref: str):
     """FILE.csv, or FILE.h5#ID (an entry of a library database)."""
-    from .trajectory import Trajectory
+    from planner.trajectory import Trajectory
     path, _, entry = ref.partition("#")
     if path.endswith(".h5"):
-        from .store import LibraryStore
+        from planner.library.store import LibraryStore
         with LibraryStore.open(path, "r") as db:
             ids = db.ids()
             if not entry:
@@ -273,9 +274,9 @@ def _noise(text):
 
 def cmd_simulate(args):
     """Replay a trajectory's valve commands open loop and write the measured-data CSV."""
-    from .effects import parse_effect
-    from .model import Crane
-    from .simulate import Plant, simulate_to_csv
+    from planner.simulation.effects import parse_effect
+    from planner.model import Crane
+    from planner.simulation.replay import Plant, simulate_to_csv
     crane = Crane.from_id(args.crane)
     effects = []
     for text in args.effect or []:
@@ -295,7 +296,7 @@ def cmd_simulate(args):
 
 
 def cmd_effects_list(args):
-    from .effects import catalogue
+    from planner.simulation.effects import catalogue
     cat = catalogue()
     _emit(args, cat)
     if not args.json:
@@ -307,12 +308,12 @@ def cmd_effects_list(args):
 
 
 def cmd_discrepancy(args):
-    """Measured vs simulated -> named effect -> calibrated model (planner.discrepancy)."""
-    from .discrepancy import (Discrepancy, calibrated_spec_text, closed_loop,
+    """Measured vs simulated -> named effect -> calibrated model (planner.calibration.discrepancy)."""
+    from planner.calibration.discrepancy import (Discrepancy, calibrated_spec_text, closed_loop,
                               write_report)
-    from .io import atomic_write_text
-    from .model import Crane
-    from .trials import Recording
+    from planner.io import atomic_write_text
+    from planner.model import Crane
+    from planner.calibration.trials import Recording
     crane = Crane.from_id(args.crane)
     plan = _read_trajectory(crane, args.trajectory) if args.trajectory else None
     rec = Recording.from_csv(args.measured, crane, plan)
@@ -328,7 +329,7 @@ def cmd_discrepancy(args):
     # everything computed: now write (nothing is written when anything above failed)
     if args.save_model:
         text = calibrated_spec_text(crane, res.effects, source=f"on {args.measured}")
-        from .spec import parse_spec  # the written model must load
+        from planner.model.spec import parse_spec  # the written model must load
         import tomllib
         parse_spec(tomllib.loads(text), args.save_model, text)
         atomic_write_text(args.save_model, text)
@@ -352,7 +353,7 @@ def cmd_discrepancy(args):
 
 
 def cmd_library_build(args):
-    from .library import build
+    from planner.library.build import build
     objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
     summary = build(args.crane, args.tasks, args.out, objectives=objectives,
                     workers=args.workers, scheduler=args.scheduler, limit=args.limit,
@@ -367,7 +368,7 @@ def cmd_library_build(args):
 
 
 def cmd_library_info(args):
-    from .store import LibraryStore
+    from planner.library.store import LibraryStore
     with LibraryStore.open(args.library, "r") as db:
         info = db.info()
     _emit(args, info)
@@ -379,7 +380,7 @@ def cmd_library_info(args):
 
 
 def cmd_library_query(args):
-    from .store import LibraryStore
+    from planner.library.store import LibraryStore
     with LibraryStore.open(args.library, "r") as db:
         try:
             eid, dist = db.nearest(args.start, args.goal, objective=args.objective)
@@ -410,10 +411,10 @@ def _join_from(spec_toml, text, traj):
 
     import numpy as np
 
-    from .methods.smoothing import rest_to_rest
-    from .model import Crane
-    from .spec import parse_spec
-    from .trajectory import Trajectory
+    from planner.methods.ruckig import rest_to_rest
+    from planner.model import Crane
+    from planner.model.spec import parse_spec
+    from planner.trajectory import Trajectory
     crane = Crane(parse_spec(tomllib.loads(spec_toml), "<library spec>"))
     try:
         q = np.array([parse_angle(v) for v in text.split(",")], float)
@@ -434,12 +435,12 @@ def _join_from(spec_toml, text, traj):
                         joint_names=b.joint_names, method=f"ruckig+{b.method}",
                         objective=b.objective)
     # valve feed-forward for the whole joined move at the control rate (50 Hz)
-    from .feedforward import commands
+    from planner.feedforward import commands
     return commands(crane, joined, 50.0).attach(joined), float(a.duration)
 
 
 def cmd_library_export(args):
-    from .store import export
+    from planner.library.store import export
     files = export(args.library, args.out, args.format)
     _emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
@@ -459,7 +460,7 @@ def _method(text):
 def cmd_bench(args):
     """DP vs NLP vs local laws on the seeds' suites (planner/bench.py): bench.md, bench.json
     and figures in --out."""
-    from .bench import parse_suites, run_bench
+    from planner.bench.run import parse_suites, run_bench
     try:
         suites = parse_suites(args.suite)
     except ValueError as e:
@@ -477,7 +478,7 @@ def cmd_bench(args):
 def cmd_demo(args):
     """The main job (planner/demo.py): machines, seed 000, a small library, the short
     benchmark and a calibration, into ``--out``."""
-    from .demo import run_demo
+    from planner.demo import run_demo
     if args.library_moves < 1 or args.workers < 1:
         raise CLIError("--library-moves and --workers must be >= 1")
     summary = run_demo(args.out, library_moves=args.library_moves, workers=args.workers,
@@ -635,7 +636,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from .model import UnreachableError
+    from planner.model import UnreachableError
     args = build_parser().parse_args(argv)
     try:
         rc = args.func(args)

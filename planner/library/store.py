@@ -52,8 +52,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .io import atomic_write_bytes, atomic_write_text, dumps
-from .trajectory import LIMIT_KINDS, Trajectory
+from planner.io import atomic_write_bytes, atomic_write_text, dumps
+from planner.trajectory import LIMIT_KINDS, Trajectory
 
 FORMAT = "crane-planner-library"
 FORMAT_VERSION = 1
@@ -76,7 +76,7 @@ class StoreError(ValueError):
 
 
 def _planner_version() -> str:
-    from . import __version__
+    from planner import __version__
     return __version__
 
 

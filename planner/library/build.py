@@ -4,8 +4,8 @@ A task suite (problems/tasks/<name>.toml) expands to moves (id, start tip, goal 
 move and objective a worker plans the move (``time``: the minimum-time NLP; ``energy``: the
 least pump energy within 1.2 × the minimum time, :func:`~planner.methods.nlp.energy_optimal`),
 judges it with :func:`~planner.trajectory.evaluate`, attaches 50 Hz valve feed-forward, and
-scores its open-loop robustness (:func:`~planner.simulate.robustness`). The driver is the single
-writer of the HDF5 database (:mod:`planner.store`): entries are written one by one as results
+scores its open-loop robustness (:func:`~planner.simulation.replay.robustness`). The driver is the single
+writer of the HDF5 database (:mod:`planner.library.store`): entries are written one by one as results
 arrive, failures are stored with their status and reason, and a rerun of the same command
 skips the entries already in the file (a killed build resumes where it stopped).
 
@@ -22,8 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from .obstacles import from_dict as obstacle_from_dict
-from .spec import SpecError, parse_angle
+from planner.geometry.obstacles import from_dict as obstacle_from_dict
+from planner.model.spec import SpecError
+from planner.units import parse_angle
 
 OBJECTIVES = ("time", "energy")
 ENERGY_BUDGET = 1.2  # energy entries: least energy within 1.2 × the minimum time
@@ -91,7 +92,7 @@ _NLP_CACHE: dict = {}
 
 
 def _nlp(crane, objective, N, obstacles=()):
-    from .methods.nlp import MoveNLP
+    from planner.methods.nlp import MoveNLP
     key = (crane.spec.id, objective, N, tuple(obstacles))
     if key not in _NLP_CACHE:  # built once per worker process, reused for every move
         _NLP_CACHE[key] = MoveNLP(crane, objective, "free", N=N, obstacles=tuple(obstacles))
@@ -108,10 +109,10 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
                robustness: bool = True, obstacles: tuple = ()) -> dict:
     """Plan one library entry (runs in a worker). Never raises for planning failures: they come
     back as a status with a reason."""
-    from .feedforward import commands
-    from .methods.nlp import energy_optimal
-    from .model import Crane
-    from .trajectory import evaluate
+    from planner.feedforward import commands
+    from planner.methods.nlp import energy_optimal
+    from planner.model import Crane
+    from planner.trajectory import evaluate
     t0 = _time.perf_counter()
     out = dict(id=f"{move.id}:{objective}", start=move.start, goal=move.goal,
                objective=objective, method="nlp")
@@ -137,7 +138,7 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
         # derived channels (strokes, pressures, pump) on those samples
         clear = float("nan")
         if obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
-            from .paths import tip_to_xyz
+            from planner.geometry.paths import tip_to_xyz
             cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
             clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
         # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
@@ -146,7 +147,7 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
         ev = evaluate(crane, traj_u)
         rob = float("nan")
         if robustness:
-            from .simulate import robustness as robust
+            from planner.simulation.replay import robustness as robust
             rob = float(robust(crane, traj_u)["score_m"])
         return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
                     robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
@@ -163,8 +164,8 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     """Build (or resume) the library ``out`` (HDF5). Returns a summary dict."""
     from tqdm import tqdm
 
-    from .model import Crane
-    from .store import LibraryStore
+    from planner.model import Crane
+    from planner.library.store import LibraryStore
     bad = [o for o in objectives if o not in OBJECTIVES]
     if bad:
         raise ValueError(f"objectives: unknown {bad}; allowed: {', '.join(OBJECTIVES)}")

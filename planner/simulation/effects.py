@@ -3,8 +3,8 @@
 Each effect is a small immutable object: a ``name``, a ``description`` of its physical meaning,
 the ``signature`` it leaves in the residual (measured − simulated; seed 001's table), its
 ``parameters`` (unit, plausible range) and, when it belongs to one actuator, the ``joint``. The
-same object is injected into the "true" plant (:func:`planner.plant.respond`) and fitted to data
-by :mod:`planner.discrepancy` — one definition serves injection and identification.
+same object is injected into the "true" plant (:func:`planner.simulation.plant.respond`) and fitted to data
+by :mod:`planner.calibration.discrepancy` — one definition serves injection and identification.
 
 An effect acts at one stage of the plant (the hooks below; the default hooks do nothing):
 
@@ -162,7 +162,7 @@ class Effect:
         return u
 
     def plant(self, crane, plant):
-        """The replay's :class:`planner.simulate.Plant` with this effect's valve/pump change."""
+        """The replay's :class:`planner.simulation.replay.Plant` with this effect's valve/pump change."""
         return plant
 
     def payload(self, crane, m: float) -> float:
@@ -272,7 +272,7 @@ class ValveDeadband(Effect):
 
     def plant(self, crane, plant):
         from dataclasses import replace
-        from .feedforward import valve_parameters
+        from planner.feedforward import valve_parameters
         db = (np.asarray(plant.deadband, float) if plant.deadband is not None
               else valve_parameters(crane).deadband.copy())
         db = np.broadcast_to(db, (crane.n,)).copy()
@@ -442,7 +442,7 @@ def effect_from_dict(d: dict) -> Effect:
 def parse_effect(text: str, crane=None) -> Effect:
     """``NAME:key=value,…`` -> an effect (angles may be written ``1.5deg``). With a crane,
     the joint name is checked against it."""
-    from .spec import parse_angle
+    from planner.units import parse_angle
     name, _, rest = text.partition(":")
     name = name.strip()
     kw: dict = {}

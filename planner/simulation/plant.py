@@ -1,9 +1,9 @@
-"""The "true" plant: the nominal open-loop replay plus effects from :mod:`planner.effects`.
+"""The "true" plant: the nominal open-loop replay plus effects from :mod:`planner.simulation.effects`.
 
-:func:`respond` runs the stages in order (see :mod:`planner.effects`):
+:func:`respond` runs the stages in order (see :mod:`planner.simulation.effects`):
 
 1. commands — what the valves act on (delay, spool lag);
-2. valves — :func:`planner.simulate.replay` with the effects' valve and pump parameters
+2. valves — :func:`planner.simulation.replay.replay` with the effects' valve and pump parameters
    (pressure-compensated valves, dead band, flow sharing, end stops) -> strokes x(t);
 3. forces — actuator forces from the model's inverse dynamics at the replayed states (payload
    from the effects) plus the effects' extra forces (friction, actuator mass); chamber pressures
@@ -14,7 +14,7 @@
    recomputed) until the drift settles, at most six (it converges fast: the drift changes the
    pressures far less than it changes the positions);
 5. sensors — what the transducers report (offsets). Noise is added by the caller
-   (:func:`planner.simulate.measured_table`).
+   (:func:`planner.simulation.replay.measured_table`).
 
 With ``q_fit`` (measured positions) the initial strokes are not taken from ``q0`` but fitted to
 the measurement (least squares per joint on ``fit_mask``): the start pose is a nuisance
@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .simulate import Plant, _differences, _stroke_stops, replay
-from .trajectory import Trajectory
+from planner.simulation.replay import Plant, _differences, _stroke_stops, replay
+from planner.trajectory import Trajectory
 
 __all__ = ["PlantState", "Response", "respond", "chamber_pressures"]
 
@@ -131,7 +131,7 @@ class PlantState:
         lumps it); inverse dynamics is linear in the masses, so one difference is exact."""
         from dataclasses import replace
 
-        from .model import Crane
+        from planner.model import Crane
         spec = self.crane.spec
         key = (id(self.crane), i)
         hit = _UNIT_CACHE.get(key)
@@ -211,11 +211,11 @@ def respond(crane, t_u, u, q0, effects=(), *, plant: Plant = Plant(),
             replay_cache: dict | None = None) -> Response:
     """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
     (or from the start fitted to ``q_fit`` (N, n) measured on the sample grid, rows
-    ``fit_mask``), with ``effects`` (a sequence of :class:`planner.effects.Effect`).
-    ``plant``: further valve/pump deviations (:class:`planner.simulate.Plant`; its payload and
+    ``fit_mask``), with ``effects`` (a sequence of :class:`planner.simulation.effects.Effect`).
+    ``plant``: further valve/pump deviations (:class:`planner.simulation.replay.Plant`; its payload and
     start offset are not used here). ``replay_cache``: a dict reused between calls that differ
     only in force/sensor effects (the fitting loop)."""
-    from .effects import effect_from_dict
+    from planner.simulation.effects import effect_from_dict
     # the spec's own (calibrated) effects are part of the model
     effects = tuple(effect_from_dict(d) for d in crane.spec.effects) + tuple(effects)
     t_u = np.asarray(t_u, float)

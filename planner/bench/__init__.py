@@ -1,0 +1,1 @@
+"""The benchmark: planning methods judged side by side by evaluate()."""

@@ -1,0 +1,1 @@
+"""Calibration: discrepancy verdicts, trials and compensation."""

@@ -1,0 +1,1 @@
+"""Geometry: tip paths and obstacles."""

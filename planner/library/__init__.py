@@ -1,0 +1,1 @@
+"""Feed-forward trajectory libraries: build, store, export, query."""

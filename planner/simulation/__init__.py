@@ -1,0 +1,1 @@
+"""Simulation: replay plants, effects and recordings."""

@@ -1,0 +1,1 @@
+"""Task suites (TOML under problems/tasks/) and work cycles."""

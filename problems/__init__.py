@@ -23,8 +23,8 @@ def crane_path(crane_id: str) -> Path:
 
 
 def load_crane(crane_id: str):
-    """Validated :class:`planner.spec.CraneSpec` of a shipped machine or a TOML path."""
-    from planner.spec import load_spec
+    """Validated :class:`planner.model.spec.CraneSpec` of a shipped machine or a TOML path."""
+    from planner.model.spec import load_spec
     p = Path(crane_id)
     if p.suffix == ".toml" and p.exists():
         return load_spec(p)

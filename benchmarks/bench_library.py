@@ -19,7 +19,8 @@ import numpy as np
 
 from planner import Crane
 from planner.io import atomic_write_text
-from planner.library.build import build, load_suite
+from planner.library.build import build
+from planner.tasks.suites import load_suite
 from planner.library.store import LibraryStore
 from planner.trajectory import evaluate
 

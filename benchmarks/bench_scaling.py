@@ -383,7 +383,7 @@ def library_run(workers: int, moves: int, folder, robustness: bool = True) -> di
     s100f, objective time, with ``workers`` local processes (build()'s own clock: pool start,
     every worker building its NLP, planning, writing)."""
     import planner.library.build as library
-    library.clear_nlp_cache()  # forked workers would inherit the parent's built NLPs
+    library.clear_planner_caches()  # forked workers would inherit the parent's built NLPs
     out = Path(folder) / f"w{workers}_{time.monotonic_ns()}.h5"
     s = library.build("s100f", "forwarder-cycle", out, objectives=("time",), workers=workers,
                       limit=moves, robustness=robustness, progress=False)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from planner import Crane
-from planner.library.build import build, load_suite
+from planner.library.build import build
+from planner.tasks.suites import load_suite
 from planner.library.store import LibraryStore
 from planner.trajectory import evaluate
 

@@ -124,7 +124,7 @@ def test_a_long_slew_move_is_never_slower_than_its_feasible_ruckig_move(s100f):
     grid loses about one interval against the exact jerk switches; the solver then returns the
     Ruckig move, which sits on the rest-to-rest bound, within every limit and clear of the
     headboard, represented exactly by its switch times."""
-    from planner.library.build import load_suite
+    from planner.tasks.suites import load_suite
     from planner.methods.ruckig import rest_to_rest
     info, moves = load_suite("forwarder-cycle")
     m = next(m for m in moves if m.id == "d01-p00")
@@ -148,7 +148,7 @@ def test_a_long_slew_move_is_never_slower_than_its_feasible_ruckig_move(s100f):
 def test_the_nlp_keeps_its_own_solution_when_ruckig_exceeds_the_pump(s100f):
     """p01-d03: the jerk-limited Ruckig move needs more oil than the pump gives; the NLP's
     solution (the pump as a constraint) is returned."""
-    from planner.library.build import load_suite
+    from planner.tasks.suites import load_suite
     info, moves = load_suite("forwarder-cycle")
     m = next(m for m in moves if m.id == "p01-d03")
     from planner.methods.ruckig import rest_to_rest

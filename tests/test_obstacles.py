@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner import Crane
-from planner.library.build import load_suite
+from planner.tasks.suites import load_suite
 from planner.methods.nlp import MoveNLP
 from planner.geometry.obstacles import Plate, Wall, from_dict
 from planner.geometry.paths import tip_to_xyz

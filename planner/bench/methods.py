@@ -287,7 +287,7 @@ def _dp_tele_step(crane, path_speed, step, window):
 def _dp_chain(ctx, move, tele_start=None):
     """Energy DP on every section of the cycle at its tip speed, the telescope chained (one
     telescope grid for the whole cycle, so consecutive sections share their junction node).
-    Returns (Outcome, list of DPResult)."""
+    Returns (Outcome, list of the DP PlanResults)."""
     from planner.tasks.cycles import cycle, labels
     from planner.methods.dp import dp
     crane, s = ctx.crane, ctx.settings

@@ -177,7 +177,7 @@ def cylindrical_path(tips) -> Curve:
 
 
 def forwarder(settings: bm.Settings) -> Suite:
-    from planner.library.build import load_suite
+    from planner.tasks.suites import load_suite
     meta, all_moves = load_suite("forwarder-cycle")
     obstacles = meta["obstacles"]
     k = min(settings.forwarder_moves, len(all_moves))

@@ -9,6 +9,7 @@ import argparse
 import dataclasses
 import math
 import sys
+import time
 
 from planner.model.spec import SpecError
 from planner.units import parse_angle
@@ -100,79 +101,35 @@ def cmd_bound(args):
               f"energy ≥ {lb.energy_J / 1e3:.2f} kJ")
 
 
-def _law_registry():
-    from planner.methods.laws import LAWS
-    from planner.methods.laws_energy import LAWS_ENERGY as ENERGY_LAWS
-    return {**LAWS, **ENERGY_LAWS}
-
-
 def cmd_plan(args):
-    """Plan one move; JSON keys per DESIGN.md. Failures come back as a status with a reason."""
-    import time
-
+    """Plan one move with a registered method (planner.methods.registry); JSON keys per
+    DESIGN.md. Failures come back as a status with a reason."""
     from planner.bounds import lower_bound
+    from planner.geometry.obstacles import Wall
+    from planner.methods import PlanRequest, UnsupportedRequest, get, plan
     from planner.model import Crane, UnreachableError
-    from planner.geometry.paths import Line
     from planner.trajectory import evaluate
     crane = Crane.from_id(args.crane)
     method = args.method
+    planner = get(method)
     out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
                start=list(args.start), goal=list(args.goal))
-    t0 = time.perf_counter()
-    if args.path is None:
-        args.path = "free" if method in ("nlp", "ruckig") else "line"
+    args.path = args.path or planner.default_path
     out["path"] = args.path
-    if method == "nlp":
-        from planner.methods.nlp import MoveNLP
-        if args.objective == "energy" and args.duration is None:
-            raise CLIError("--method nlp --objective energy needs --duration T [s] "
-                           "(e.g. 1.2 × the minimum time)")
-        from planner.methods.nlp import Wall
-        walls = tuple(Wall(*w) for w in (args.wall or []))
-        if args.objective == "energy" and args.path == "free" and not walls:
-            from planner.methods.nlp import energy_optimal
-            res, info = energy_optimal(crane, args.start, args.goal, args.duration,
-                                       N=args.intervals)
-            out["energy_winner"] = info.get("winner")
-        else:
-            nlp = MoveNLP(crane, args.objective, args.path, N=args.intervals, obstacles=walls)
-            res = nlp.solve(args.start, args.goal, T_max=args.duration)
-        path = None
-    elif method == "ruckig":
-        if args.path != "free":
-            raise CLIError("--method ruckig moves the joints (free path); use --path free")
-        if args.objective != "time":
-            raise CLIError("--method ruckig plans the fastest jerk-limited joint move; "
-                           "use --objective time")
-        from planner.methods.ruckig import rest_to_rest
-        lb0 = lower_bound(crane, args.start, args.goal)  # ends at the bound's best telescope
-        res = rest_to_rest(crane, crane.ik(args.start, lb0.tele_start),
-                           crane.ik(args.goal, lb0.tele_goal))
-        path = None
-    elif args.path != "line":
-        raise CLIError(f"--path {args.path}: {method} follows a tip path; use --path line "
-                       "(free paths: --method ruckig)")
-    elif method in ("dp", "topp"):
-        path = Line(args.start, args.goal)
-        if method == "topp" and args.objective != "time":
-            raise CLIError("--method topp retimes for minimum time (or a fixed --duration); "
-                           "for energy use --method dp --objective energy")
-        from planner.methods.dp import dp
-        res = dp(crane, path, objective=args.objective if method == "dp" else "time",
-                 step=args.step, tele_step=args.tele_step, window=args.window,
-                 tip_speed=args.tip_speed, duration=args.duration)
-        if method == "topp" and res.ok:
-            from planner.methods.topp import retime
-            res = retime(crane, res.path_q, duration=args.duration)
-    else:
-        from planner.methods.laws import follow
-        path = Line(args.start, args.goal)
-        if args.objective != "time":
-            raise CLIError(f"--objective {args.objective}: local laws follow the path at "
-                           "--tip-speed; use --method dp for energy")
-        res = follow(crane, path, _law_registry()[method.split(":", 1)[1]](),
-                     args.tip_speed or 1.0, rate=args.rate, tele0=args.tele0)
-    out["solve_time_s"] = time.perf_counter() - t0
+    walls = tuple(Wall(*w) for w in (args.wall or []))
+    try:
+        req = PlanRequest(args.start, args.goal, objective=args.objective, path=args.path,
+                          duration=args.duration, tip_speed=args.tip_speed, obstacles=walls,
+                          options=dict(intervals=args.intervals, step=args.step,
+                                       tele_step=args.tele_step, window=args.window,
+                                       rate=args.rate, tele0=args.tele0))
+        t0 = time.perf_counter()
+        res = plan(crane, req, method)
+    except UnsupportedRequest as e:
+        raise CLIError(str(e)) from None
+    if "energy_winner" in res.stats:
+        out["energy_winner"] = res.stats["energy_winner"]
+    out["solve_time_s"] = time.perf_counter() - t0  # the whole call, set-up included
     try:
         lb = lower_bound(crane, args.start, args.goal)
     except UnreachableError as e:
@@ -186,9 +143,9 @@ def cmd_plan(args):
         return 3
     ev = evaluate(crane, res.trajectory)
     checked = set(ev.checked)
-    for w in getattr(res, "warnings", []):
+    for w in res.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    if getattr(res, "warnings", None):
+    if res.warnings:
         out["warnings"] = list(res.warnings)
     if lb is not None:
         bound = (lb.combined_s if "acceleration" in checked else
@@ -204,10 +161,9 @@ def cmd_plan(args):
         res.trajectory.to_csv(args.out)
     if args.plot:
         from planner.plots import trajectory_figure
-        from planner.methods.nlp import Wall
         trajectory_figure(crane, ev, args.plot,
                           f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s",
-                          walls=tuple(Wall(*w) for w in (args.wall or [])))
+                          walls=walls)
     _emit(args, out)
     if not args.json:
         loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
@@ -358,7 +314,7 @@ def cmd_library_build(args):
     summary = build(args.crane, args.tasks, args.out, objectives=objectives,
                     workers=args.workers, scheduler=args.scheduler, limit=args.limit,
                     N=args.intervals, robustness=not args.no_robustness,
-                    progress=not (args.json == "-"))
+                    progress=not (args.json == "-"), method=args.method)
     _emit(args, summary)
     if not args.json:
         print(f"{summary['library']}: planned {summary['planned']} entries "
@@ -449,12 +405,11 @@ def cmd_library_export(args):
 
 
 def _method(text):
-    reg = _law_registry()
-    if text in ("dp", "topp", "ruckig", "nlp") or (text.startswith("law:") and text[4:] in reg):
+    from planner.methods import available
+    names = available()
+    if text in names:
         return text
-    raise argparse.ArgumentTypeError(
-        f"unknown method {text!r}; available: nlp, dp, topp, ruckig, "
-        + ", ".join(f"law:{k}" for k in reg))
+    raise argparse.ArgumentTypeError(f"unknown method {text!r}; available: {', '.join(names)}")
 
 
 def cmd_bench(args):
@@ -516,11 +471,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--start", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--goal", type=parse_point, required=True, metavar="r,z,slew")
     p.add_argument("--method", type=_method, default="dp",
-                   help="nlp (CasADi/IPOPT; --path free|line), dp (Bellman along the line), "
-                        "topp (the DP path retimed with "
-                        "acceleration and pump limits), ruckig (jerk-limited joint move, free "
-                        "path), or law:NAME (least_norm, max_velocity, max_lift, jla, "
-                        "q_optimal, p_optimal)")
+                   help="a registered method: nlp (CasADi/IPOPT; --path free|line), dp (Bellman "
+                        "along the line), topp (the DP path retimed with acceleration and pump "
+                        "limits), ruckig (jerk-limited joint move, free path), law:NAME "
+                        "(least_norm, max_velocity, max_lift, jla, q_optimal, p_optimal), or a "
+                        "plug-in's")
     p.add_argument("--objective", choices=("time", "energy"), default="time")
     p.add_argument("--path", choices=("line", "free"), default=None,
                    help="tip path (default: free for nlp and ruckig, line for the others)")
@@ -552,6 +507,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
     p.add_argument("--limit", type=int, help="only the first N moves of the suite")
     p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
+    p.add_argument("--method", type=_method, default="nlp",
+                   help="registered planning method of every entry (nlp); see plan --help")
     p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
     _json_arg(p)
     p.set_defaults(func=cmd_library_build)

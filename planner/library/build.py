@@ -1,8 +1,9 @@
 """Build a library of ready-to-replay moves for a machine's work cycle.
 
 A task suite (problems/tasks/<name>.toml) expands to moves (id, start tip, goal tip). For every
-move and objective a worker plans the move (``time``: the minimum-time NLP; ``energy``: the
-least pump energy within 1.2 × the minimum time, :func:`~planner.methods.nlp.energy_optimal`),
+move and objective a worker plans the move with a registered method (default ``nlp``; ``time``:
+the minimum-time move; ``energy``: the least pump energy within 1.2 × the minimum time, for the
+NLP :func:`~planner.methods.nlp.energy_optimal`),
 judges it with :func:`~planner.trajectory.evaluate`, attaches 50 Hz valve feed-forward, and
 scores its open-loop robustness (:func:`~planner.simulation.replay.robustness`). The driver is the single
 writer of the HDF5 database (:mod:`planner.library.store`): entries are written one by one as results
@@ -11,119 +12,65 @@ skips the entries already in the file (a killed build resumes where it stopped).
 
 Executors: in-process (``workers=1``), local processes (``workers=N``), or a Dask cluster
 (``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N workers). Workers
-build each NLP once per process and reuse it for every move.
+build each solver once per process and reuse it for every move (the method's own cache).
 """
 from __future__ import annotations
 
 import time as _time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
 from pathlib import Path
 
-
-from planner.geometry.obstacles import from_dict as obstacle_from_dict
-from planner.model.spec import SpecError
-from planner.units import parse_angle
+from planner.methods import PlanRequest, UnsupportedRequest, get, plan
+from planner.tasks.suites import Move, load_suite
 
 OBJECTIVES = ("time", "energy")
 ENERGY_BUDGET = 1.2  # energy entries: least energy within 1.2 × the minimum time
 
 
-@dataclass(frozen=True)
-class Move:
-    id: str
-    start: tuple
-    goal: tuple
-
-
-def suite_path(name: str) -> Path:
-    from problems import TASKS
-    p = Path(name)
-    if p.suffix == ".toml" and p.exists():
-        return p
-    p = TASKS / f"{name}.toml"
-    if not p.exists():
-        known = ", ".join(sorted(x.stem for x in TASKS.glob("*.toml")))
-        raise KeyError(f"unknown task suite '{name}'; known: {known} (or a path to a .toml)")
-    return p
-
-
-def load_suite(name: str) -> tuple[dict, list[Move]]:
-    """(suite table, moves) of a task suite: every pick-up × every drop (and back). The suite
-    table's ``obstacles`` holds the parsed obstacles (a tuple, possibly empty)."""
-    path = suite_path(name)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as e:
-        raise SpecError(str(path), "<toml>", None, f"not valid TOML: {e}") from None
-
-    def points(key):
-        t = data.get(key)
-        if not isinstance(t, dict) or not {"r", "slew", "z"} <= set(t):
-            raise SpecError(str(path), key, t, "expected a table with r (list), slew (list), z")
-        try:
-            rs = [float(r) for r in t["r"]]
-            sl = [parse_angle(s) for s in t["slew"]]
-            z = float(t["z"])
-        except (TypeError, ValueError):
-            raise SpecError(str(path), key, t, "r and slew must be lists of numbers "
-                                               "(slew may be '30deg'), z a number") from None
-        return [(r, z, s) for s in sl for r in rs]
-    picks, drops = points("pickups"), points("drops")
-    both = bool(data.get("options", {}).get("both_directions", True))
-    moves = []
-    for i, p in enumerate(picks):
-        for j, d in enumerate(drops):
-            moves.append(Move(f"p{i:02d}-d{j:02d}", p, d))
-            if both:
-                moves.append(Move(f"d{j:02d}-p{i:02d}", d, p))
-    obstacles = []
-    for name_, t in (data.get("obstacles") or {}).items():
-        try:
-            obstacles.append(obstacle_from_dict(t))
-        except (ValueError, TypeError) as e:
-            raise SpecError(str(path), f"obstacles.{name_}", t, str(e)) from None
-    return dict(data.get("suite", {}), obstacles=tuple(obstacles)), moves
-
-
 # ------------------------------------------------------------------------------ worker side
-_NLP_CACHE: dict = {}
+def clear_planner_caches() -> None:
+    """Forget the solvers the registered methods built in this process (worker processes
+    forked afterwards build their own; benchmarks use it to time a build from scratch)."""
+    from planner.methods import available
+    for name in available():
+        get(name).clear()
 
 
-def _nlp(crane, objective, N, obstacles=()):
-    from planner.methods.nlp import MoveNLP
-    key = (crane.spec.id, objective, N, tuple(obstacles))
-    if key not in _NLP_CACHE:  # built once per worker process, reused for every move
-        _NLP_CACHE[key] = MoveNLP(crane, objective, "free", N=N, obstacles=tuple(obstacles))
-    return _NLP_CACHE[key]
+def check_method(method: str, moves, objectives, obstacles) -> None:
+    """Refuse, before anything is written, a method that cannot plan the suite's requests
+    (UnsupportedRequest / KeyError with the reason)."""
+    p = get(method)
+    if moves:
+        for o in objectives:
+            p.check(_request(moves[0], o, 40, obstacles, duration=1.0))
 
 
-def clear_nlp_cache() -> None:
-    """Forget the MoveNLPs built in this process (worker processes forked afterwards build
-    their own; benchmarks use it to time a build from scratch)."""
-    _NLP_CACHE.clear()
+def _request(move: Move, objective: str, N: int, obstacles, duration=None, time_result=None):
+    return PlanRequest(move.start, move.goal, objective=objective, path="free",
+                       duration=duration, obstacles=obstacles,
+                       options=dict(intervals=N, time_result=time_result))
 
 
 def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
-               robustness: bool = True, obstacles: tuple = ()) -> dict:
-    """Plan one library entry (runs in a worker). Never raises for planning failures: they come
-    back as a status with a reason."""
+               robustness: bool = True, obstacles: tuple = (), method: str = "nlp") -> dict:
+    """Plan one library entry with the registered ``method`` (runs in a worker): ``time`` the
+    minimum-time move, ``energy`` the least pump energy within ENERGY_BUDGET × that time. Never
+    raises for planning failures: they come back as a status with a reason."""
     from planner.feedforward import commands
-    from planner.methods.nlp import energy_optimal
     from planner.model import Crane
     from planner.trajectory import evaluate
     t0 = _time.perf_counter()
     out = dict(id=f"{move.id}:{objective}", start=move.start, goal=move.goal,
-               objective=objective, method="nlp")
+               objective=objective, method=method)
     try:
         crane = Crane.from_id(crane_id)
-        rt = _nlp(crane, "time", N, obstacles).solve(move.start, move.goal)
+        rt = plan(crane, _request(move, "time", N, obstacles), method)
         res = rt
         if rt.ok and objective == "energy":
-            res, info = energy_optimal(crane, move.start, move.goal, ENERGY_BUDGET * rt.duration_s,
-                                       time_result=rt, energy_nlp=_nlp(crane, "energy", N, obstacles))
-            out["energy_winner"] = info.get("winner")
+            res = plan(crane, _request(move, "energy", N, obstacles,
+                                       duration=ENERGY_BUDGET * rt.duration_s, time_result=rt),
+                       method)
+            out["energy_winner"] = res.stats.get("energy_winner")
         if not res.ok:
             return dict(out, status=res.status, reason=res.reason,
                         solve_s=_time.perf_counter() - t0)
@@ -151,7 +98,9 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
             rob = float(robust(crane, traj_u)["score_m"])
         return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
                     robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
-                    iterations=res.iterations)
+                    iterations=res.stats.get("iterations", 0))
+    except UnsupportedRequest as e:
+        return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
     except Exception as e:  # a failed move must never stop the build: record why
         return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
                     solve_s=_time.perf_counter() - t0)
@@ -160,8 +109,9 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
 # ------------------------------------------------------------------------------ driver side
 def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int = 1,
           scheduler: str | None = None, limit: int | None = None, N: int = 40,
-          robustness: bool = True, progress: bool = True) -> dict:
-    """Build (or resume) the library ``out`` (HDF5). Returns a summary dict."""
+          robustness: bool = True, progress: bool = True, method: str = "nlp") -> dict:
+    """Build (or resume) the library ``out`` (HDF5) with the registered planning ``method``
+    (default: the NLP). Returns a summary dict."""
     from tqdm import tqdm
 
     from planner.model import Crane
@@ -176,6 +126,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     obstacles = meta["obstacles"]
     if limit is not None:
         moves = moves[:limit]
+    check_method(method, moves, objectives, obstacles)
     out = Path(out)
     db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
           else LibraryStore.create(out, crane.spec))
@@ -203,13 +154,13 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
             bar.update(1)
 
         if scheduler:
-            _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write)
+            _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, method, write)
         elif workers == 1:
             for m, o in todo:
-                write(plan_entry(crane_id, m, o, N, robustness, obstacles))
+                write(plan_entry(crane_id, m, o, N, robustness, obstacles, method))
         else:
             with ProcessPoolExecutor(max_workers=workers) as ex:
-                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness, obstacles)
+                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness, obstacles, method)
                         for m, o in todo]
                 for f in as_completed(futs):
                     write(f.result())
@@ -221,7 +172,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                 info=info)
 
 
-def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write):
+def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, method, write):
     try:
         from dask.distributed import Client, LocalCluster, as_completed as dask_completed
     except ImportError:
@@ -235,7 +186,7 @@ def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write):
     else:
         client = Client(scheduler)
     try:
-        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, obstacles,
+        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, obstacles, method,
                               pure=False)
                 for m, o in todo]
         for f in dask_completed(futs):
@@ -246,4 +197,4 @@ def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, write):
             cluster.close()
 
 
-__all__ = ["Move", "load_suite", "plan_entry", "build", "clear_nlp_cache", "OBJECTIVES"]
+__all__ = ["plan_entry", "build", "check_method", "clear_planner_caches", "OBJECTIVES"]

@@ -17,40 +17,28 @@ Recursion J[n, m] = min_j J[n−1, m+j] + c(n−1, m+j → n, m); the loop runs 
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from planner.bounds import swept_volume
-from planner.geometry.paths import Path
+from planner.geometry.paths import Line, Path
+from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
 
-@dataclass
-class DPResult:
-    """status "ok", or "unreachable" (a stage has no feasible node) / "infeasible" (no path
-    through the graph) with ``reason``. ``path_q`` (N+1, n) is the geometric joint path at the
-    stations ``s`` [m]; ``times`` [s] its time stamps; ``trajectory`` the same as a
-    :class:`~planner.trajectory.Trajectory` (piecewise linear in time)."""
-    status: str
-    reason: str = ""
-    objective: str = "time"
-    trajectory: Trajectory | None = None
-    path_q: np.ndarray | None = None
-    s: np.ndarray | None = None
-    times: np.ndarray | None = None
-    tele_index: np.ndarray | None = None
-    cost: float = float("nan")
-    duration_s: float = float("nan")
-    energy_J: float = float("nan")
-    solve_time_s: float = 0.0
-    grid: dict = field(default_factory=dict)
-    warnings: list = field(default_factory=list)
+_STATS = dict(objective="time", path_q=None, s=None, times=None, tele_index=None,
+              cost=float("nan"), energy_J=float("nan"), grid={})
 
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
+
+def _result(status: str, reason: str = "", **kw) -> PlanResult:
+    """The DP's result: status "ok", or "unreachable" (a stage has no feasible node) /
+    "infeasible" (no path through the graph) with ``reason``. Stats: ``path_q`` (N+1, n) the
+    geometric joint path at the stations ``s`` [m]; ``times`` [s] its time stamps;
+    ``tele_index`` the chosen telescope node per stage; ``cost``; ``energy_J`` (energy
+    objectives); ``grid``. ``trajectory`` is the path in time (piecewise linear)."""
+    return PlanResult(status, reason, **{**_STATS, **kw})
 
 
 def _windows(a, w, fill):
@@ -113,7 +101,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
        stages: int | None = None, tele_step: float = 0.01, window: int = 5,
        tip_speed: float | None = None, duration: float | None = None, lam: float = 0.0,
        pump: bool = True, tele_start: float | None = None, tele_goal: float | None = None,
-       payload: float | None = None) -> DPResult:
+       payload: float | None = None) -> PlanResult:
     """Globally optimal joint path along ``path`` on the (stage × telescope) grid.
 
     objective: "time" | "energy" (needs ``tip_speed`` [m/s] or ``duration`` [s]) | "blend"
@@ -160,7 +148,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         r, z, sl = tips[k]
         where = "the start" if k == 0 else "the goal" if k == N else f"s = {s[k]:.3f} m"
         msg = crane.ik_batch(tips[k][None, :], teles[M1 // 2])[1][0]
-        return DPResult("unreachable", f"the path leaves the workspace at {where}: tip "
+        return _result("unreachable", f"the path leaves the workspace at {where}: tip "
                         f"(r={r:.3f} m, z={z:.3f} m, slew={sl:.3f} rad): {msg}",
                         objective=objective, grid=grid,
                         solve_time_s=_time.perf_counter() - t0)
@@ -198,14 +186,14 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         arg[n - 1] = a
         J = tot[rows, a]
         if not np.isfinite(J).any():
-            return DPResult("infeasible", f"no feasible transition into stage {n} "
+            return _result("infeasible", f"no feasible transition into stage {n} "
                             f"(s = {s[n]:.3f} m): the telescope window ±{w} steps or the limits "
                             "cut the path", objective=objective, grid=grid,
                             solve_time_s=_time.perf_counter() - t0)
     if tele_goal is not None and tr is not None:
         J = np.where(np.abs(teles - tele_goal) <= 0.5 * grid["tele_step_m"] + 1e-12, J, np.inf)
     if not np.isfinite(J).any():
-        return DPResult("infeasible", "the goal telescope value cannot be reached",
+        return _result("infeasible", "the goal telescope value cannot be reached",
                         objective=objective, grid=grid, solve_time_s=_time.perf_counter() - t0)
     # --- back-tracking
     m = np.empty(N + 1, dtype=np.int64)
@@ -221,7 +209,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
     traj = Trajectory(times, path_q, joint_names=tuple(crane.names), method="dp",
                       objective=objective, interpolation="linear", limits=limits,
                       meta=dict(grid=grid, path=path.name, path_length_m=path.length))
-    return DPResult("ok", objective=objective, trajectory=traj, path_q=path_q, s=s,
+    return _result("ok", objective=objective, trajectory=traj, path_q=path_q, s=s,
                     times=times, tele_index=m, cost=float(J[m[N]]), duration_s=float(times[-1]),
                     energy_J=energy, solve_time_s=_time.perf_counter() - t0, grid=grid,
                     warnings=warn)
@@ -264,3 +252,29 @@ def dp_time_reference(crane, path: Path, *, step: float = 0.01, stages: int | No
             new.append(best)
         cost = new
     return min(cost)
+
+
+class DPPlanner(Planner):
+    """``dp``: the Bellman DP along the straight tip line, minimum time or (with a tip speed or
+    a duration fixing the clock) least pump energy. Options: ``step`` [m] (stage spacing,
+    0.01), ``tele_step`` [m] (telescope grid, 0.01), ``window`` (telescope steps per stage, 5)."""
+    name = "dp"
+    description = "Bellman dynamic programming along the tip line (time or energy)"
+    objectives = ("time", "energy")
+    paths = ("line",)
+    uses_tip_speed = True
+    uses_duration = True
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        return dp(crane, Line(request.start, request.goal), objective=request.objective,
+                  **self.grid(request))
+
+    @staticmethod
+    def grid(request: PlanRequest) -> dict:
+        """The DP keyword arguments a request asks for (grid, tip speed, duration)."""
+        return dict(step=request.option("step", 0.01), tele_step=request.option("tele_step", 0.01),
+                    window=request.option("window", 5), tip_speed=request.tip_speed,
+                    duration=request.duration)
+
+
+register(DPPlanner())

@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.geometry.paths import Path
+from planner.geometry.paths import Line, Path
+from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
 
@@ -249,21 +251,13 @@ class MaxLift(Law):
 LAWS = {c.name: c for c in (LeastNorm, MaxVelocity, MaxLift)}
 
 
-@dataclass
-class LawResult:
-    """status "ok", "unreachable" (start not reachable), "stalled" (the law stopped moving
-    along the path) or "timeout"; ``trajectory`` with ``meta`` holding β statistics."""
-    status: str
-    reason: str = ""
-    trajectory: Trajectory | None = None
-    duration_s: float = float("nan")
-    min_beta: float = float("nan")
-    max_path_error_m: float = float("nan")
-    solve_time_s: float = 0.0
-
-    @property
-    def ok(self):
-        return self.status == "ok"
+def _result(status: str, reason: str = "", **kw) -> PlanResult:
+    """A law's result: status "ok", "unreachable" (start not reachable), "stalled" (the law
+    stopped moving along the path) or "timeout"; stats ``min_beta`` (least path-speed ratio β)
+    and ``max_path_error_m``; the trajectory's ``meta`` holds the β statistics."""
+    kw.setdefault("min_beta", math.nan)
+    kw.setdefault("max_path_error_m", math.nan)
+    return PlanResult(status, reason, **kw)
 
 
 def _tip_rate_along(path, s, h=1e-4):
@@ -275,7 +269,7 @@ def _tip_rate_along(path, s, h=1e-4):
 
 
 def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None,
-           rate: float = 100.0, gain: float = 5.0, max_time: float | None = None) -> LawResult:
+           rate: float = 100.0, gain: float = 5.0, max_time: float | None = None) -> PlanResult:
     """Drive the tip along ``path`` at ``tip_speed`` [m/s] with ``law`` at ``rate`` [Hz].
 
     Start configuration: ``q0``, else the IK of the path start with ``tele0``; without
@@ -298,7 +292,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                 k = ok[np.argmin(np.abs(grid[ok] - tele))]
                 q, reason = qs[k:k + 1], rs[k:k + 1]
         if reason[0]:
-            return LawResult("unreachable", f"start tip (r={start[0]:.3f} m, z={start[1]:.3f} m,"
+            return _result("unreachable", f"start tip (r={start[0]:.3f} m, z={start[1]:.3f} m,"
                              f" slew={start[2]:.3f} rad) is unreachable: {reason[0]}",
                              solve_time_s=_time.perf_counter() - t_start)
         q = q[0]
@@ -337,11 +331,11 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
         qd_prev = qd
         stall = stall + 1 if beta < 1e-3 else 0
         if stall > rate:  # a full second without progress
-            return LawResult("stalled", f"{law.name} stopped at s = {s:.3f} m of "
+            return _result("stalled", f"{law.name} stopped at s = {s:.3f} m of "
                              f"{path.length:.3f} m (joints saturated or at their limits)",
                              solve_time_s=_time.perf_counter() - t_start)
         if t > max_time:
-            return LawResult("timeout", f"{law.name} did not finish within {max_time:.1f} s",
+            return _result("timeout", f"{law.name} did not finish within {max_time:.1f} s",
                              solve_time_s=_time.perf_counter() - t_start)
     traj = Trajectory(np.array(Ts), np.array(Qs), joint_names=tuple(crane.names),
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
@@ -350,13 +344,13 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                                 start_q=Qs[0].tolist(),
                                 min_beta=float(min(betas)), mean_beta=float(np.mean(betas)),
                                 path=path.name, path_length_m=path.length))
-    return LawResult("ok", trajectory=traj, duration_s=t, min_beta=float(min(betas)),
+    return _result("ok", trajectory=traj, duration_s=t, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
 
 
 def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float = 100.0,
-                   gain: float = 5.0, payload: float | None = None) -> LawResult:
+                   gain: float = 5.0, payload: float | None = None) -> PlanResult:
     """Run ``law`` for ``duration`` [s] on a time-based command: ``command(t)`` returns the
     reference tip (r, z, slew) and its velocity at time t (e.g. seed 002's h/v/d cycles with
     pauses). When the law must scale the command (β < 1) the tip lags the reference and the
@@ -390,6 +384,29 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
                       limits=("position", "velocity", "pump_flow"),
                       meta=dict(law=law.name, rate_hz=rate, min_beta=float(min(betas)),
                                 mean_beta=float(np.mean(betas))))
-    return LawResult("ok", trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
+    return _result("ok", trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
+
+
+class LawPlanner(Planner):
+    """``law:NAME``: a local control law driving the tip along the straight line at the
+    request's ``tip_speed`` (default 1 m/s). Options: ``rate`` [Hz] (control rate, 100),
+    ``tele0`` [m] (start telescope; default: the law's choice)."""
+    objectives = ("time",)
+    paths = ("line",)
+    uses_tip_speed = True
+
+    def __init__(self, law_cls):
+        self.law_cls = law_cls
+        self.name = f"law:{law_cls.name}"
+        self.description = f"local law {law_cls.name} along the tip line at --tip-speed"
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        return follow(crane, Line(request.start, request.goal), self.law_cls(),
+                      request.tip_speed or 1.0, rate=request.option("rate", 100.0),
+                      tele0=request.option("tele0"))
+
+
+for _law in LAWS.values():
+    register(LawPlanner(_law))

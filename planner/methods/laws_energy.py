@@ -48,7 +48,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.methods.laws import Law, planar_slew_split, scale_into_box
+from planner.methods.laws import Law, LawPlanner, planar_slew_split, scale_into_box
+from planner.methods.registry import register
 
 K_JLA = -1e-2       # [m²/s] joint-limit-avoidance gain (Chan–Dubey gradient in 1/m)
 K_Q = -5.0          # [-] flow-criterion gain (areas normalised by the largest piston area)
@@ -254,3 +255,6 @@ class POptimal(CylinderLaw):
 
 
 LAWS_ENERGY = {c.name: c for c in (JLA, QOptimal, POptimal)}
+
+for _law in LAWS_ENERGY.values():
+    register(LawPlanner(_law))

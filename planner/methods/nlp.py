@@ -37,7 +37,6 @@ forwarder moves), so the exact move is returned when faster (``stats["winner"] =
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -45,6 +44,8 @@ import numpy as np
 from planner.bounds import lower_bound
 from planner.geometry.obstacles import Plate, Wall
 from planner.geometry.paths import tip_to_xyz
+from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.registry import register
 from planner.trajectory import Trajectory
 from planner.methods.ruckig import rest_to_rest
 
@@ -54,21 +55,14 @@ STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 OBSTACLE_TYPES = (Wall, Plate)   # the obstacles MoveNLP accepts (re-exported here)
 
 
-@dataclass
-class NLPResult:
-    status: str                 # "ok" or a short code: "infeasible", "max_iter", "error", ...
-    reason: str = ""
-    trajectory: Trajectory | None = None
-    duration_s: float = float("nan")
-    energy_model_J: float = float("nan")  # the NLP's own (conservative) energy estimate
-    iterations: int = 0
-    solve_time_s: float = 0.0
-    ipopt_status: str = ""
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def ok(self):
-        return self.status == "ok"
+def _result(status: str, reason: str = "", **kw) -> PlanResult:
+    """The NLP's result: status "ok" or a short code ("infeasible", "max_iter", "error",
+    "unreachable", "obstacle", …); stats ``energy_model_J`` (the NLP's own conservative energy
+    estimate), ``iterations``, ``ipopt_status`` and the solver details."""
+    kw.setdefault("energy_model_J", float("nan"))
+    kw.setdefault("iterations", 0)
+    kw.setdefault("ipopt_status", "")
+    return PlanResult(status, reason, **kw)
 
 
 class MoveNLP:
@@ -362,7 +356,7 @@ class MoveNLP:
         ev = evaluate(self.crane, tr, kinds=kinds)
         if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
             return res
-        return NLPResult("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
+        return _result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig"),
                          solve_time_s=_time.perf_counter() - t0)
 
@@ -414,7 +408,7 @@ class MoveNLP:
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
-              payload: float | None = None, w0=None) -> NLPResult:
+              payload: float | None = None, w0=None) -> PlanResult:
         """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
         [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`)."""
         t0 = _time.perf_counter()
@@ -436,7 +430,7 @@ class MoveNLP:
                 if self._vias(start, goal):
                     guesses.append(self._guess_over_walls(start, goal, lb))
             except ValueError as e:
-                return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+                return _result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
             res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
             good = [r for r in res if r.ok and self.clears(r.trajectory)]
             if good:
@@ -444,7 +438,7 @@ class MoveNLP:
             else:
                 best = next((r for r in res if not r.ok), res[0])
                 if best.ok:
-                    best = NLPResult("obstacle", "no solution clears every obstacle between "
+                    best = _result("obstacle", "no solution clears every obstacle between "
                                      "the check points: raise N or the clearance",
                                      iterations=best.iterations)
             if self._exact_applies(T_max, lam, payload):
@@ -454,7 +448,7 @@ class MoveNLP:
         try:
             guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
         except ValueError as e:  # unreachable end
-            return NLPResult("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+            return _result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
         res = self._solve_from(guess, start, goal, T_max, lam, payload, t0)
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
             res = self._prefer_exact(res, start, goal, lb, t0)
@@ -470,7 +464,7 @@ class MoveNLP:
         xyz = tip_to_xyz(cyl)
         return all(ob.distance(xyz, cyl).min() >= 0.96 * ob.clearance for ob in self.obstacles)
 
-    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0) -> NLPResult:
+    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0) -> PlanResult:
         crane = self.crane
         if T_max is not None and self.objective == "energy":
             T0 = guess[self._nx + self._nu]
@@ -496,7 +490,7 @@ class MoveNLP:
                 sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
                                   ubg=self.ubg)
             except RuntimeError as e:
-                return NLPResult("error", f"IPOPT failed: {e}",
+                return _result("error", f"IPOPT failed: {e}",
                                  solve_time_s=_time.perf_counter() - t0)
             st = self.solver.stats()
             iters += st.get("iter_count", 0)
@@ -514,7 +508,7 @@ class MoveNLP:
                     "Maximum_Iterations_Exceeded": "max_iter",
                     "Restoration_Failed": "restoration_failed",
                     "Maximum_WallTime_Exceeded": "timeout"}.get(ist, "failed")
-            return NLPResult(code, f"IPOPT: {ist}", iterations=st.get("iter_count", 0),
+            return _result(code, f"IPOPT: {ist}", iterations=st.get("iter_count", 0),
                              ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
         n, N = crane.n, self.N
         X = w[:self._nx].reshape(3 * n, N + 1, order="F").copy()
@@ -535,12 +529,12 @@ class MoveNLP:
                           meta=dict(N=N, path=self.path, ipopt_status=ist))
         self._last = w
         E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
-        return NLPResult("ok", trajectory=traj, duration_s=T, energy_model_J=E,
+        return _result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
                          iterations=st.get("iter_count", 0), ipopt_status=ist,
                          solve_time_s=_time.perf_counter() - t0)
 
 
-def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPResult:
+def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> PlanResult:
     """Velocity-limits-only minimum time along the straight line (seed 000's setting, the DP's
     model): piecewise-constant joint rates on N equal time steps, the tip on the line at every
     node, no rest conditions (the seed's DP starts and ends at speed). Warm start: the DP path
@@ -579,7 +573,7 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPRes
     if w0_traj is None:
         r = dp(crane, Line(start, goal), step=0.02, tele_step=0.02, window=5)
         if not r.ok:
-            return NLPResult(r.status, r.reason, solve_time_s=_time.perf_counter() - t0)
+            return _result(r.status, r.reason, solve_time_s=_time.perf_counter() - t0)
         w0_traj = r.trajectory
     tt = np.linspace(0, w0_traj.duration, N + 1)
     q0 = w0_traj.sample(tt)[0]
@@ -589,7 +583,7 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPRes
     st = S.stats()
     ist = st.get("return_status", "")
     if ist not in STATUS_OK:
-        return NLPResult("failed", f"IPOPT: {ist}", ipopt_status=ist,
+        return _result("failed", f"IPOPT: {ist}", ipopt_status=ist,
                          solve_time_s=_time.perf_counter() - t0)
     x = np.array(sol["x"]).ravel()
     Qs = x[:n * (N + 1)].reshape(N + 1, n)
@@ -598,7 +592,7 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> NLPRes
                       method="nlp", objective="time", interpolation="linear",
                       limits=("position", "velocity"), meta=dict(N=N, path="line",
                                                                  model="kinematic"))
-    return NLPResult("ok", trajectory=traj, duration_s=Tn, iterations=st.get("iter_count", 0),
+    return _result("ok", trajectory=traj, duration_s=Tn, iterations=st.get("iter_count", 0),
                      ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
 
 
@@ -609,7 +603,7 @@ def pareto_front(crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int =
     (judged by evaluate()): the energy NLP warm-started from the previous point stretched to the
     budget, or the previous point itself (it meets any larger budget) — so the front is
     non-increasing by construction, as min-energy-under-a-budget must be. Returns a list of
-    (duration [s], pump energy [J], NLPResult, source) with source "nlp" or "carried"."""
+    (duration [s], pump energy [J], PlanResult, source) with source "nlp" or "carried"."""
     from planner.trajectory import evaluate
     tn = time_nlp or MoveNLP(crane, "time", "free", N=N)
     en = energy_nlp or MoveNLP(crane, "energy", "free", N=N)
@@ -641,9 +635,9 @@ def stretch(traj: Trajectory, T: float) -> Trajectory:
                       limits=traj.limits, meta=dict(traj.meta, stretched_by=k))
 
 
-def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult | None = None,
+def energy_optimal(crane, start, goal, T_max: float, *, time_result: PlanResult | None = None,
                    time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None,
-                   N: int = 40) -> tuple[NLPResult, dict]:
+                   N: int = 40) -> tuple[PlanResult, dict]:
     """Least pump energy with duration ≤ T_max: the energy NLP warm-started from the
     time-optimal move stretched to T_max (and, if that does not win, from the Ruckig guess),
     judged by evaluate() against two always-feasible
@@ -658,12 +652,12 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     if not rt.ok:
         return rt, dict(winner=None)
     if T_max < rt.duration_s * (1 - 1e-9):
-        return NLPResult("infeasible", f"T_max = {T_max:.3f} s is below the minimum time "
+        return _result("infeasible", f"T_max = {T_max:.3f} s is below the minimum time "
                          f"{rt.duration_s:.3f} s"), dict(winner=None)
     en = energy_nlp or MoveNLP(crane, "energy", "free", N=N)
     inc = stretch(rt.trajectory, T_max)
     e_inc = evaluate(crane, inc)
-    best = (e_inc.energy_J, NLPResult("ok", trajectory=inc, duration_s=T_max), "stretched")
+    best = (e_inc.energy_J, _result("ok", trajectory=inc, duration_s=T_max), "stretched")
     e_t = evaluate(crane, rt.trajectory).energy_J
     if e_t < best[0]:
         best = (e_t, rt, "time_optimal")
@@ -671,7 +665,7 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     def consider(r):
         nonlocal best
         if r.ok and en.obstacles and not en.clears(r.trajectory):
-            r = NLPResult("obstacle", "passes through an obstacle between check points")
+            r = _result("obstacle", "passes through an obstacle between check points")
         tries.append(r.status)
         if r.ok:
             ev = evaluate(crane, r.trajectory)
@@ -684,3 +678,58 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: NLPResult |
     res.solve_time_s = _time.perf_counter() - t0
     return res, dict(winner=best[2], energy_J=best[0], stretched_energy_J=e_inc.energy_J,
                      nlp_status=tries)
+
+
+class NLPPlanner(Planner):
+    """``nlp``: the CasADi/IPOPT move NLP (:class:`MoveNLP`), minimum time or least pump energy
+    within ``duration`` (required for energy; free path: :func:`energy_optimal`, never above the
+    time-optimal move's energy), free path or on the tip line, clear of the request's
+    obstacles. Options: ``intervals`` (N, 40); ``time_result`` (energy: the time-optimal
+    result of the same move, reused instead of solved again). Each NLP is built once per
+    (machine, objective, path, N, obstacles) in this process and solved many times."""
+    name = "nlp"
+    description = "CasADi/IPOPT NLP: time or energy, free path or tip line, obstacles"
+    objectives = ("time", "energy")
+    paths = ("free", "line")
+    obstacles = True
+    uses_duration = True
+
+    def __init__(self):
+        self._built: dict = {}
+
+    def check(self, request: PlanRequest) -> None:
+        super().check(request)
+        if request.objective == "energy" and request.duration is None:
+            raise UnsupportedRequest("--method nlp --objective energy needs --duration T [s] "
+                                     "(e.g. 1.2 × the minimum time)")
+
+    def built(self, crane, objective: str, path: str = "free", N: int = 40,
+              obstacles: tuple = ()) -> MoveNLP:
+        """The MoveNLP for this formulation, built on first use and kept for the process."""
+        # keyed by the crane object (kept alive with its NLP, so its id is never reused):
+        # variants of one machine with other limits share the spec id but not the NLP
+        key = (id(crane), objective, path, int(N), tuple(obstacles))
+        if key not in self._built:
+            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles))
+            self._built[key] = (crane, nlp)
+        return self._built[key][1]
+
+    def clear(self) -> None:
+        """Forget the NLPs built in this process (a timed build then starts from scratch)."""
+        self._built.clear()
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        N = request.option("intervals", 40)
+        obs = request.obstacles
+        if request.objective == "energy" and request.path == "free":
+            res, info = energy_optimal(crane, request.start, request.goal, request.duration,
+                                       time_result=request.option("time_result"),
+                                       time_nlp=self.built(crane, "time", "free", N, obs),
+                                       energy_nlp=self.built(crane, "energy", "free", N, obs))
+            res.stats["energy_winner"] = info.get("winner")
+            return res
+        nlp = self.built(crane, request.objective, request.path, N, obs)
+        return nlp.solve(request.start, request.goal, T_max=request.duration)
+
+
+register(NLPPlanner())

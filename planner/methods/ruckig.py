@@ -9,27 +9,15 @@ piecewise-cubic profile is reproduced exactly by the quintic interpolation of th
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
-
 import numpy as np
 import ruckig
 
+from planner.bounds import lower_bound
+from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
 NO_JERK = 1e6  # stands for "no jerk limit" (Ruckig needs a finite value) [unit/s³]
-
-
-@dataclass
-class RuckigResult:
-    status: str
-    reason: str = ""
-    trajectory: Trajectory | None = None
-    duration_s: float = float("nan")
-    solve_time_s: float = 0.0
-
-    @property
-    def ok(self):
-        return self.status == "ok"
 
 
 def _switch_times(traj: ruckig.Trajectory) -> np.ndarray:
@@ -42,7 +30,7 @@ def _switch_times(traj: ruckig.Trajectory) -> np.ndarray:
 
 
 def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
-                 scale: float = 1.0) -> RuckigResult:
+                 scale: float = 1.0) -> PlanResult:
     """Time-optimal synchronised jerk-limited move from q0 to q1 (both at rest).
 
     ``scale`` ≤ 1 plans with that fraction of every velocity/acceleration limit."""
@@ -55,8 +43,8 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
             what = (f"needs {crane.n} joint values" if q.shape != (crane.n,) else
                     f"{crane.names[bad[0]]} = {q[bad[0]]:.4f} is outside "
                     f"[{L['q_min'][bad[0]]:.4f}, {L['q_max'][bad[0]]:.4f}]")
-            return RuckigResult("invalid", f"{name} configuration: {what}",
-                                solve_time_s=_time.perf_counter() - t0)
+            return PlanResult("invalid", f"{name} configuration: {what}",
+                              solve_time_s=_time.perf_counter() - t0)
     n = crane.n
     inp = ruckig.InputParameter(n)
     inp.current_position, inp.target_position = q0.tolist(), q1.tolist()
@@ -69,8 +57,8 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
     traj = ruckig.Trajectory(n)
     res = ruckig.Ruckig(n).calculate(inp, traj)
     if res not in (ruckig.Result.Working, ruckig.Result.Finished):
-        return RuckigResult("failed", f"Ruckig: {res.name}",
-                            solve_time_s=_time.perf_counter() - t0)
+        return PlanResult("failed", f"Ruckig: {res.name}",
+                          solve_time_s=_time.perf_counter() - t0)
     T = traj.duration
     sw = np.array([0.0, max(T, 1e-9)])
     if T <= 0:
@@ -90,5 +78,22 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
                     limits=("position", "velocity", "acceleration", "jerk"),
                     meta=dict(independent_min_durations=list(traj.independent_min_durations),
                               switch_times=sw.tolist()))
-    return RuckigResult("ok", trajectory=tr, duration_s=T,
-                        solve_time_s=_time.perf_counter() - t0)
+    return PlanResult("ok", trajectory=tr, duration_s=T,
+                      solve_time_s=_time.perf_counter() - t0)
+
+
+class RuckigPlanner(Planner):
+    """``ruckig``: the jerk-limited rest-to-rest joint move between the tip ends, each end at
+    the telescope the analytic lower bound finds best (:func:`~planner.bounds.lower_bound`)."""
+    name = "ruckig"
+    description = "jerk-limited rest-to-rest joint move (Ruckig), free path"
+    objectives = ("time",)
+    paths = ("free",)
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        lb = lower_bound(crane, request.start, request.goal)
+        return rest_to_rest(crane, crane.ik(request.start, lb.tele_start),
+                            crane.ik(request.goal, lb.tele_goal))
+
+
+register(RuckigPlanner())

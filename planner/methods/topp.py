@@ -10,7 +10,6 @@ TOPP-RA: use :mod:`planner.methods.ruckig`.
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
 
 import numpy as np
 import toppra
@@ -18,6 +17,10 @@ import toppra.algorithm as algo
 import toppra.constraint as constraint
 
 from planner.bounds import swept_volume
+from planner.geometry.paths import Line
+from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.dp import DPPlanner, dp
+from planner.methods.registry import register
 from planner.trajectory import Trajectory, evaluate
 
 toppra.setup_logging("ERROR")  # failures are reported as statuses, not log lines
@@ -44,24 +47,17 @@ class PumpFlowConstraint(constraint.LinearConstraint):
         return None, None, None, None, None, None, xbound
 
 
-@dataclass
-class ToppResult:
-    status: str  # "ok" | "infeasible"
-    reason: str = ""
-    trajectory: Trajectory | None = None
-    duration_s: float = float("nan")
-    solve_time_s: float = 0.0
-    iterations: int = 0
-    max_limit_violation: float = float("nan")
-
-    @property
-    def ok(self):
-        return self.status == "ok"
+def _result(status: str, reason: str = "", **kw) -> PlanResult:
+    """TOPP-RA's result: status "ok" | "infeasible"; stats ``iterations`` (verification
+    passes) and ``max_limit_violation`` (of the returned trajectory, by evaluate())."""
+    kw.setdefault("iterations", 0)
+    kw.setdefault("max_limit_violation", float("nan"))
+    return PlanResult(status, reason, **kw)
 
 
 def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
            limits=("velocity", "acceleration", "pump_flow"), duration: float | None = None,
-           sample_rate: float = 500.0, tol: float = 1e-3, max_iter: int = 5) -> ToppResult:
+           sample_rate: float = 500.0, tol: float = 1e-3, max_iter: int = 5) -> PlanResult:
     """Fastest (or, with ``duration`` [s], fixed-duration) rest-to-rest timing of the joint
     path ``path_q`` (K, n) under the selected limit kinds.
 
@@ -86,7 +82,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
         ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
     ss = np.asarray(ss, float)
     if ss[-1] <= 0:
-        return ToppResult("infeasible", "the path has zero length",
+        return _result("infeasible", "the path has zero length",
                           solve_time_s=_time.perf_counter() - t0)
     path = toppra.SplineInterpolator(ss, path_q)
     L = crane.limit_arrays()
@@ -116,7 +112,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
         jt = inst.compute_trajectory(0.0, 0.0)
         if jt is None:
             what = f"a duration of {duration} s" if duration is not None else "the limits"
-            return ToppResult("infeasible", f"TOPP-RA found no rest-to-rest timing of this "
+            return _result("infeasible", f"TOPP-RA found no rest-to-rest timing of this "
                               f"path under {what} (the path may need a non-zero speed where a "
                               "limit is zero, or the duration is too short)",
                               solve_time_s=_time.perf_counter() - t0, iterations=it)
@@ -124,7 +120,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
         if duration is not None and T > duration * (1 + 1e-3):
             # TOPPRAsd returns the fastest timing (with a log warning) when the duration is
             # unachievable: report that as a failure instead
-            return ToppResult("infeasible", f"a duration of {duration} s is too short: the "
+            return _result("infeasible", f"a duration of {duration} s is too short: the "
                               f"fastest timing of this path under the limits takes {T:.3f} s",
                               solve_time_s=_time.perf_counter() - t0, iterations=it)
         n = max(200, int(np.ceil(T * sample_rate)) + 1)
@@ -150,6 +146,27 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
                 per = np.max(np.maximum(v / hi, v / lo), axis=0) - 1.0  # per joint excess
                 bad = per > tol
                 scale[k][bad] /= 1.0 + per[bad] + tol
-    return ToppResult("ok", trajectory=traj, duration_s=T, iterations=it,
+    return _result("ok", trajectory=traj, duration_s=T, iterations=it,
                       max_limit_violation=ev.max_limit_violation,
                       solve_time_s=_time.perf_counter() - t0)
+
+
+class ToppPlanner(Planner):
+    """``topp``: the minimum-time DP's joint path along the tip line, retimed by TOPP-RA under
+    velocity, acceleration and pump limits (fastest, or the request's ``duration``). Options:
+    the DP's (``step``, ``tele_step``, ``window``)."""
+    name = "topp"
+    description = "the DP's joint path retimed by TOPP-RA (velocity, acceleration, pump)"
+    objectives = ("time",)
+    paths = ("line",)
+    uses_duration = True
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        res = dp(crane, Line(request.start, request.goal), objective="time",
+                 **DPPlanner.grid(request))
+        if not res.ok:
+            return res
+        return retime(crane, res.path_q, duration=request.duration)
+
+
+register(ToppPlanner())

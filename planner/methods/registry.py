@@ -1,0 +1,86 @@
+"""The method registry: every planning method registered once, found by name everywhere.
+
+``crane-planner plan --method NAME``, the benchmark and ``library build --method NAME`` look
+methods up here. The built-in methods register themselves when their module is imported; the
+registry imports those modules (and any ``crane_planner.methods`` entry point of an installed
+plug-in package) the first time a name is looked up, so importing the registry stays cheap.
+
+Adding a method is one module: subclass :class:`~planner.methods.base.Planner` and call
+:func:`register` on an instance at import time (or decorate the class with it).
+"""
+from __future__ import annotations
+
+import importlib
+import time
+from importlib.metadata import entry_points
+
+from planner.methods.base import Planner, PlanRequest, PlanResult
+
+__all__ = ["register", "unregister", "get", "available", "plan", "BUILTIN_MODULES"]
+
+BUILTIN_MODULES = ("planner.methods.laws", "planner.methods.laws_energy", "planner.methods.dp",
+                   "planner.methods.topp", "planner.methods.ruckig", "planner.methods.nlp")
+ENTRY_POINT_GROUP = "crane_planner.methods"
+
+_REGISTRY: dict[str, Planner] = {}
+_loaded = False
+
+
+def register(planner):
+    """Register a :class:`Planner` instance (or class: it is instantiated without arguments)
+    under its ``name``; returns what it was given, so it also works as a class decorator. A
+    second registration under the same name replaces the first."""
+    inst = planner() if isinstance(planner, type) else planner
+    if not isinstance(inst, Planner):
+        raise TypeError(f"register() takes a Planner, got {type(inst).__name__}")
+    if not inst.name or any(c.isspace() for c in inst.name):
+        raise ValueError(f"planner name {inst.name!r}: expected a non-empty name without spaces")
+    _REGISTRY[inst.name] = inst
+    return planner
+
+
+def unregister(name: str) -> None:
+    """Remove ``name`` from the registry (tests that register a temporary method)."""
+    _REGISTRY.pop(name, None)
+
+
+def _load() -> None:
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for mod in BUILTIN_MODULES:
+        importlib.import_module(mod)
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        ep.load()
+
+
+def available() -> list[str]:
+    """Every registered method name, sorted (built-ins: ``dp``, ``law:NAME``, ``nlp``,
+    ``ruckig``, ``topp``)."""
+    _load()
+    return sorted(_REGISTRY)
+
+
+def get(name: str) -> Planner:
+    """The planner registered as ``name``; KeyError naming the known methods otherwise."""
+    _load()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise KeyError(f"unknown method {name!r}: known {', '.join(sorted(_REGISTRY))}") from None
+
+
+def plan(crane, request: PlanRequest, method: str = "nlp") -> PlanResult:
+    """Plan ``request`` on ``crane`` with the registered ``method``. Raises
+    :class:`~planner.methods.base.UnsupportedRequest` for a request the method does not plan;
+    every other failure is a result status. Sets ``method`` and (when the method left it at 0)
+    ``solve_time_s`` of the result."""
+    p = get(method)
+    p.check(request)
+    t0 = time.perf_counter()
+    res = p.plan(crane, request)
+    res.method = res.method or p.name
+    if not res.solve_time_s:
+        res.solve_time_s = time.perf_counter() - t0
+    return res

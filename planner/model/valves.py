@@ -17,6 +17,9 @@ functions the pump feeds.
   motor angle as "stroke".
 * The optional hydraulic transformer is not part of the valve model: with it enabled, part of
   the target cylinder's flow bypasses its valve.
+
+This module imports nothing from the package (the spec parser's effect catalogue uses it), so
+it reads the spec's actuators itself; :mod:`planner.model.flows` is the pump side.
 """
 from __future__ import annotations
 
@@ -24,8 +27,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from planner.model.flows import actuator_table, spec_of
 
 __all__ = ["REST_TOL", "ValveParams", "valve_params", "command_to_stroke_rate",
            "stroke_rate_to_command", "metered_flow", "draws_pump"]
@@ -46,21 +47,24 @@ class ValveParams:
 def valve_params(spec_or_crane) -> ValveParams:
     """Valve data of every actuator of a spec (or crane); raises ValueError naming a joint
     without a finite positive flow gain or with a dead band outside [0, 1)."""
-    spec = spec_of(spec_or_crane)
-    for j in spec.joints:
-        a = j.actuator
+    spec = getattr(spec_or_crane, "spec", spec_or_crane)
+    if not hasattr(spec, "joints"):
+        raise TypeError(f"expected a CraneSpec or a Crane, got {type(spec_or_crane).__name__}")
+    acts = [j.actuator for j in spec.joints]
+    for j, a in zip(spec.joints, acts):
         if not (math.isfinite(a.flow_gain) and a.flow_gain > 0):
             raise ValueError(f"crane '{spec.id}': joint '{j.name}' has no finite valve "
                              f"flow_gain ({a.flow_gain}); feed-forward commands need one")
         if not 0.0 <= a.deadband < 1.0:
             raise ValueError(f"crane '{spec.id}': joint '{j.name}' deadband "
                              f"{a.deadband} outside [0, 1)")
-    T = actuator_table(spec)
-    return ValveParams(area_extend=T.area_a.copy(),
-                       area_retract=np.where(T.single, T.area_a, T.area_b),
-                       flow_gain=np.array([j.actuator.flow_gain for j in spec.joints]),
-                       deadband=np.array([j.actuator.deadband for j in spec.joints]),
-                       single=T.single.copy())
+    single = np.array([a.acting == "single" for a in acts])
+    area_a = np.array([a.area_a for a in acts])
+    # single-acting: lowering meters the oil leaving the piston side
+    return ValveParams(area_extend=area_a,
+                       area_retract=np.where(single, area_a, [a.area_b for a in acts]),
+                       flow_gain=np.array([a.flow_gain for a in acts]),
+                       deadband=np.array([a.deadband for a in acts]), single=single)
 
 
 def command_to_stroke_rate(vp: ValveParams, u, flow_scale=1.0) -> np.ndarray:

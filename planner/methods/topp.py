@@ -17,7 +17,7 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from planner.bounds import swept_volume
+from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory, evaluate
 
 toppra.setup_logging("ERROR")  # failures are reported as statuses, not log lines

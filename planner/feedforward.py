@@ -44,7 +44,7 @@ from planner.model.valves import (ValveParams, command_to_stroke_rate, stroke_ra
 from planner.trajectory import Trajectory, evaluate
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
-           "valve_parameters", "ProgressEstimator", "progress_estimator"]
+           "ProgressEstimator", "progress_estimator"]
 
 # the valve model lives in planner.model.valves; these two names stay for the modules that
 # still import them from here (to be removed once they import planner.model.valves)

@@ -31,7 +31,14 @@ def _constant_pressure(data):
                         efficiency=0.8, tank_pressure=3e5, source="test")
 
 
-VARIANTS = {"s100f+ht": ("s100f", _enable_ht), "s100f+cp": ("s100f", _constant_pressure)}
+def _no_standby(data):
+    """Margin above standby and a tank pressure: the active-flow threshold decides the pump
+    pressure of an idle machine (margin, or standby = 0)."""
+    data["pump"].update(standby=0.0, tank_pressure=2e5)
+
+
+VARIANTS = {"s100f+ht": ("s100f", _enable_ht), "s100f+cp": ("s100f", _constant_pressure),
+            "cat215b+ls0": ("cat215b", _no_standby)}
 
 
 @pytest.fixture(scope="module", params=MACHINES + list(VARIANTS))
@@ -52,6 +59,8 @@ def random_states(crane, N=400, seed=1):
     mode = rng.integers(0, 6, (N, crane.n))
     qd = np.where(mode == 0, 0.0, qd)                 # idle
     qd = np.where(mode == 1, qd * 1e-7, qd)           # numerical crumbs of motion
+    qd[:20] *= 1e-7                                   # whole machine idle but for crumbs
+    qd[:10:2] = 0.0                                   # whole machine at rest
     qdd = rng.uniform(-1, 1, (N, crane.n)) * L["qdd_max"] * 3
     payload = rng.uniform(0, 2, (N, 1)) * crane.spec.payload.total
     return q, qd, qdd, payload
@@ -79,6 +88,7 @@ def test_numpy_hydraulics_equal_the_casadi_definition(model):
     assert np.any(ref["q_act"] == 0) and np.any(ref["q_act"] > 0)
     assert np.any(ref["force"] < 0) and np.any(ref["force"] > 0)
     assert np.any((ref["p_load"] == 0) & (ref["q_act"] > 0))   # crumbs below the threshold
+    assert np.any((ref["q_pump"] > 0) & (ref["q_pump"] <= flows.actuator_table(model).active_flow))
 
 
 def test_batched_over_leading_axes(model):

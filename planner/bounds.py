@@ -5,7 +5,8 @@ For fixed end configurations (q_s, q_g), with Δq = q_g − q_s:
 * rest to rest:  T ≥ max_i T_i(|Δq_i|, v_i, a_i, j_i), the time-optimal 1-DOF profile with
                  velocity, acceleration (and jerk) limits (equals Ruckig's independent minimum)
 * pump:          T ≥ V / Q_max, V = Σ swept oil volumes (piston area extending, annulus
-                 retracting, nothing for single-acting lowering; transformer flow credited)
+                 retracting, nothing for single-acting lowering; transformer flow credited:
+                 :func:`planner.model.flows.swept_volume`)
 * energy:        E ≥ (ΔE_potential)⁺ / η            (load sensing, no recovery)
 For a redundant crane the ends are tip positions with the telescope free; every bound is
 minimised over the telescope at both ends (grid, then zoomed refinements around several
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.model import Crane, UnreachableError
+from planner.model.flows import swept_volume
 
 
 def rest_to_rest_time(d, v, a, j=np.inf):
@@ -87,26 +89,6 @@ def _end_configs(crane: Crane, tip, q, tele):
                                f"slew={tip[2]:.3f} rad) is unreachable for every telescope "
                                f"value: {reason[len(reason) // 2]}")
     return qq[ok], np.asarray(tele, float)[ok]
-
-
-def swept_volume(spec, dx):
-    """Oil volume [m³] the pump must deliver per actuator for stroke changes dx (last axis =
-    actuators): piston area extending, annulus retracting, nothing for single-acting lowering;
-    with an enabled transformer the target is credited ratio·A_b,s·Δx_s and the source's rod
-    side is filled by the transformer. A lower bound on ∫Q dt for any motion with that net dx."""
-    Aa = np.array([j.actuator.area_a for j in spec.joints])
-    Ab = np.array([j.actuator.area_b for j in spec.joints])
-    single = np.array([j.actuator.acting == "single" for j in spec.joints])
-    Ab_eff = np.where(single, 0.0, Ab)
-    V = np.where(dx > 0, Aa * dx, -Ab_eff * dx)
-    ht = spec.transformer
-    if ht is not None and ht.enabled:
-        s, t = spec.joint_index(ht.source_joint), spec.joint_index(ht.target_joint)
-        k = ht.ratio * Ab[s] / Aa[t]
-        V = V.copy()
-        V[..., t] = Aa[t] * np.maximum(dx[..., t] - k * dx[..., s], 0)
-        V[..., s] = Aa[s] * np.maximum(dx[..., s], 0)
-    return V
 
 
 def _pair_bounds(crane: Crane, qs, qg):

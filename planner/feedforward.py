@@ -1,26 +1,14 @@
 """Trajectory -> valve feed-forward commands, their kinematic replay, and seed 003's
 pressure-based progress estimate.
 
-Valve model (per actuator, the same one is used in both directions so that the round trip
-:func:`commands` -> :func:`predict_motion` is an exact inverse up to the hold approximation):
-
-* **pressure-compensated proportional valve**: the flow through the valve depends on the spool
-  command only, not on the load; ``flow_gain`` [m³/s] is the flow at full command (|u| = 1).
-* **dead band** ``deadband`` (fraction of the command range): |u| ≤ deadband gives no flow;
-  beyond it the flow rises linearly, Q = flow_gain·(|u| − deadband)/(1 − deadband). The
-  feed-forward compensates it: u = sign(ẋ)·(deadband + (1 − deadband)·Q/flow_gain) for Q > 0,
-  and u = 0 at rest (no jump to the dead-band edge while the actuator stands still).
-* **metered flow and area by direction**: the valve meters the flow of the chamber it feeds,
-  Q = A·|ẋ| with A = area_a (piston side) while extending (ẋ > 0) and A = area_b (annulus)
-  while retracting. For a *single-acting* cylinder (seed 002's lift cylinder) there is no
-  annulus connection: lowering is gravity driven and the valve meters the oil *leaving the
-  piston side* to tank, so A = area_a in both directions (only the sign of u changes). Rotary
-  drives use the motor displacement (area_a = area_b) and the motor angle as "stroke".
-* stroke rate ẋ = dx/dq·q̇ from the crane's stroke map (each actuator depends only on its own
-  joint, so dx/dq is diagonal and the map is one-to-one over the joint range).
-* The optional hydraulic transformer of s100f (disabled by default) is not modelled here: with
-  it enabled, part of the target cylinder's flow bypasses its valve, which a valve-level
-  feed-forward would have to account for separately.
+The valve model is :mod:`planner.model.valves` (pressure-compensated proportional valves, dead
+band, metered area by direction, the single-acting lowering rule); it is used in both directions
+so that the round trip :func:`commands` -> :func:`predict_motion` is an exact inverse up to the
+hold approximation. Stroke rate ẋ = dx/dq·q̇ from the crane's stroke map (each actuator depends
+only on its own joint, so dx/dq is diagonal and the map is one-to-one over the joint range).
+The optional hydraulic transformer of s100f (disabled by default) is not modelled here: with it
+enabled, part of the target cylinder's flow bypasses its valve, which a valve-level
+feed-forward would have to account for separately.
 
 Commands are produced on a uniform grid at the control ``rate`` and held (zero-order hold) over
 each period [t_k, t_k + 1/rate). Two ways of choosing the held value:
@@ -51,64 +39,21 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import Polynomial
 
+from planner.model.valves import (ValveParams, command_to_stroke_rate, stroke_rate_to_command,
+                                  valve_params)
 from planner.trajectory import Trajectory, evaluate
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
-           "valve_parameters", "ProgressEstimator", "progress_estimator"]
+           "ProgressEstimator", "progress_estimator"]
 
-REST_TOL = 1e-9  # |Q| ≤ REST_TOL·flow_gain counts as "at rest": u = 0, no dead-band jump
-
-
-# ----------------------------------------------------------------------------- valve data
-@dataclass(frozen=True)
-class ValveParameters:
-    """Per-actuator arrays (n,): metered areas by direction, flow gain, dead band."""
-    area_extend: np.ndarray   # [m² | m³/rad] area metered while ẋ > 0
-    area_retract: np.ndarray  # [m² | m³/rad] area metered while ẋ < 0
-    flow_gain: np.ndarray     # [m³/s] flow at |u| = 1
-    deadband: np.ndarray      # [-] fraction of the command range without flow
-    single: np.ndarray        # bool: single-acting
+# the valve model lives in planner.model.valves; these two names stay for the modules that
+# still import them from here (to be removed once they import planner.model.valves)
+valve_parameters = valve_params
 
 
-def valve_parameters(crane) -> ValveParameters:
-    """Valve data of every actuator; raises ValueError naming a joint without a finite flow gain."""
-    ext, ret, gain, db, single = [], [], [], [], []
-    for j in crane.spec.joints:
-        a = j.actuator
-        if not (math.isfinite(a.flow_gain) and a.flow_gain > 0):
-            raise ValueError(f"crane '{crane.spec.id}': joint '{j.name}' has no finite valve "
-                             f"flow_gain ({a.flow_gain}); feed-forward commands need one")
-        if not 0.0 <= a.deadband < 1.0:
-            raise ValueError(f"crane '{crane.spec.id}': joint '{j.name}' deadband "
-                             f"{a.deadband} outside [0, 1)")
-        s = a.acting == "single"
-        ext.append(a.area_a)
-        # single-acting: lowering meters the oil leaving the piston side (see module doc)
-        ret.append(a.area_a if s else a.area_b)
-        gain.append(a.flow_gain)
-        db.append(a.deadband)
-        single.append(s)
-    return ValveParameters(np.array(ext), np.array(ret), np.array(gain), np.array(db),
-                           np.array(single))
-
-
-def _flow_to_command(xd, vp: ValveParameters):
-    """Stroke rates (N, n) -> (unclipped commands, signed valve flows)."""
-    area = np.where(xd > 0, vp.area_extend, vp.area_retract)
-    Q = area * np.abs(xd)
-    moving = Q > REST_TOL * vp.flow_gain
-    u = np.where(moving, np.sign(xd) * (vp.deadband + (1.0 - vp.deadband) * Q / vp.flow_gain),
-                 0.0)
-    return u, np.where(moving, np.sign(xd) * Q, 0.0)
-
-
-def _command_to_stroke_rate(u, vp: ValveParameters, flow_scale=1.0):
-    """Commands (N, n) -> stroke rates (N, n): saturation, dead band, area by direction."""
-    u = np.clip(u, -1.0, 1.0)
-    mag = np.maximum(np.abs(u) - vp.deadband, 0.0) / (1.0 - vp.deadband)
-    Q = np.asarray(flow_scale, float) * vp.flow_gain * mag
-    area = np.where(u > 0, vp.area_extend, vp.area_retract)
-    return np.sign(u) * Q / area
+def _command_to_stroke_rate(u, vp: ValveParams, flow_scale=1.0):
+    """Deprecated alias of :func:`planner.model.valves.command_to_stroke_rate` (old order)."""
+    return command_to_stroke_rate(vp, u, flow_scale)
 
 
 # ----------------------------------------------------------------------------- commands
@@ -222,7 +167,7 @@ def commands(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") ->
         raise ValueError(f"rate must be a positive number of Hz, got {rate}")
     if hold not in ("mean", "sample"):
         raise ValueError(f"hold = {hold!r}; allowed: 'mean', 'sample'")
-    vp = valve_parameters(crane)
+    vp = valve_params(crane)
     dt = 1.0 / rate
     M = max(1, int(math.ceil(traj.duration * rate - 1e-9)))
     t = traj.t[0] + dt * np.arange(M + 1)
@@ -235,7 +180,7 @@ def commands(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") ->
         if t[-1] > traj.t[-1]:         # past the end: hold the final state's rate (rest: 0)
             _, qd_end, _, _ = traj.sample(traj.t[-1:])
             xd[-1] = crane.stroke(q[-1])[1] * qd_end[0]
-    u_raw, flow = _flow_to_command(xd, vp)
+    u_raw, flow = stroke_rate_to_command(vp, xd)
     u = np.clip(u_raw, -1.0, 1.0)
     names = tuple(crane.names)
     sat = {}
@@ -275,8 +220,8 @@ def predict_motion(crane, t, u, q0, flow_scale=1.0, substeps: int = 1,
     substeps = int(substeps)
     if substeps < 1:
         raise ValueError("predict_motion: substeps must be >= 1")
-    vp = valve_parameters(crane)
-    xd = _command_to_stroke_rate(u[:-1], vp, flow_scale)        # (M-1, n) per period
+    vp = valve_params(crane)
+    xd = command_to_stroke_rate(vp, u[:-1], flow_scale)         # (M-1, n) per period
     h = np.diff(t)
     frac = np.arange(substeps) / substeps
     tt = np.concatenate([(t[:-1, None] + h[:, None] * frac[None, :]).ravel(), t[-1:]])

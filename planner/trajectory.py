@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.io import atomic_write_text
+from planner.model.flows import actuator_table
 
 LIMIT_KINDS = ("position", "velocity", "acceleration", "jerk", "pump_flow", "pressure", "tension")
 
@@ -278,11 +279,11 @@ def evaluate(crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
     pmax = spec.pump.max_pressure
     pch = np.maximum(hyd["p_a"], hyd["p_b"])
     record("pressure", pch / pmax - 1.0 if math.isfinite(pmax) else 0 * pch, pch, pmax + 0 * pch)
-    single = np.array([j.actuator.acting == "single" for j in spec.joints])
+    table = actuator_table(spec)
     pref = pmax if math.isfinite(pmax) else 20e6
-    cap = np.array([j.actuator.area_a for j in spec.joints]) * pref
+    cap = table.area_a * pref
     F = hyd["force"]
-    record("tension", np.where(single, -F / cap, 0.0), F, 0 * F)
+    record("tension", np.where(table.single, -F / cap, 0.0), F, 0 * F)
     checked = tuple(traj.limits if kinds is None else kinds)
     mlv = max((viol[k] for k in checked if k in viol), default=0.0)
     return Evaluation(t=t, q=q, qd=qd, qdd=qdd, qddd=qddd, tip=tip, hyd=hyd, energy=energy,

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from planner import Crane
-from planner.feedforward import (commands, predict_motion, progress_estimator, round_trip,
-                                 valve_parameters)
+from planner.feedforward import commands, predict_motion, progress_estimator, round_trip
 from planner.methods.ruckig import rest_to_rest
+from planner.model.valves import valve_params
 from planner.trajectory import Trajectory
 
 from .conftest import random_configs
@@ -203,7 +203,7 @@ def test_extending_and_retracting_use_piston_and_annulus_areas(cid, joint):
 def test_single_acting_lift_cylinder_meters_the_piston_side_both_ways():
     crane = Crane.from_id("s100f")
     assert crane.spec.joints[1].actuator.acting == "single"
-    vp = valve_parameters(crane)
+    vp = valve_params(crane)
     assert vp.area_retract[1] == vp.area_extend[1] == crane.spec.joints[1].actuator.area_a
     L = crane.limit_arrays()
     q0 = 0.5 * (L["q_min"] + L["q_max"])

@@ -7,8 +7,8 @@ consecutive stages the telescope may move by at most ``window`` grid steps (the 
 Edge costs (all edges at once, numpy):
 * ``time``:   the slowest limit decides (seed 000): max over joints of |Δq|/q̇_lim (direction's
   limit when asymmetric), over cylinders of |Δx|/v_max, and the pump: swept volume / Q_max with
-  the stroke rates at both ends of the edge (direction-dependent areas, single-acting lowering
-  free, transformer credit);
+  the stroke rates at both ends of the edge (:func:`planner.model.flows.swept_volume`:
+  direction-dependent areas, single-acting lowering free, transformer credit);
 * ``energy``: pump energy of the edge at a given tip speed (quasi-static load-sensing model at
   the edge midpoint: power · Δt); edges that cannot be traversed that fast are infeasible;
 * ``blend``:  time + λ·energy, the energy taken at the edge's minimum time.
@@ -21,10 +21,10 @@ import time as _time
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from planner.bounds import swept_volume
 from planner.geometry.paths import Line, Path
 from planner.methods.base import Planner, PlanRequest, PlanResult
 from planner.methods.registry import register
+from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory
 
 
@@ -60,26 +60,18 @@ def edge_times(crane, Q, dXdq, w, pump=True):
     Ds = _windows(dXdq[:-1], w, np.nan)
     Dd = dXdq[1:, :, None, :]
     T = np.zeros(dq.shape[:-1])
-    Va = np.zeros_like(T)
-    Vb = np.zeros_like(T)
-    ht = spec.transformer if (spec.transformer and spec.transformer.enabled) else None
-    for i, j in enumerate(spec.joints):
+    for i in range(crane.n):
         d = dq[..., i]
         np.maximum(T, np.where(d >= 0, d / L["qd_max"][i], d / L["qd_min"][i]), out=T)
-        act = j.actuator
-        if act.max_speed or (pump and ht is None):
-            dxa, dxb = Ds[..., i] * d, Dd[..., i] * d  # stroke change with the map at each end
-            if act.max_speed:
-                np.maximum(T, np.maximum(np.abs(dxa), np.abs(dxb)) / act.max_speed, out=T)
-            if pump and ht is None:
-                Ab = 0.0 if act.acting == "single" else act.area_b
-                Va += np.where(dxa > 0, act.area_a * dxa, -Ab * dxa)
-                Vb += np.where(dxb > 0, act.area_a * dxb, -Ab * dxb)
-    if pump and ht is not None:  # transformer couples two actuators: use the general formula
-        Va = swept_volume(spec, Ds * dq).sum(-1)
-        Vb = swept_volume(spec, Dd * dq).sum(-1)
-    if pump:
-        np.maximum(T, np.maximum(Va, Vb) / spec.pump.max_flow, out=T)
+    vmax = [j.actuator.max_speed for j in spec.joints]
+    if pump or any(vmax):
+        dxa, dxb = Ds * dq, Dd * dq    # stroke changes with the map at each end of the edge
+        for i, v in enumerate(vmax):
+            if v:
+                np.maximum(T, np.maximum(np.abs(dxa[..., i]), np.abs(dxb[..., i])) / v, out=T)
+        if pump:
+            V = np.maximum(swept_volume(spec, dxa).sum(-1), swept_volume(spec, dxb).sum(-1))
+            np.maximum(T, V / spec.pump.max_flow, out=T)
     return np.where(np.isnan(T), np.inf, T), dq
 
 

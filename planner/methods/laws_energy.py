@@ -50,6 +50,7 @@ import numpy as np
 
 from planner.methods.laws import Law, LawPlanner, planar_slew_split, scale_into_box
 from planner.methods.registry import register
+from planner.model.flows import actuator_table
 
 K_JLA = -1e-2       # [m²/s] joint-limit-avoidance gain (Chan–Dubey gradient in 1/m)
 K_Q = -5.0          # [-] flow-criterion gain (areas normalised by the largest piston area)
@@ -80,10 +81,8 @@ def cylinder_setup(crane, ht: bool | None = None) -> dict:
     xb, _ = crane.stroke(L["q_max"])
     x_lo = np.minimum(xa, xb)[P]
     x_hi = np.maximum(xa, xb)[P]
-    acts = [crane.spec.joints[i].actuator for i in P]
-    Aa = np.array([a.area_a for a in acts])
-    Ab = np.array([a.area_b for a in acts])
-    single = np.array([a.acting == "single" for a in acts])
+    table = actuator_table(crane.spec)
+    Aa, Ab, single = table.area_a[P], table.area_b[P], table.single[P]
     use_ht = transformer_enabled(crane) if ht is None else bool(ht)
     T = np.eye(len(P))
     k = 0.0

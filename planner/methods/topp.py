@@ -16,11 +16,11 @@ import toppra
 import toppra.algorithm as algo
 import toppra.constraint as constraint
 
-from planner.bounds import swept_volume
 from planner.geometry.paths import Line
 from planner.methods.base import Planner, PlanRequest, PlanResult
 from planner.methods.dp import DPPlanner, dp
 from planner.methods.registry import register
+from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory, evaluate
 
 toppra.setup_logging("ERROR")  # failures are reported as statuses, not log lines

@@ -272,7 +272,7 @@ class ValveDeadband(Effect):
 
     def plant(self, crane, plant):
         from dataclasses import replace
-        from planner.feedforward import valve_parameters
+        from planner.model.valves import valve_params as valve_parameters
         db = (np.asarray(plant.deadband, float) if plant.deadband is not None
               else valve_parameters(crane).deadband.copy())
         db = np.broadcast_to(db, (crane.n,)).copy()

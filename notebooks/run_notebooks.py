@@ -179,6 +179,10 @@ def main(argv=None) -> int:
         print(f"warning: {p}", flush=True)
     todo = ([HERE / f"{Path(n).stem}.ipynb" for n in args.names] if args.names
             else notebooks())
+    unknown = [p.stem for p in todo if not p.exists()]
+    if unknown:
+        ap.error(f"names: no notebook {', '.join(unknown)} in {HERE}; "
+                 f"allowed: {', '.join(p.stem for p in notebooks())}")
     failed = []
     total = 0.0
     for nb_path in todo:

@@ -34,8 +34,10 @@ bench: install
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
 	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 
-# the notebook studies with their full settings, executed into build/notebooks (not in place)
+# the notebook studies: check each .ipynb is in step with its jupytext .py source, then run
+# them with their full settings into build/notebooks (not in place)
 notebooks: install
+	$(BIN)/python notebooks/run_notebooks.py --check
 	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 
 clean:

@@ -1,12 +1,21 @@
-"""Execute the notebook studies with nbclient into an output folder (never in place).
+"""Keep the notebook studies in step with their sources, and execute them.
 
-    python notebooks/run_notebooks.py [--out build/notebooks] [--small] [NAME.ipynb ...]
+    python notebooks/run_notebooks.py [--out build/notebooks] [--small] [NAME ...]
+    python notebooks/run_notebooks.py --sync     # rewrite every .ipynb from its .py
+    python notebooks/run_notebooks.py --check    # exit 1 when an .ipynb is stale
 
-Each notebook is copied to ``--out`` and executed there with the ``python3`` kernel (the
-interpreter running this script, see :func:`kernel_name`); its figures go to
-``<out>/<notebook>_files/``. ``--small`` sets ``CRANE_NB_SMALL=1`` (the test suite's coarse
-settings); without it the notebooks run their full settings (``make notebooks``). Prints the
-run time of every notebook; exits non-zero when one fails.
+Each study is a jupytext percent-format source ``notebooks/<name>.py`` (the file a reviewer
+reads and edits) paired with ``notebooks/<name>.ipynb``, committed without outputs.
+``--sync`` regenerates the .ipynb from the .py with jupytext (no outputs, cell ids
+``<name>-NN``, so the file is a pure function of the source); ``jupytext --sync
+notebooks/*.py`` does the same for existing cells. ``--check`` compares without writing: the
+.ipynb must hold the .py's cells (type and source) and no outputs.
+
+Running: each notebook is copied to ``--out`` and executed there with nbclient and the
+``python3`` kernel (the interpreter running this script, see :func:`kernel_name`); its figures
+go to ``<out>/<notebook>_files/``. ``--small`` sets ``CRANE_NB_SMALL=1`` (the test suite's
+coarse settings); without it the notebooks run their full settings (``make notebooks``). Prints
+the run time of every notebook; exits non-zero when one fails.
 """
 from __future__ import annotations
 
@@ -21,9 +30,76 @@ HERE = Path(__file__).resolve().parent
 KERNEL = "python3"
 
 
-def notebooks() -> list[Path]:
-    """The studies, in order (a_…, b_…, …)."""
-    return sorted(HERE.glob("[a-z]_*.ipynb"))
+def notebooks(folder: Path = HERE) -> list[Path]:
+    """The studies' notebooks in ``folder``, in order (a_…, b_…, …)."""
+    return sorted(Path(folder).glob("[a-z]_*.ipynb"))
+
+
+def sources(folder: Path = HERE) -> list[Path]:
+    """The studies' jupytext sources in ``folder``, in order (a_….py, b_….py, …)."""
+    return sorted(Path(folder).glob("[a-z]_*.py"))
+
+
+def notebook_text(src: Path) -> str:
+    """The .ipynb text jupytext makes of the percent-format source ``src``: the same cells,
+    no outputs, no execution counts, cell ids ``<name>-NN`` (name cut to 40 characters, NN the
+    cell index), metadata from the source's header."""
+    import jupytext
+    import nbformat
+    src = Path(src)
+    nb = jupytext.read(src)
+    for i, cell in enumerate(nb.cells):
+        cell.id = f"{src.stem[:40]}-{i:02d}"
+        if cell.cell_type == "code":
+            cell.outputs, cell.execution_count = [], None
+    nbformat.validate(nb)
+    text = jupytext.writes(nb, fmt="ipynb")
+    return text if text.endswith("\n") else text + "\n"
+
+
+def stale(folder: Path = HERE) -> list[str]:
+    """What is out of step in ``folder``: one line per notebook whose .ipynb is missing, lacks
+    its .py, differs from its .py in a cell's type or source, or carries outputs. Empty when
+    every pair is in step. Cell ids and metadata are not compared."""
+    import jupytext
+    import nbformat
+    folder = Path(folder)
+    problems = []
+    for nb_path in notebooks(folder):
+        if not nb_path.with_suffix(".py").exists():
+            problems.append(f"{nb_path.name}: no source {nb_path.stem}.py")
+    for src in sources(folder):
+        dst = src.with_suffix(".ipynb")
+        if not dst.exists():
+            problems.append(f"{dst.name}: missing (run --sync)")
+            continue
+        want = [(c.cell_type, c.source) for c in jupytext.read(src).cells]
+        nb = nbformat.read(dst, as_version=4)
+        have = [(c.cell_type, c.source) for c in nb.cells]
+        if have != want:
+            first = next((i for i, (h, w) in enumerate(zip(have, want)) if h != w),
+                         min(len(have), len(want)))
+            problems.append(f"{dst.name}: differs from {src.name} from cell {first} on "
+                            f"({len(have)} cells, the source has {len(want)}; run --sync)")
+        run = [i for i, c in enumerate(nb.cells) if c.cell_type == "code"
+               and (c.get("outputs") or c.get("execution_count") is not None)]
+        if run:
+            problems.append(f"{dst.name}: cells {run} carry outputs or execution counts "
+                            "(commit it without outputs: run --sync)")
+    return problems
+
+
+def sync(folder: Path = HERE) -> list[Path]:
+    """Rewrite every .ipynb in ``folder`` from its .py (:func:`notebook_text`); returns the
+    files that changed."""
+    written = []
+    for src in sources(folder):
+        dst = src.with_suffix(".ipynb")
+        text = notebook_text(src)
+        if not dst.exists() or dst.read_text(encoding="utf-8") != text:
+            dst.write_text(text, encoding="utf-8")
+            written.append(dst)
+    return written
 
 
 def kernel_name() -> str:
@@ -84,9 +160,29 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="build/notebooks", help="output folder (build/notebooks)")
     ap.add_argument("--small", action="store_true", help="the tests' small settings")
     ap.add_argument("--timeout", type=int, default=1800, help="per-cell timeout [s] (1800)")
-    ap.add_argument("names", nargs="*", help="notebooks to run (default: all)")
+    ap.add_argument("--sync", action="store_true",
+                    help="rewrite every .ipynb from its jupytext .py source, run nothing")
+    ap.add_argument("--check", action="store_true",
+                    help="exit 1 when an .ipynb is out of step with its .py, run nothing")
+    ap.add_argument("names", nargs="*",
+                    help="notebooks to run, as NAME, NAME.ipynb or NAME.py (default: all)")
     args = ap.parse_args(argv)
-    todo = [HERE / n for n in args.names] if args.names else notebooks()
+    if args.sync:
+        for path in sync():
+            print(f"wrote {path}")
+        return 0
+    problems = stale()
+    if args.check:
+        print("\n".join(problems) if problems else "notebooks in step with their sources")
+        return 1 if problems else 0
+    for p in problems:
+        print(f"warning: {p}", flush=True)
+    todo = ([HERE / f"{Path(n).stem}.ipynb" for n in args.names] if args.names
+            else notebooks())
+    unknown = [p.stem for p in todo if not p.exists()]
+    if unknown:
+        ap.error(f"names: no notebook {', '.join(unknown)} in {HERE}; "
+                 f"allowed: {', '.join(p.stem for p in notebooks())}")
     failed = []
     total = 0.0
     for nb_path in todo:

@@ -1,29 +1,39 @@
-"""The notebook studies (notebooks/*.ipynb) run end to end with the small settings.
+"""The notebook studies: jupytext sources (notebooks/*.py) paired with committed .ipynb files
+that run end to end with the small settings.
 
-Each notebook is executed with nbclient and the ``python3`` kernel of this interpreter
-(notebooks/run_notebooks.py) in a temporary copy — outputs never touch the repository — with
-CRANE_NB_SMALL=1; a failing cell fails the test, and the closing cell must print the answer. The
-committed notebooks must carry no outputs and equal what notebooks/build_notebooks.py generates.
+The committed notebooks must carry no outputs and hold exactly the cells jupytext reads from
+their percent-format sources (read here with jupytext and nbformat directly, independent of the
+runner's own check, which is tested separately on a copy). Each notebook is executed with
+nbclient and the ``python3`` kernel of this interpreter (notebooks/run_notebooks.py) in a
+temporary copy — outputs never touch the repository — with CRANE_NB_SMALL=1; a failing cell
+fails the test, and the closing cell must print the answer.
 """
 import importlib.util
+import shutil
 from pathlib import Path
 
-import nbformat  # the dev extra installs nbformat, nbclient and ipykernel
+import jupytext  # the dev extra installs jupytext, nbformat, nbclient and ipykernel
+import nbformat
 import pytest
 
 NB_DIR = Path(__file__).resolve().parents[1] / "notebooks"
 NAMES = ("a_seed000_revisited", "b_energy", "c_open_loop", "d_calibration")
 
 
-def _module(name):
-    spec = importlib.util.spec_from_file_location(name, NB_DIR / f"{name}.py")
+def _runner():
+    spec = importlib.util.spec_from_file_location("run_notebooks", NB_DIR / "run_notebooks.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
+def _cells(nb):
+    return [(c.cell_type, c.source) for c in nb.cells]
+
+
 def test_the_studies_are_all_there_and_committed_without_outputs():
     assert sorted(p.stem for p in NB_DIR.glob("[a-z]_*.ipynb")) == sorted(NAMES)
+    assert sorted(p.stem for p in NB_DIR.glob("[a-z]_*.py")) == sorted(NAMES)
     for name in NAMES:
         nb = nbformat.read(NB_DIR / f"{name}.ipynb", as_version=4)
         nbformat.validate(nb)
@@ -34,18 +44,67 @@ def test_the_studies_are_all_there_and_committed_without_outputs():
                 assert c.outputs == [] and c.execution_count is None, (name, c.id)
 
 
-def test_the_committed_notebooks_are_what_the_generator_writes(tmp_path):
-    build = _module("build_notebooks")
-    assert build.main(["--out", str(tmp_path)]) == 0
+@pytest.mark.parametrize("name", NAMES)
+def test_the_committed_notebook_is_what_jupytext_makes_of_its_source(name):
+    src = jupytext.read(NB_DIR / f"{name}.py")
+    assert src.metadata["jupytext"]["formats"] == "ipynb,py:percent"   # `jupytext --sync` pairs
+    committed = nbformat.read(NB_DIR / f"{name}.ipynb", as_version=4)
+    assert _cells(committed) == _cells(src), \
+        f"{name}.ipynb is stale: run python notebooks/run_notebooks.py --sync"
+    assert len(src.cells) > 5 and src.cells[-1].cell_type == "code"
+
+
+def test_the_runner_finds_the_committed_notebooks_in_step():
+    assert _runner().stale() == []
+
+
+def test_check_flags_a_stale_notebook_and_sync_rewrites_it(tmp_path):
+    run = _runner()
     for name in NAMES:
-        assert (tmp_path / f"{name}.ipynb").read_text(encoding="utf-8") == \
-            (NB_DIR / f"{name}.ipynb").read_text(encoding="utf-8"), \
-            f"{name}.ipynb is stale: run python notebooks/build_notebooks.py"
+        for ext in (".py", ".ipynb"):
+            shutil.copyfile(NB_DIR / f"{name}{ext}", tmp_path / f"{name}{ext}")
+    assert run.stale(tmp_path) == [] and run.sync(tmp_path) == []   # the committed files are
+    for name in NAMES:                                              # what --sync writes
+        assert (tmp_path / f"{name}.ipynb").read_bytes() == \
+            (NB_DIR / f"{name}.ipynb").read_bytes()
+
+    # an edited source: one line changed in the closing cell, one code cell added
+    src = tmp_path / "b_energy.py"
+    text = src.read_text(encoding="utf-8")
+    assert text.count('"settings")') == 1
+    src.write_text(text.replace('"settings")', '"settings (edited)")')
+                   + "\n# %%\nprint('one more cell')\n", encoding="utf-8")
+    # an .ipynb that carries outputs, and a source without its notebook
+    nb = nbformat.read(tmp_path / "c_open_loop.ipynb", as_version=4)
+    nb.cells[1].execution_count = 1
+    nb.cells[1].outputs = [nbformat.v4.new_output("stream", name="stdout", text="x\n")]
+    nbformat.write(nb, tmp_path / "c_open_loop.ipynb")
+    (tmp_path / "d_calibration.ipynb").unlink()
+
+    problems = run.stale(tmp_path)
+    assert len(problems) == 3, problems
+    assert problems[0].startswith("b_energy.ipynb: differs") and "cell 16" in problems[0]
+    assert problems[1].startswith("c_open_loop.ipynb: cells [1] carry outputs")
+    assert problems[2].startswith("d_calibration.ipynb: missing")
+
+    written = run.sync(tmp_path)
+    assert sorted(p.name for p in written) == ["b_energy.ipynb", "c_open_loop.ipynb",
+                                               "d_calibration.ipynb"]
+    assert run.stale(tmp_path) == []
+    b = nbformat.read(tmp_path / "b_energy.ipynb", as_version=4)
+    assert b.cells[-1].source == "print('one more cell')"
+    assert '"settings (edited)")' in b.cells[-2].source
+    assert _cells(b) == _cells(jupytext.read(src))
+    c = nbformat.read(tmp_path / "c_open_loop.ipynb", as_version=4)
+    assert c.cells[1].outputs == [] and c.cells[1].execution_count is None
+    assert (tmp_path / "d_calibration.ipynb").read_bytes() == \
+        (NB_DIR / "d_calibration.ipynb").read_bytes()
+    assert run.main(["--check"]) == 0                        # the repository's own pairs
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_notebook_runs_with_the_small_settings(name, tmp_path):
-    run = _module("run_notebooks")
+    run = _runner()
     before = (NB_DIR / f"{name}.ipynb").read_bytes()
     nb, seconds = run.execute(NB_DIR / f"{name}.ipynb", tmp_path, small=True, timeout=600)
     assert (NB_DIR / f"{name}.ipynb").read_bytes() == before   # the repo copy is untouched

@@ -16,18 +16,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from planner.model.reader import SpecError, TableReader
 from planner.units import parse_angle
 
 __all__ = ["SpecError", "DH", "Limits", "Actuator", "Joint", "Payload", "Pump", "Transformer",
            "LawParams", "CraneSpec", "load_spec", "parse_spec", "parse_angle"]
-
-
-class SpecError(ValueError):
-    """A malformed or inconsistent machine specification."""
-
-    def __init__(self, file: str, field: str, value: Any, expected: str):
-        self.file, self.field, self.value, self.expected = file, field, value, expected
-        super().__init__(f"{file}: field '{field}' = {value!r}: {expected}")
 
 
 # ----------------------------------------------------------------------------- dataclasses
@@ -193,90 +186,6 @@ class CraneSpec:
 
 
 # ----------------------------------------------------------------------------- parsing
-class _Reader:
-    """Helper that reads typed fields out of a TOML table and reports precise errors."""
-
-    def __init__(self, file: str):
-        self.file = file
-
-    def fail(self, fld: str, value: Any, expected: str):
-        raise SpecError(self.file, fld, value, expected)
-
-    def table(self, parent: dict, key: str, where: str, required=True) -> dict | None:
-        if key not in parent:
-            if required:
-                self.fail(f"{where}{key}", None, "missing table")
-            return None
-        v = parent[key]
-        if not isinstance(v, dict):
-            self.fail(f"{where}{key}", v, "expected a table")
-        return v
-
-    def keys(self, tbl: dict, allowed: set[str], where: str):
-        for k in tbl:
-            if k not in allowed:
-                self.fail(f"{where}{k}", tbl[k], f"unknown key; allowed: {', '.join(sorted(allowed))}")
-
-    def num(self, tbl: dict, key: str, where: str, default=None, lo=None, hi=None,
-            lo_open=False, angle=False) -> float:
-        fld = f"{where}{key}"
-        if key not in tbl:
-            if default is None:
-                self.fail(fld, None, "missing (required number)")
-            return default
-        raw = tbl[key]
-        try:
-            v = parse_angle(raw) if angle else _as_float(raw)
-        except ValueError:
-            self.fail(fld, raw, "expected a number" + (" or an angle like '30deg'" if angle else ""))
-        if not math.isfinite(v):
-            self.fail(fld, raw, "expected a finite number")
-        if lo is not None and (v <= lo if lo_open else v < lo):
-            self.fail(fld, raw, f"must be {'>' if lo_open else '>='} {lo}")
-        if hi is not None and v > hi:
-            self.fail(fld, raw, f"must be <= {hi}")
-        return v
-
-    def vec(self, tbl: dict, key: str, where: str, n: int, default=None, angle=False):
-        fld = f"{where}{key}"
-        if key not in tbl:
-            if default is None:
-                self.fail(fld, None, f"missing (required list of {n} numbers)")
-            return default
-        raw = tbl[key]
-        if not isinstance(raw, list) or len(raw) != n:
-            self.fail(fld, raw, f"expected a list of {n} numbers")
-        out = []
-        for x in raw:
-            try:
-                v = parse_angle(x) if angle else _as_float(x)
-            except ValueError:
-                self.fail(fld, raw, f"expected a list of {n} numbers")
-            if not math.isfinite(v):
-                self.fail(fld, raw, "expected finite numbers")
-            out.append(v)
-        return tuple(out)
-
-    def text(self, tbl: dict, key: str, where: str, default=None, choices=None) -> str:
-        fld = f"{where}{key}"
-        if key not in tbl:
-            if default is None:
-                self.fail(fld, None, "missing (required string)")
-            return default
-        v = tbl[key]
-        if not isinstance(v, str):
-            self.fail(fld, v, "expected a string")
-        if choices is not None and v not in choices:
-            self.fail(fld, v, f"allowed: {', '.join(choices)}")
-        return v
-
-
-def _as_float(x: Any) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise ValueError
-    return float(x)
-
-
 _JOINT_KEYS = {"name", "type", "dh", "limits", "mass", "com", "inertia", "actuator", "source"}
 _DH_KEYS = {"theta", "d", "a", "alpha"}
 _LIMIT_KEYS = {"q", "qd", "qdd", "qddd"}
@@ -286,7 +195,7 @@ _ACT_KEYS = {"kind", "area_a", "area_b", "acting", "stroke", "closed_length", "b
 _ACT_KINDS = ("triangle", "lever", "telescope", "rotary", "rack")
 
 
-def _parse_actuator(R: _Reader, tbl: dict, where: str, jtype: str) -> Actuator:
+def _parse_actuator(R: TableReader, tbl: dict, where: str, jtype: str) -> Actuator:
     R.keys(tbl, _ACT_KEYS, where)
     kind = R.text(tbl, "kind", where, choices=_ACT_KINDS)
     if jtype == "prismatic" and kind != "telescope":
@@ -337,7 +246,7 @@ def _parse_actuator(R: _Reader, tbl: dict, where: str, jtype: str) -> Actuator:
     return Actuator(**kw)
 
 
-def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
+def _parse_joint(R: TableReader, tbl: dict, i: int) -> Joint:
     where = f"joint[{i}]."
     if not isinstance(tbl, dict):
         R.fail(f"joint[{i}]", tbl, "expected a table")
@@ -392,7 +301,7 @@ def _parse_joint(R: _Reader, tbl: dict, i: int) -> Joint:
 
 def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     """Validate a parsed TOML dict and build a :class:`CraneSpec`."""
-    R = _Reader(file)
+    R = TableReader(file)
     R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws", "effects"}, "")
     ct = R.table(data, "crane", "")
     R.keys(ct, {"id", "name", "description", "source", "elbow", "redundancy", "gravity"}, "crane.")

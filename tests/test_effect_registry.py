@@ -135,11 +135,11 @@ def test_plant_is_a_constructor_of_catalogue_effects():
     b = L["q_min"] + 0.7 * (L["q_max"] - L["q_min"])
     ff = commands(crane, rest_to_rest(crane, a, b, scale=1.0).trajectory, 50.0)
     off = [0.01, -0.02, 0.0, 0.015]
-    plant = Plant(q0_offset=off, flow_gain_scale=1.02, pump_flow_scale=0.7, deadband=0.05)
+    plant = Plant(q0_offset=off, flow_gain_scale=1.02, pump_flow_scale=0.3, deadband=0.05)
     by_hand = ([StartOffset(j, offset=o) for j, o in zip(crane.names, off)]
                + [make("flow_gain", j, scale=1.02) for j in crane.names]
                + [make("valve_deadband", j, width=0.05) for j in crane.names]
-               + [make("pump_flow_limit", scale=0.7)])
+               + [make("pump_flow_limit", scale=0.3)])
     assert set(plant.effects(crane)) == set(by_hand)
     s1 = replay(crane, ff.t, ff.u, a, plant)
     s2 = replay(crane, ff.t, ff.u, a, by_hand)

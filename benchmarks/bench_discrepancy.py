@@ -31,7 +31,8 @@ MACHINES = ("cat215b", "s100f", "umea-lab", "cranab850")
 
 def trial(machine, effect, seed, duration):
     from planner import Crane
-    from planner.calibration.discrepancy import Discrepancy, closed_loop
+    from planner.calibration.compensate import closed_loop
+    from planner.calibration.discrepancy import Discrepancy
     from planner.calibration.trials import hidden_trial, trackable
     crane = Crane.from_id(machine)
     rec, plan, _, truth = hidden_trial(crane, effect, seed, duration)

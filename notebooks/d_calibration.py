@@ -214,8 +214,9 @@ show_file(OUT / "overlay_A.png")
 # (`trackable`). `write_report` writes the whole story (markdown, JSON, figures).
 
 # %%
-from planner.calibration.discrepancy import (calibrated_spec_text, closed_loop, compensate,
-                                             write_report)
+from planner.calibration.compensate import closed_loop, compensate
+from planner.calibration.discrepancy import calibrated_spec_text
+from planner.calibration.report import write_report
 from planner.calibration.trials import trackable
 from planner.feedforward import commands
 from planner.simulation.plant import respond

@@ -142,7 +142,9 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     steps.update(1)
 
     # ---------------------------------------------------------------- calibration
-    from planner.calibration.discrepancy import Discrepancy, closed_loop, write_report
+    from planner.calibration.compensate import closed_loop
+    from planner.calibration.discrepancy import Discrepancy
+    from planner.calibration.report import write_report
     from planner.calibration.trials import hidden_trial, trackable
     cat = Crane.from_id("cat215b")
     rec, plan, _, truth = hidden_trial(cat, "flow_gain", seed=2, duration=30.0)

@@ -11,7 +11,8 @@ import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.calibration.discrepancy import Discrepancy, closed_loop, noise_floor
+from planner.calibration.compensate import closed_loop
+from planner.calibration.discrepancy import Discrepancy, noise_floor
 from planner.simulation.effects import CATALOGUE
 from planner.calibration.trials import excitation, hidden_trial
 
@@ -153,7 +154,7 @@ def test_same_inputs_same_outputs(tmp_path):
                      "--out", str(m)]) == 0
         outs.append(m.read_bytes())
     assert outs[0] == outs[1]
-    from planner.calibration.trials import Recording
+    from planner.simulation.recording import Recording
     rec = Recording.from_csv(tmp_path / "m0.csv", crane)
     a = Discrepancy(crane, second=False).fit(rec)
     b = Discrepancy(crane, second=False).fit(rec)
@@ -163,7 +164,8 @@ def test_same_inputs_same_outputs(tmp_path):
 
 def test_commands_come_from_the_trajectory_when_the_csv_has_none(tmp_path):
     from planner.simulation.effects import make
-    from planner.calibration.trials import Recording, record
+    from planner.calibration.trials import record
+    from planner.simulation.recording import Recording
     crane = Crane.from_id("cat215b")
     plan, ff = excitation(crane, DUR, seed=9)
     rec = record(crane, plan, ff, (make("flow_gain", "boom", scale=1.1),), seed=9)

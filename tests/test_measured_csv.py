@@ -4,7 +4,7 @@ import re
 import numpy as np
 import pytest
 
-from planner.simulation.replay import read_measured_csv
+from planner.simulation.recording import read_measured_csv
 
 JOINTS = ("slew", "boom", "jib", "tele")
 # column numbers (1-based) of the good file with pressures

@@ -10,9 +10,10 @@ import pytest
 from planner import Crane
 from planner.feedforward import commands
 from planner.methods.ruckig import rest_to_rest
-from planner.simulation.replay import (NOISE_DEFAULTS, Plant, default_perturbations, pressures,
-                              read_measured_csv, replay, robustness, simulate_to_csv,
-                              stroke_rates, write_measured_csv)
+from planner.simulation.plant import simulate_to_csv
+from planner.simulation.recording import NOISE_DEFAULTS, read_measured_csv, write_measured_csv
+from planner.simulation.replay import (Plant, default_perturbations, pressures, replay,
+                                       robustness, stroke_rates)
 from planner.trajectory import evaluate
 
 from .conftest import random_configs

@@ -31,7 +31,10 @@ commanded trajectory:
    σ², gap = 1 − √(after/before).
 
 The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
-:func:`compensate` re-plans feed-forward commands on it.
+:func:`planner.calibration.compensate.compensate` re-plans feed-forward commands on it and
+:func:`planner.calibration.report.write_report` writes the report. The candidates are every
+catalogue effect (:data:`planner.simulation.effects.CATALOGUE`) on every joint it can belong
+to: a registered effect is searched with no change here.
 """
 from __future__ import annotations
 
@@ -40,14 +43,16 @@ import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.ndimage import uniform_filter1d
+from scipy.optimize import least_squares, minimize_scalar
 
 from planner.simulation.effects import CATALOGUE, Effect
 from planner.simulation.plant import respond
-from planner.calibration.trials import Recording
+from planner.simulation.recording import Recording
+from planner.simulation.replay import stroke_rates
 
-__all__ = ["Discrepancy", "DiscrepancyResult", "noise_floor", "locate", "compensate",
-           "closed_loop", "calibrated_spec_text", "write_report"]
+__all__ = ["Discrepancy", "DiscrepancyResult", "Candidate", "candidates", "noise_floor",
+           "locate", "calibrated_spec_text"]
 
 PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
 POSITION_FLOOR = 1e-6    # [rad | m]
@@ -122,7 +127,9 @@ class DiscrepancyResult:
         return out
 
 
-def _candidates(crane, names=None):
+def candidates(crane, names=None) -> list[Effect]:
+    """The effects the search fits (at their neutral values): every catalogue effect named in
+    ``names`` (default: the whole catalogue, in its order), per-joint ones on every joint."""
     out = []
     for name in (names or CATALOGUE):
         cls = CATALOGUE[name]
@@ -255,7 +262,6 @@ class Discrepancy:
         if len(z0) == 1:
             # one parameter: bounded scalar search in the grid cell pair around the best point
             # (robust where the residual is flat, e.g. a dead band wider than every command)
-            from scipy.optimize import minimize_scalar
             d = 1.0 / max(self.grid - 1, 1)
             a, b = max(best_z[0] - d, 0.0), min(best_z[0] + d, 1.0)
             sol = minimize_scalar(lambda x: float(np.sum(resid(np.array([x])) ** 2)),
@@ -307,7 +313,7 @@ class Discrepancy:
         n_test = int(self._test.sum())
         pen = math.log(n_test)
         cands = []
-        todo = _candidates(crane, self.names)
+        todo = candidates(crane, self.names)
         it = todo
         if progress:
             from tqdm import tqdm
@@ -329,7 +335,7 @@ class Discrepancy:
             ms = np.mean(R * R, axis=0)          # per channel, 1 = noise
             if float(ms.max()) > 1.0 + max(4.0 * math.sqrt(2.0 / len(R)), 0.1):
                 seconds = []
-                for c in _candidates(crane, self.names):
+                for c in candidates(crane, self.names):
                     if c.name == chosen.effects[0].name and c.joint == chosen.effects[0].joint:
                         continue
                     f = self._fit(chosen.effects, c)
@@ -410,7 +416,6 @@ def _excess(E, mask, sig, t, window_s: float = 0.5):
     residual smoothed over ``window_s`` (a moving average of w samples keeps a systematic
     residual and divides white noise's variance by w) minus the noise's share σ²/w. Far less
     sensitive to an error in σ than RMS² − σ² would be."""
-    from scipy.ndimage import uniform_filter1d
     dt = float(np.median(np.diff(t)))
     w = max(1, int(round(window_s / dt)))
     f = uniform_filter1d(E, size=w, axis=0, mode="nearest")
@@ -444,7 +449,6 @@ def locate(d: Discrepancy, Y0: np.ndarray, window_s: float = 2.0) -> dict:
     s = r.state
     n = crane.n
     # the nominal replay's pump sharing factor at each sample (from its command intervals)
-    from planner.simulation.replay import stroke_rates
     share = stroke_rates(crane, rec.u)[2]
     conditions = {}
     for i, j in enumerate(crane.names):
@@ -480,175 +484,3 @@ def calibrated_spec_text(crane, effects, source: str = "") -> str:
         for k, v in e.values.items():
             lines.append(f"{k} = {v!r}")
     return "\n".join(lines) + "\n"
-
-
-def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
-    """Re-plan the feed-forward of ``plan`` on the calibrated model (the plant *with*
-    ``effects``). Returns (plan_used, t, u, q0_reading):
-
-    - a pump that gives less than the plan needs (pump_flow_limit): the plan is slowed
-      uniformly until its peak pump demand fits the calibrated pump (+2 % margin) — no command
-      can make the true plant follow the original timing;
-    - kinematic effects (gain, dead band, lag, delay, leakage): the nominal commands, then
-      iterative learning on the calibrated model: per joint, the stroke-rate error ``d``
-      samples ahead (d from the delays and lags) corrected through the nominal valve gain
-      (D-type ILC: the plant is an integrator, so rate errors fixed leave no position error);
-    - sensor offsets: the crane is positioned before the move until its sensors read the
-      plan's start plus the offsets (``q0_reading``);
-    - pressure-only effects need no change of the commands."""
-    from planner.feedforward import _command_to_stroke_rate, commands, valve_parameters
-    from planner.methods.nlp import stretch
-    from planner.simulation.replay import Plant
-    effects = tuple(effects)
-    bias = np.zeros((1, crane.n))
-    for e in effects:
-        bias = e.sense_q(crane, bias)
-    plant = Plant()
-    for e in effects:
-        if e.stage == "valves":
-            plant = e.plant(crane, plant)
-    ff = commands(crane, plan, rate)
-    if plant.pump_flow_scale < 1.0:
-        # pump flow the plan asks for (valve flows of the functions fed by the pump)
-        single = np.array([j.actuator.acting == "single" for j in crane.spec.joints])
-        draws = (ff.flow > 0) | ~single
-        need = float(np.max(np.sum(np.where(draws, np.abs(ff.flow), 0.0), axis=1)))
-        avail = crane.spec.pump.max_flow * plant.pump_flow_scale
-        if need > avail:
-            plan = stretch(plan, plan.duration * 1.02 * need / avail)
-            ff = commands(crane, plan, rate)
-    t, u = ff.t, ff.u.copy()
-    q0_reading = plan.q[0] + bias[0]
-    kin = tuple(e for e in effects if e.kinematic)
-    if not kin:
-        return plan, t, u, q0_reading
-    x_des = crane.stroke(plan.sample(t)[0])[0]
-    vp = valve_parameters(crane)
-    g = 0.5 * (_command_to_stroke_rate(np.ones((1, crane.n)), vp)[0]
-               - _command_to_stroke_rate(-np.ones((1, crane.n)), vp)[0])
-    dt = 1.0 / rate
-    d = int(round(sum(e.delay if e.name == "time_delay" else
-                      e.tau if e.name == "valve_lag" else 0.0 for e in kin) / dt))
-    for _ in range(iterations):
-        r = respond(crane, t, u, plan.q[0], kin, t_end=t[-1])
-        e_x = x_des - crane.stroke(r.state.q)[0]
-        e_ahead = np.vstack([e_x[d:], np.repeat(e_x[-1:], d, axis=0)]) if d else e_x
-        rate_err = np.vstack([np.diff(e_ahead, axis=0) / dt, np.zeros((1, crane.n))])
-        u = np.clip(u + 0.7 * rate_err / g, -1.0, 1.0)
-    return plan, t, u, q0_reading
-
-
-def closed_loop(crane, plan, calibrated, plant_effects=None, rate: float = 50.0) -> dict:
-    """Open-loop tracking of ``plan`` on a plant with ``plant_effects`` (default: the
-    calibrated effects themselves — a prediction), with the nominal feed-forward and with the
-    feed-forward re-planned on the calibrated model (:func:`compensate`). The crane is
-    positioned at the start with its (possibly biased) sensors. Tip error [m] vs the plan:
-    max and RMS, before and after."""
-    from planner.feedforward import commands
-    truth = tuple(calibrated if plant_effects is None else plant_effects)
-    bias = np.zeros((1, crane.n))
-    for e in truth:
-        bias = e.sense_q(crane, bias)
-
-    def run(p, t, u, q_read):
-        q_true0 = q_read - bias[0]     # positioned until the sensors read q_read
-        r = respond(crane, t, u, q_true0, truth, t_end=t[-1])
-        e = np.linalg.norm(crane.fk(r.state.q) - crane.fk(p.sample(r.t)[0]), axis=1)
-        return dict(max_m=float(e.max()), rms_m=float(np.sqrt(np.mean(e ** 2))),
-                    final_m=float(e[-1]), duration_s=float(p.duration))
-    ff = commands(crane, plan, rate)
-    before = run(plan, ff.t, ff.u, plan.q[0])
-    p2, t, u, q_read = compensate(crane, plan, calibrated, rate)
-    after = run(p2, t, u, q_read)
-    return dict(before=before, after=after, predicted=plant_effects is None,
-                reduction=(1.0 - after["rms_m"] / before["rms_m"]) if before["rms_m"] > 0
-                else 0.0)
-
-
-# ---------------------------------------------------------------------------- report
-def _fmt(v, unit=""):
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "–"
-    return f"{v:.4g}{unit}"
-
-
-def write_report(res: DiscrepancyResult, out_dir, *, crane, measured: str = "",
-                 closed: dict | None = None) -> list:
-    """Markdown report, JSON result and figures into ``out_dir`` (created); every file is
-    written atomically. Returns the paths written."""
-    from pathlib import Path
-
-    from planner.io import atomic_write_text, write_json
-    from planner.plots import (discrepancy_overlay_figure, discrepancy_ranking_figure,
-                        discrepancy_residual_figure)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    figs = {"residuals.png": discrepancy_residual_figure, "overlay.png":
-            discrepancy_overlay_figure, "ranking.png": discrepancy_ranking_figure}
-    for name, f in figs.items():
-        f(res, out / name)
-    js = res.to_json()
-    if closed is not None:
-        js["closed_loop"] = closed
-    write_json(out / "result.json", js)
-    w = res.where
-    L = [f"# Model discrepancy: {crane.spec.id}", "",
-         f"Measured: `{measured}` — {len(res.series['t'])} samples, "
-         f"{res.series['t'][-1] - res.series['t'][0]:.1f} s; held-out: alternate 1 s blocks.",
-         "", "**Question**: does the nominal model explain the measurement, and if not, which "
-         "effect is missing?", "", f"**Answer**: {res.message}.", ""]
-    if res.effect:
-        L += ["| parameter | estimate | standard error |", "| --- | ---: | ---: |"]
-        for k, v in res.parameters.items():
-            if k != "joint":
-                L.append(f"| {res.effect}.{k} | {_fmt(v)} | {_fmt(res.uncertainty.get(k))} |")
-        if res.second:
-            for k, v in res.second["parameters"].items():
-                L.append(f"| {res.second['effect']}.{k} (second) | {_fmt(v)} | "
-                         f"{_fmt(res.second['uncertainty'].get(k))} |")
-        L += ["", f"Identifiable (scaled Jacobian well conditioned): "
-                  f"{'yes' if res.identifiable else 'NO — treat the estimate with care'}.", ""]
-    L += ["## Where the disagreement lives (nominal model)", "",
-          "| channel | residual RMS / noise |", "| --- | ---: |"]
-    L += [f"| {c['channel']} | {c['rms_over_noise']:.2f} |" for c in w["channels"][:8]]
-    L += ["", f"{w['n_windows']} windows of 2 s stand out (RMS > 2 σ in some channel)"
-          + (": " + ", ".join(f"{x['t0']:.0f}–{x['t1']:.0f} s ({x['channel']})"
-                              for x in w["windows"][:6]) if w["windows"] else "") + ".", ""]
-    worst = w["channels"][0]["channel"] if w["channels"] else None
-    if worst:
-        j = worst.split("_")[1]
-        cond = w["conditions"].get(j, {})
-        L += [f"Mean square residual of joint {j} (in σ², noise = 1) by operating condition: "
-              + ", ".join(f"{k} {v:.2f}" for k, v in cond.items() if v is not None) + ".", ""]
-    L += ["## Candidate effects (held-out score = ΔJ − k·ln n; named above "
-          f"{res.series['threshold']:g})", "",
-          "| rank | model | parameters | score | cond |", "| ---: | --- | --- | ---: | ---: |"]
-    for r in res.ranking[:10]:
-        ps = "; ".join(", ".join(f"{k}={v:.4g}" for k, v in e.items()
-                                 if k not in ("name", "joint")) for e in r["effects"])
-        L.append(f"| {r['rank']} | {r['model']} | {ps} | {r['score']:.1f} | {r['cond']:.3g} |")
-    L += ["", "## The gap, before and after (held-out blocks)", "",
-          "| channel | noise σ | RMS before | RMS after | VAF before | VAF after | "
-          "above-noise removed |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    for c in res.rms_before:
-        g = res.gap_reduction_channels.get(c)
-        L.append(f"| {c} | {_fmt(res.noise[c])} | {_fmt(res.rms_before[c])} | "
-                 f"{_fmt(res.rms_after[c])} | {res.vaf_before[c]:.1f} % | "
-                 f"{res.vaf_after[c]:.1f} % | {'–' if g is None else f'{100 * g:.0f} %'} |")
-    L += ["", f"Overall share of the above-noise residual removed: "
-              f"**{100 * res.gap_reduction:.0f} %**.", ""]
-    if closed is not None:
-        b, a = closed["before"], closed["after"]
-        L += ["## Closing the loop", "",
-              ("Predicted on the calibrated model" if closed["predicted"] else
-               "On the plant") + ": open-loop tip tracking error of the commanded trajectory "
-              f"with the nominal feed-forward {1e3 * b['rms_m']:.1f} mm RMS "
-              f"({1e3 * b['max_m']:.1f} mm max), with the feed-forward re-planned on the "
-              f"calibrated model {1e3 * a['rms_m']:.1f} mm RMS ({1e3 * a['max_m']:.1f} mm max)"
-              + (f"; the re-planned move takes {a['duration_s']:.2f} s instead of "
-                 f"{b['duration_s']:.2f} s (the pump cannot follow the original timing)"
-                 if a["duration_s"] > b["duration_s"] * 1.001 else "") + ".", ""]
-    L += ["![residuals](residuals.png)", "", "![overlay](overlay.png)", "",
-          "![ranking](ranking.png)", "", f"Runtime {res.runtime_s:.1f} s."]
-    atomic_write_text(out / "report.md", "\n".join(L) + "\n")
-    return [out / "report.md", out / "result.json"] + [out / n for n in figs]

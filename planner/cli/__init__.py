@@ -232,7 +232,8 @@ def cmd_simulate(args):
     """Replay a trajectory's valve commands open loop and write the measured-data CSV."""
     from planner.simulation.effects import parse_effect
     from planner.model import Crane
-    from planner.simulation.replay import Plant, simulate_to_csv
+    from planner.simulation.plant import simulate_to_csv
+    from planner.simulation.replay import Plant
     crane = Crane.from_id(args.crane)
     effects = []
     for text in args.effect or []:
@@ -265,11 +266,12 @@ def cmd_effects_list(args):
 
 def cmd_discrepancy(args):
     """Measured vs simulated -> named effect -> calibrated model (planner.calibration.discrepancy)."""
-    from planner.calibration.discrepancy import (Discrepancy, calibrated_spec_text, closed_loop,
-                              write_report)
+    from planner.calibration.compensate import closed_loop
+    from planner.calibration.discrepancy import Discrepancy, calibrated_spec_text
+    from planner.calibration.report import write_report
     from planner.io import atomic_write_text
     from planner.model import Crane
-    from planner.calibration.trials import Recording
+    from planner.simulation.recording import Recording
     crane = Crane.from_id(args.crane)
     plan = _read_trajectory(crane, args.trajectory) if args.trajectory else None
     rec = Recording.from_csv(args.measured, crane, plan)

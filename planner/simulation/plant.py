@@ -14,7 +14,12 @@
    recomputed) until the drift settles, at most six (it converges fast: the drift changes the
    pressures far less than it changes the positions);
 5. sensors — what the transducers report (offsets). Noise is added by the caller
-   (:func:`planner.simulation.replay.measured_table`).
+   (:meth:`planner.simulation.recording.Recording.with_noise`).
+
+Stages 1–2 and the true start are the replay's own (it takes the whole effect set and applies
+the commands, start and valves stages). The effects are the spec's calibrated ones
+(``[[effects]]``), then those of ``plant`` (a :class:`planner.simulation.replay.Plant` — the
+robustness study's deviations, themselves effects), then the ones given.
 
 With ``q_fit`` (measured positions) the initial strokes are not taken from ``q0`` but fitted to
 the measurement (least squares per joint on ``fit_mask``): the start pose is a nuisance
@@ -23,14 +28,20 @@ parameter of every model, as in any calibration. The replay itself does not depe
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
-from planner.simulation.replay import Plant, _differences, _stroke_stops, replay
+from planner.feedforward import commands
+from planner.model import Crane, flows
+from planner.simulation.effects import as_effects, effect_from_dict
+from planner.simulation.recording import Recording, noise_levels
+from planner.simulation.replay import Plant, describe_plant, differences, replay, stroke_stops
 from planner.trajectory import Trajectory
 
-__all__ = ["PlantState", "Response", "respond", "chamber_pressures"]
+__all__ = ["StrokeMap", "stroke_map", "PlantState", "Response", "respond", "chamber_pressures",
+           "simulate_to_csv"]
 
 _UNIT_MASS = 100.0     # [kg] step for the (exactly linear) actuator-mass force regressor
 _UNIT_CACHE: dict = {}
@@ -45,7 +56,6 @@ class StrokeMap:
     stroke range at the midpoints)."""
 
     def __init__(self, crane, points: int = 4001):
-        from scipy.interpolate import CubicSpline
         L = crane.limit_arrays()
         Q = np.linspace(L["q_min"], L["q_max"], points)
         X, D = crane.stroke(Q)
@@ -63,7 +73,7 @@ class StrokeMap:
         if np.any(err > 1e-9 * (np.ptp(X, axis=0) + 1e-12)):
             raise ValueError(f"crane '{crane.spec.id}': stroke spline error {err.max():.3g}")
         self.n = crane.n
-        self.stops = _stroke_stops(crane)
+        self.stops = stroke_stops(crane)
 
     def x(self, q):
         q = np.atleast_2d(q)
@@ -89,24 +99,15 @@ def stroke_map(crane) -> StrokeMap:
 
 def chamber_pressures(crane, force):
     """Chamber pressures p_a, p_b (N, n) [Pa] from actuator forces (N, n), load-holding model
-    (F ≥ 0: the piston side carries it, the rod side at tank; F < 0 the other way round;
-    single-acting: piston side only). The hydraulic transformer is not modelled here."""
+    (:func:`planner.model.flows.chamber_pressures`: F ≥ 0 the piston side carries it, the rod
+    side at tank; F < 0 the other way round; single-acting: piston side only). The plant does
+    not model the hydraulic transformer (its replay does not): refused here."""
     spec = crane.spec
     if spec.transformer is not None and spec.transformer.enabled:
         raise ValueError(f"crane '{spec.id}': the plant with effects does not model the "
                          "hydraulic transformer; disable it in the spec ([transformer] "
                          "enabled = false)")
-    pt = spec.pump.tank_pressure
-    Aa = np.array([j.actuator.area_a for j in spec.joints])
-    Ab = np.array([j.actuator.area_b for j in spec.joints])
-    single = np.array([j.actuator.acting == "single" for j in spec.joints])
-    F = np.atleast_2d(force)
-    pos = F >= 0
-    p_a = np.where(pos, (F + Ab * pt) / Aa, pt)
-    p_b = np.where(pos, pt, (Aa * pt - F) / Ab)
-    p_a = np.where(single, pt + np.maximum(F, 0) / Aa, p_a)
-    p_b = np.where(single, pt, p_b)
-    return p_a, p_b
+    return flows.chamber_pressures(spec, np.atleast_2d(force))
 
 
 @dataclass
@@ -129,9 +130,6 @@ class PlantState:
     def unit_actuator_force(self, i: int) -> np.ndarray:
         """Actuator forces (N, n) per kg of extra mass of actuator i (lumped as the model
         lumps it); inverse dynamics is linear in the masses, so one difference is exact."""
-        from dataclasses import replace
-
-        from planner.model import Crane
         spec = self.crane.spec
         key = (id(self.crane), i)
         hit = _UNIT_CACHE.get(key)
@@ -148,7 +146,8 @@ class PlantState:
 @dataclass
 class Response:
     """What the plant did (``state``) and what its sensors report: ``q`` (N, n), ``p_a``,
-    ``p_b`` (N, n) [Pa], at the sample times ``t`` with the commanded ``u`` (N, n) in effect."""
+    ``p_b`` (N, n) [Pa], at the sample times ``t`` with the commanded ``u`` (N, n) in effect;
+    ``effects``: the spec's and the given ones (not the plant's deviations)."""
     t: np.ndarray
     u: np.ndarray
     q: np.ndarray
@@ -190,7 +189,7 @@ def _q_from_strokes(crane, x, lo, hi):
 
 
 def _forces(crane, effects, t, q, dt, x, payload):
-    qd, qdd = _differences(q, dt)
+    qd, qdd = differences(q, dt)
     dxdq = stroke_map(crane).dxdq(q)
     xd = dxdq * qd
     # actuator force by virtual work, F = τ / (dx/dq), as in planner.model.hydraulics
@@ -206,30 +205,25 @@ def _forces(crane, effects, t, q, dt, x, payload):
     return s
 
 
-def respond(crane, t_u, u, q0, effects=(), *, plant: Plant = Plant(),
+def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
             dt: float | None = None, t_end: float | None = None, q_fit=None, fit_mask=None,
             replay_cache: dict | None = None) -> Response:
     """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
     (or from the start fitted to ``q_fit`` (N, n) measured on the sample grid, rows
     ``fit_mask``), with ``effects`` (a sequence of :class:`planner.simulation.effects.Effect`).
-    ``plant``: further valve/pump deviations (:class:`planner.simulation.replay.Plant`; its payload and
-    start offset are not used here). ``replay_cache``: a dict reused between calls that differ
-    only in force/sensor effects (the fitting loop)."""
-    from planner.simulation.effects import effect_from_dict
+    ``plant``: further deviations (a :class:`planner.simulation.replay.Plant` or a sequence of
+    effects), applied before the spec's and the given effects. ``replay_cache``: a dict reused
+    between calls that differ only in force/stroke/sensor effects (the fitting loop)."""
     # the spec's own (calibrated) effects are part of the model
-    effects = tuple(effect_from_dict(d) for d in crane.spec.effects) + tuple(effects)
+    given = tuple(effect_from_dict(d) for d in crane.spec.effects) + as_effects(crane, effects)
+    effects = as_effects(crane, plant) + given
     t_u = np.asarray(t_u, float)
     u = np.atleast_2d(np.asarray(u, float))
-    u_eff = u
-    for e in _by_stage(effects, "commands"):
-        u_eff = e.commands(crane, t_u, u_eff)
-    for e in _by_stage(effects, "valves"):
-        plant = e.plant(crane, plant)
-    key = (plant,) + tuple(e for e in effects if e.stage in ("commands", "valves"))
+    key = tuple(e for e in effects if e.replayed)
     if replay_cache is not None and key in replay_cache:
         sim = replay_cache[key]
     else:
-        sim = replay(crane, t_u, u_eff, q0, plant, dt=dt, t_end=t_end)
+        sim = replay(crane, t_u, u, q0, key, dt=dt, t_end=t_end)
         if replay_cache is not None:
             replay_cache[key] = sim
     dt = sim.meta["dt"]
@@ -285,6 +279,32 @@ def respond(crane, t_u, u, q0, effects=(), *, plant: Plant = Plant(),
         p_a, p_b = e.sense_p(crane, p_a, p_b)
     # the commanded u in effect at each sample (not what the valves saw)
     j = np.clip(np.searchsorted(t_u, t + 1e-9 * dt, side="right") - 1, 0, len(t_u) - 1)
-    return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=effects,
+    return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=given,
                     meta=dict(pump=sim.meta["pump"], clipped=sim.meta["clipped"], dt=dt,
                               payload=payload))
+
+
+# ----------------------------------------------------------------------------- CLI helper
+def simulate_to_csv(crane, traj: Trajectory, out, plant=Plant(), rate: float = 50.0,
+                    noise=None, seed: int = 0, effects=()) -> dict:
+    """What ``crane-planner simulate`` does: replay ``traj``'s valve commands (its own ``u``
+    when it carries them on a uniform grid, else :func:`planner.feedforward.commands` at
+    ``rate``) on ``plant`` with the hidden ``effects`` (:func:`respond`) and write the
+    measured-data CSV to ``out`` (noise as in :func:`planner.simulation.recording.noise_levels`).
+    Nothing is written when anything fails. Returns a JSON-ready summary."""
+    if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
+        t_u, u, src = traj.t, traj.u, "trajectory"
+    else:
+        ff = commands(crane, traj, rate)
+        t_u, u, src = ff.t, ff.u, f"feedforward@{rate:g}Hz"
+    r = respond(crane, t_u, u, traj.q[0], effects, plant=plant)
+    rec = Recording(r.t, r.u, r.q, r.p_a, r.p_b).with_noise(crane, noise, seed)
+    levels = noise_levels(noise)
+    cols = rec.to_csv(out, crane)
+    q_plan = traj.sample(r.t)[0]
+    tip_err = np.linalg.norm(crane.fk(r.state.q) - crane.fk(q_plan), axis=1)
+    return dict(status="ok", out=str(out), samples=len(r.t), columns=cols, commands=src,
+                plant=describe_plant(plant)[0], effects=[e.to_dict() for e in r.effects],
+                noise=levels, seed=seed,
+                max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),
+                clipped=r.meta["clipped"], pump=r.meta["pump"])

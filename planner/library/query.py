@@ -24,6 +24,10 @@ from planner.trajectory import Trajectory
 JOIN_RATE_HZ = 50.0  # control rate of the joined move's valve feed-forward
 
 
+class JoinError(ValueError):
+    """The join from a joint state cannot be made (wrong number of values, or Ruckig's reason)."""
+
+
 def cartesian(p) -> np.ndarray:
     """(…, 3) tips (r [m], z [m], slew [rad]) -> Cartesian (x, y, z) [m]."""
     p = np.asarray(p, dtype=float)
@@ -91,14 +95,14 @@ def join_from(crane: Crane, q, traj: Trajectory,
     """Prepend a Ruckig rest-to-rest join from the joint state ``q`` (SI, one value per joint)
     to the start of ``traj`` (an entry, starting at rest). Returns (the joined trajectory with
     the valve feed-forward of the whole move at ``rate`` [Hz] attached, join duration [s]).
-    ValueError when ``q`` has the wrong length or the join cannot be planned (its reason)."""
+    JoinError when ``q`` has the wrong length or the join cannot be planned (its reason)."""
     q = np.asarray(q, dtype=float)
     if q.shape != (crane.n,):
-        raise ValueError(f"needs {crane.n} joint values ({', '.join(crane.names)}), "
+        raise JoinError(f"needs {crane.n} joint values ({', '.join(crane.names)}), "
                          f"got {q.size}")
     j = rest_to_rest(crane, q, traj.q[0])
     if not j.ok:
-        raise ValueError(j.reason)
+        raise JoinError(j.reason)
     a, b = j.trajectory, traj
     t = np.concatenate([a.t, a.t[-1] + b.t[1:]])
 

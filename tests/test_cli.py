@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from planner.cli import main, parse_point
+from planner.cli import main
+from planner.units import parse_point
 
 ROOT = Path(__file__).resolve().parents[1]
 IDS = ["cat215b", "cranab850", "s100f", "umea-lab"]

@@ -1,4 +1,5 @@
-"""The library database (planner.library.store): round trip, refusals, crash recovery, query, export."""
+"""The library database (planner.library.store, export, query): round trip, refusals, crash
+recovery, query, export."""
 import csv
 import json
 import math
@@ -10,7 +11,8 @@ from scipy.io import loadmat
 
 from planner import Crane
 from planner.methods.ruckig import rest_to_rest
-from planner.library.store import LibraryStore, StoreError, export
+from planner.library.export import export
+from planner.library.store import LibraryStore, StoreError
 from planner.trajectory import evaluate
 
 
@@ -266,7 +268,7 @@ def test_export(tmp_path, s100f, moves):
 
 
 def test_matlab_names_and_file_stems():
-    from planner.library.store import _file_stem, matlab_name
+    from planner.library.export import file_stem, matlab_name
     used = set()
     got = [matlab_name(x, used) for x in ("1abc", "a-b", "a_b", "x" * 80, "é")]
     assert got[0] == "e_1abc" and got[1] == "a_b" and got[2] == "a_b_2"
@@ -274,5 +276,53 @@ def test_matlab_names_and_file_stems():
     import re
     assert all(re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,62}", g) for g in got)
     used = set()
-    assert [_file_stem(x, used) for x in ("A", "a", "../x", "index")] == \
+    assert [file_stem(x, used) for x in ("A", "a", "../x", "index")] == \
         ["A", "a_2", "_x", "entry_index"]
+
+
+def test_nearest_agrees_with_a_brute_force_search(tmp_path, s100f, moves):
+    """db.nearest (vectorised, planner.library.query) against a plain loop over index_rows
+    with the Cartesian distance written out with math.cos / math.sin."""
+    path = tmp_path / "lib.h5"
+    _fill(path, s100f, moves)
+
+    def xyz(p):
+        return (p[0] * math.cos(p[2]), p[0] * math.sin(p[2]), p[1])
+
+    rng = np.random.default_rng(7)
+    with LibraryStore.open(path) as db:
+        rows = [r for r in db.index_rows() if r["status"] == "ok"]
+        for _ in range(20):
+            s = rng.uniform([1, -2, -1], [7, 3, 1])
+            g = rng.uniform([1, -2, -1], [7, 3, 1])
+            want = min((math.dist(xyz(s), xyz(r["start"])) + math.dist(xyz(g), xyz(r["goal"])),
+                        r["id"]) for r in rows)
+            got, d = db.nearest(s, g)
+            assert got == want[1] and d == pytest.approx(want[0], rel=1e-12)
+    empty = tmp_path / "empty.h5"
+    LibraryStore.create(empty, s100f.spec).close()
+    with LibraryStore.open(empty) as db, pytest.raises(LookupError, match="no entries"):
+        db.nearest((5, 0, 0), (3, 1, 0))
+
+
+def test_join_from_a_joint_state(s100f, moves):
+    """The joined move (planner.library.query.join_from) is the Ruckig join followed by the
+    entry: checked against sampling the two parts on their own."""
+    from planner.library.query import join_from
+    entry = moves[1][1]
+    q0 = _config(s100f, [0.3, 0.3, 0.3, 0.3])
+    joined, join_s = join_from(s100f, q0, entry)
+    ref = rest_to_rest(s100f, q0, entry.q[0]).trajectory
+    assert join_s == pytest.approx(ref.duration, rel=1e-12)
+    assert joined.t[-1] >= join_s + entry.duration - 1e-9
+    assert joined.method == "ruckig+" + entry.method and joined.u.shape == joined.q.shape
+    assert np.all(np.abs(joined.u) <= 1.0)
+    np.testing.assert_allclose(joined.q[0], q0, atol=1e-12)
+    np.testing.assert_allclose(joined.qd[0], 0.0, atol=1e-12)
+    before = joined.t <= join_s
+    np.testing.assert_allclose(joined.q[before], ref.sample(joined.t[before])[0], atol=1e-9)
+    after = joined.t >= join_s
+    np.testing.assert_allclose(joined.q[after], entry.sample(joined.t[after] - join_s)[0],
+                               atol=1e-6)
+    with pytest.raises(ValueError, match="needs 4 joint values"):
+        join_from(s100f, q0[:3], entry)

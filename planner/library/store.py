@@ -1,5 +1,6 @@
-"""The library database: one HDF5 file per library (CONTRACT: trajectory database), and its
-CSV / MAT / JSON export.
+"""The library database: one HDF5 file per library (CONTRACT: trajectory database). Its
+CSV / MAT / JSON export is :mod:`planner.library.export`, the nearest-entry query and the join
+from a joint state :mod:`planner.library.query`.
 
 File layout (``format`` = "crane-planner-library", ``format_version`` = 1)::
 
@@ -41,18 +42,16 @@ deleted groups; h5repack compacts a file if that matters.) The driver is the sin
 """
 from __future__ import annotations
 
-import csv
-import io as _io
 import json
 import math
-import re
 from datetime import datetime, timezone
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from planner.io import atomic_write_bytes, atomic_write_text, dumps
+from planner.io import dumps
+from planner.library.query import index_summary, nearest_entry
 from planner.trajectory import LIMIT_KINDS, Trajectory
 
 FORMAT = "crane-planner-library"
@@ -84,12 +83,12 @@ def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def _s(v) -> str:
-    """h5py attribute / fixed-length field -> str."""
+def as_str(v) -> str:
+    """An h5py attribute or fixed-length index field (bytes, str, 0-d array) -> str."""
     if isinstance(v, bytes):
         return v.decode("utf-8", "replace").rstrip("\x00")
     if isinstance(v, np.ndarray) and v.shape == ():
-        return _s(v[()])
+        return as_str(v[()])
     return str(v)
 
 
@@ -118,12 +117,6 @@ def _tip3(what: str, p) -> np.ndarray:
     return a
 
 
-def _cart(p: np.ndarray) -> np.ndarray:
-    """(…, 3) tips (r, z, slew) -> Cartesian (x, y, z)."""
-    r, z, s = p[..., 0], p[..., 1], p[..., 2]
-    return np.stack([r * np.cos(s), r * np.sin(s), z], axis=-1)
-
-
 def _on_grid(ev_t, t, a):
     """Evaluation array ``a`` (on ev_t) at the times t: exact pick, else linear interpolation."""
     a = np.asarray(a, dtype=float)
@@ -149,7 +142,7 @@ class LibraryStore:
         # gzip (deflate 4) + shuffle for new datasets: ~35 % smaller files, ~2x slower writes
         # (the samples are noisy floats); off by default. MATLAB reads either.
         self.compress = False
-        self.crane_id = _s(f.attrs["crane_id"])
+        self.crane_id = as_str(f.attrs["crane_id"])
         self.format_version = int(f.attrs["format_version"])
         self._load_index()
 
@@ -208,8 +201,8 @@ class LibraryStore:
             raise StoreError(f"{path}: cannot open the HDF5 file ({e})") from e
         try:
             cls._check_format(f, path)
-            if spec is not None and _s(f.attrs["crane_id"]) != spec.id:
-                raise StoreError(f"{path}: library is for crane '{_s(f.attrs['crane_id'])}', "
+            if spec is not None and as_str(f.attrs["crane_id"]) != spec.id:
+                raise StoreError(f"{path}: library is for crane '{as_str(f.attrs['crane_id'])}', "
                                  f"not '{spec.id}'")
             db = cls(f, path, mode)
             db.compress = compress
@@ -226,8 +219,9 @@ class LibraryStore:
         if fmt is None:
             raise StoreError(f"{path}: HDF5 file without the root attribute format = '{FORMAT}' "
                              f"(root attributes: {sorted(f.attrs.keys())}); not a library")
-        if _s(fmt) != FORMAT:
-            raise StoreError(f"{path}: root attribute format = {_s(fmt)!r}, expected '{FORMAT}'")
+        if as_str(fmt) != FORMAT:
+            raise StoreError(f"{path}: root attribute format = {as_str(fmt)!r}, "
+                             f"expected '{FORMAT}'")
         try:
             ver = int(f.attrs["format_version"])
         except (KeyError, TypeError, ValueError):
@@ -246,7 +240,7 @@ class LibraryStore:
 
     def _load_index(self):
         rows = self._f["index"][()]
-        self._ids = [_s(x) for x in rows["id"]]
+        self._ids = [as_str(x) for x in rows["id"]]
         self._idset = set(self._ids)
 
     def _clean_unfinished(self) -> int:
@@ -282,11 +276,12 @@ class LibraryStore:
     # ------------------------------------------------------------------ properties
     @property
     def spec_toml(self) -> str:
-        return _s(self._f["spec_toml"][()])
+        return as_str(self._f["spec_toml"][()])
 
     @property
     def attrs(self) -> dict:
-        return {k: (_s(v) if isinstance(v, (bytes, str)) else v) for k, v in self._f.attrs.items()}
+        return {k: (as_str(v) if isinstance(v, (bytes, str)) else v)
+                for k, v in self._f.attrs.items()}
 
     def has(self, entry_id: str) -> bool:
         return entry_id in self._idset
@@ -392,7 +387,7 @@ class LibraryStore:
         ds.resize((n + 1,))
         ds[n] = row
         self._f.flush()
-        eid = _s(row["id"])
+        eid = as_str(row["id"])
         self._ids.append(eid)
         self._idset.add(eid)
 
@@ -400,14 +395,25 @@ class LibraryStore:
     def _index_array(self) -> np.ndarray:
         return self._f["index"][()]
 
+    def index_columns(self) -> dict[str, np.ndarray]:
+        """The index table column by column: id, objective, method, status (str arrays), start,
+        goal ((n, 3) tips r, z, slew), duration_s, energy_J, robustness (NaN: not available)."""
+        idx = self._index_array()
+        out = {k: np.array([as_str(x) for x in idx[k]], dtype=object)
+               for k in ("id", "objective", "method", "status")}
+        out.update({k: np.asarray(idx[k], float) for k in ("start", "goal", "duration_s",
+                                                            "energy_J", "robustness")})
+        return out
+
     def index_rows(self) -> list[dict]:
         """One dict per finished entry: id, start, goal (tuples r, z, slew), objective, method,
         status, duration_s, energy_J, robustness (NaN when not available)."""
         out = []
         for r in self._index_array():
-            out.append(dict(id=_s(r["id"]), start=tuple(float(v) for v in r["start"]),
-                            goal=tuple(float(v) for v in r["goal"]), objective=_s(r["objective"]),
-                            method=_s(r["method"]), status=_s(r["status"]),
+            out.append(dict(id=as_str(r["id"]), start=tuple(float(v) for v in r["start"]),
+                            goal=tuple(float(v) for v in r["goal"]),
+                            objective=as_str(r["objective"]), method=as_str(r["method"]),
+                            status=as_str(r["status"]),
                             duration_s=float(r["duration_s"]), energy_J=float(r["energy_J"]),
                             robustness=float(r["robustness"])))
         return out
@@ -426,9 +432,9 @@ class LibraryStore:
         out = {}
         for k, v in self._group(entry_id).attrs.items():
             if isinstance(v, bytes):
-                v = _s(v)
+                v = as_str(v)
             elif isinstance(v, np.ndarray):
-                v = [_s(x) for x in v] if v.dtype.kind in "OSU" else v.tolist()
+                v = [as_str(x) for x in v] if v.dtype.kind in "OSU" else v.tolist()
             elif isinstance(v, np.generic):
                 v = v.item()
             if k in ("solver_stats", "provenance", "limits", "evaluation") and isinstance(v, str):
@@ -446,13 +452,18 @@ class LibraryStore:
         out["attrs"] = self.entry_attrs(entry_id)
         return out
 
+    def has_trajectory(self, entry_id: str) -> bool:
+        """Whether the entry stores sampled arrays (a failed entry has attributes only)."""
+        return "t" in self._group(entry_id)
+
     def trajectory(self, entry_id: str) -> Trajectory:
         """The stored Trajectory (raises KeyError for unknown ids, StoreError when the entry has
         no trajectory, e.g. a failed one)."""
         g = self._group(entry_id)
         if "t" not in g:
             raise StoreError(f"{self.path}: entry '{entry_id}' has no trajectory (status "
-                             f"'{_s(g.attrs.get('status', ''))}': {_s(g.attrs.get('reason', ''))})")
+                             f"'{as_str(g.attrs.get('status', ''))}': "
+                             f"{as_str(g.attrs.get('reason', ''))})")
         a = self.entry_attrs(entry_id)
         limits = tuple(k for k in a.get("limits", LIMIT_KINDS) if k in LIMIT_KINDS)
         meta = a.get("solver_stats", {})
@@ -464,204 +475,19 @@ class LibraryStore:
                           meta=meta if isinstance(meta, dict) else {})
 
     def info(self) -> dict:
-        """Summary: entry counts (total, ok, failures by status, by objective and method) and
-        min / mean / max of duration_s, energy_J and robustness over the "ok" entries."""
-        rows = self.index_rows()
-        ok = [r for r in rows if r["status"] == "ok"]
-        failures: dict[str, int] = {}
-        for r in rows:
-            if r["status"] != "ok":
-                failures[r["status"]] = failures.get(r["status"], 0) + 1
-
-        def stats(key):
-            v = np.array([r[key] for r in ok], float)
-            v = v[np.isfinite(v)]
-            if v.size == 0:
-                return dict(n=0, min=None, mean=None, max=None, total=None)
-            return dict(n=int(v.size), min=float(v.min()), mean=float(v.mean()),
-                        max=float(v.max()), total=float(v.sum()))
-
-        def count(key):
-            out: dict[str, int] = {}
-            for r in rows:
-                out[r[key]] = out.get(r[key], 0) + 1
-            return out
+        """Summary: file attributes, entry counts (total, ok, failures by status, by objective
+        and method) and min / mean / max of duration_s, energy_J and robustness over the "ok"
+        entries (:func:`planner.library.query.index_summary`)."""
         a = self.attrs
         return dict(file=str(self.path), format=a.get("format"),
                     format_version=self.format_version, crane_id=self.crane_id,
                     created=a.get("created"), planner_version=a.get("planner_version"),
-                    entries=len(rows), ok=len(ok), failures=failures,
-                    by_objective=count("objective"), by_method=count("method"),
-                    duration_s=stats("duration_s"), energy_J=stats("energy_J"),
-                    robustness=stats("robustness"), cleaned=self.cleaned)
+                    **index_summary(self.index_rows()), cleaned=self.cleaned)
 
     def nearest(self, start, goal, objective: str | None = None) -> tuple[str, float]:
         """The "ok" entry (of ``objective``, if given) whose start and goal tips are nearest:
         distance = |start - start_e| + |goal - goal_e| in Cartesian space [m]. Returns
-        (entry_id, distance_m); LookupError when there is no candidate."""
-        s, g = _cart(_tip3("start", start)), _cart(_tip3("goal", goal))
-        idx = self._index_array()
-        if idx.size == 0:
-            raise LookupError(f"{self.path}: the library has no entries")
-        status = np.array([_s(x) for x in idx["status"]])
-        mask = status == "ok"
-        if objective is not None:
-            mask &= np.array([_s(x) for x in idx["objective"]]) == objective
-        if not mask.any():
-            what = f" with objective '{objective}'" if objective is not None else ""
-            raise LookupError(f"{self.path}: no 'ok' entries{what}")
-        d = (np.linalg.norm(_cart(idx["start"][mask]) - s, axis=1)
-             + np.linalg.norm(_cart(idx["goal"][mask]) - g, axis=1))
-        k = int(np.argmin(d))
-        return _s(idx["id"][mask][k]), float(d[k])
-
-
-# ----------------------------------------------------------------------------- export
-INDEX_CSV_COLUMNS = ("id", "file", "start_r", "start_z", "start_slew", "goal_r", "goal_z",
-                     "goal_slew", "objective", "method", "status", "duration_s", "energy_J",
-                     "robustness", "reason")
-
-
-def _unique(name: str, used: set, maxlen: int) -> str:
-    base, k = name[:maxlen], 1
-    out = base
-    while out.lower() in used:  # case-insensitive: file names on macOS / Windows
-        k += 1
-        suffix = f"_{k}"
-        out = base[:maxlen - len(suffix)] + suffix
-    used.add(out.lower())
-    return out
-
-
-def _file_stem(entry_id: str, used: set) -> str:
-    stem = re.sub(r"[^A-Za-z0-9_.+-]", "_", entry_id).lstrip(".") or "entry"
-    if stem.lower() == "index":
-        stem = "entry_index"
-    return _unique(stem, used, 100)
-
-
-def matlab_name(entry_id: str, used: set) -> str:
-    """A valid, unique MATLAB identifier (letter first, [A-Za-z0-9_], <= 63 chars) for an id."""
-    name = re.sub(r"[^A-Za-z0-9_]", "_", entry_id)
-    if not name or not name[0].isalpha():
-        name = "e_" + name
-    return _unique(name, used, 63)
-
-
-def _jsonable(o):
-    """Plain JSON types; non-finite floats -> None (strict JSON)."""
-    if isinstance(o, np.ndarray):
-        if o.dtype.kind == "f" and not np.all(np.isfinite(o)):
-            return _jsonable(o.astype(object))
-        if o.dtype.kind in "fiub":
-            return o.tolist()
-        return [_jsonable(v) for v in o.tolist()]
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, np.generic):
-        o = o.item()
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    if isinstance(o, bytes):
-        return _s(o)
-    if o is None or isinstance(o, (str, int, float, bool)):
-        return o
-    return str(o)
-
-
-def _fmt(v: float) -> str:
-    return "" if not math.isfinite(v) else f"{v:.10g}"
-
-
-def export(db_path, out_dir, fmt: str) -> list[Path]:
-    """Export a library: fmt "csv" (one trajectory CSV per entry with a trajectory, per the
-    trajectory-CSV contract, plus index.csv), "mat" (library.mat: struct ``entries`` with one
-    field per entry, struct ``index``, ``crane_id``, ``spec_toml``) or "json" (library.json:
-    index rows and entries as lists). Every file is written atomically. Returns the paths."""
-    if fmt not in ("csv", "mat", "json"):
-        raise StoreError(f"export format must be 'csv', 'mat' or 'json', got {fmt!r}")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    with LibraryStore.open(db_path, "r") as db:
-        rows = db.index_rows()
-        reasons = {r["id"]: db.entry_attrs(r["id"]).get("reason", "") for r in rows}
-        if fmt == "csv":
-            used: set = set()
-            files = {}
-            for r in rows:
-                g = db._group(r["id"])
-                if "t" not in g:
-                    files[r["id"]] = ""
-                    continue
-                name = _file_stem(r["id"], used) + ".csv"
-                p = out_dir / name
-                db.trajectory(r["id"]).to_csv(p)
-                files[r["id"]] = name
-                written.append(p)
-            buf = _io.StringIO()
-            w = csv.writer(buf, lineterminator="\n")
-            w.writerow(INDEX_CSV_COLUMNS)
-            for r in rows:
-                w.writerow([r["id"], files[r["id"]], *(_fmt(v) for v in r["start"]),
-                            *(_fmt(v) for v in r["goal"]), r["objective"], r["method"],
-                            r["status"], _fmt(r["duration_s"]), _fmt(r["energy_J"]),
-                            _fmt(r["robustness"]), reasons[r["id"]]])
-            p = out_dir / "index.csv"
-            atomic_write_text(p, buf.getvalue())
-            written.append(p)
-        elif fmt == "mat":
-            from scipy.io import savemat
-            used = set()
-            entries, names = {}, []
-            for r in rows:
-                e = db.entry(r["id"])
-                a = e.pop("attrs")
-                name = matlab_name(r["id"], used)
-                names.append(name)
-                s = {k: np.asarray(v, float) for k, v in e.items()}
-                s.update(id=r["id"], status=r["status"], method=r["method"],
-                         objective=r["objective"], reason=str(a.get("reason", "")),
-                         joint_names=np.array(list(a.get("joint_names", [])), dtype=object),
-                         solver_stats=json.dumps(a.get("solver_stats", {}), default=str),
-                         provenance=json.dumps(a.get("provenance", {})))
-                entries[name] = s
-            n = len(rows)
-            index = dict(
-                id=np.array([r["id"] for r in rows], dtype=object).reshape(n, 1),
-                field=np.array(names, dtype=object).reshape(n, 1),
-                start=np.array([r["start"] for r in rows], float).reshape(n, 3),
-                goal=np.array([r["goal"] for r in rows], float).reshape(n, 3),
-                objective=np.array([r["objective"] for r in rows], dtype=object).reshape(n, 1),
-                method=np.array([r["method"] for r in rows], dtype=object).reshape(n, 1),
-                status=np.array([r["status"] for r in rows], dtype=object).reshape(n, 1),
-                duration_s=np.array([r["duration_s"] for r in rows], float).reshape(n, 1),
-                energy_J=np.array([r["energy_J"] for r in rows], float).reshape(n, 1),
-                robustness=np.array([r["robustness"] for r in rows], float).reshape(n, 1))
-            buf = _io.BytesIO()
-            savemat(buf, dict(crane_id=db.crane_id, spec_toml=db.spec_toml, index=index,
-                              entries=entries), long_field_names=True, do_compression=True,
-                    oned_as="column")
-            p = out_dir / "library.mat"
-            atomic_write_bytes(p, buf.getvalue())
-            written.append(p)
-        else:
-            entries = []
-            for r in rows:
-                e = db.entry(r["id"])
-                a = e.pop("attrs")
-                d = dict(id=r["id"], **{k: v for k, v in a.items()})
-                d.update({k: np.asarray(v, float) for k, v in e.items()})
-                entries.append(d)
-            doc = dict(format=FORMAT, format_version=db.format_version, crane_id=db.crane_id,
-                       planner_version=db.attrs.get("planner_version"),
-                       index=[dict(r, reason=reasons[r["id"]]) for r in rows], entries=entries)
-            p = out_dir / "library.json"
-            # one pass, arrays via tolist(): planner.io.dumps round-trips the whole document
-            # three times, which is ~10x slower on large libraries
-            atomic_write_text(p, json.dumps(_jsonable(doc), allow_nan=False,
-                                            separators=(",", ":")) + "\n")
-            written.append(p)
-    return written
+        (entry_id, distance_m); LookupError when there is no candidate.
+        (:func:`planner.library.query.nearest_entry` on :meth:`index_columns`.)"""
+        start, goal = _tip3("start", start), _tip3("goal", goal)
+        return nearest_entry(self.index_columns(), start, goal, objective, where=self.path)

@@ -1,0 +1,62 @@
+"""What every command module of the CLI shares: the user-error type, ``--json`` handling,
+argument types (tip points, method names) and reading a trajectory named on the command line."""
+from __future__ import annotations
+
+import argparse
+
+from planner.io import write_json
+from planner.methods import available
+from planner.trajectory import Trajectory
+from planner.units import parse_point
+
+
+class CLIError(Exception):
+    """A user error: printed as one line, exit status 2."""
+
+
+def point_arg(text: str) -> tuple[float, float, float]:
+    """argparse type of ``--start`` / ``--goal``: :func:`planner.units.parse_point`, its errors
+    as usage errors."""
+    try:
+        return parse_point(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def method_arg(text: str) -> str:
+    """argparse type of ``--method``: a name of the method registry."""
+    names = available()
+    if text in names:
+        return text
+    raise argparse.ArgumentTypeError(f"unknown method {text!r}; available: {', '.join(names)}")
+
+
+def add_json_arg(p: argparse.ArgumentParser) -> None:
+    """``--json [FILE]`` on a sub-command."""
+    p.add_argument("--json", nargs="?", const="-", metavar="FILE",
+                   help="write a JSON result to FILE ('-' or no value: stdout)")
+
+
+def emit(args, obj) -> None:
+    """Write ``obj`` as the command's JSON result when ``--json`` was given."""
+    if getattr(args, "json", None):
+        write_json(args.json, obj)
+
+
+def read_trajectory(crane, ref: str) -> Trajectory:
+    """A trajectory named on the command line: FILE.csv, or FILE.h5#ID (an entry of a library
+    database; the ID may be left out when the file holds one entry)."""
+    path, _, entry = ref.partition("#")
+    if path.endswith(".h5"):
+        from planner.library.store import LibraryStore  # h5py: only when a database is read
+        with LibraryStore.open(path, "r") as db:
+            ids = db.ids()
+            if not entry:
+                if len(ids) != 1:
+                    raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
+                entry = ids[0]
+            return db.trajectory(entry)
+    try:
+        return Trajectory.from_csv(path, joint_names=crane.names)
+    except OSError as e:
+        raise CLIError(f"cannot read trajectory {path}: {e.strerror}") from None

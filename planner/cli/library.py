@@ -1,0 +1,132 @@
+"""``library build | info | query | export``: trajectory databases (HDF5).
+
+The store and the export need h5py; they are imported inside the commands so that
+``crane-planner --help`` does not load it."""
+from __future__ import annotations
+
+import numpy as np
+
+from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
+from planner.library.build import build
+from planner.library.query import JoinError, join_from, library_crane
+from planner.units import parse_angle
+
+
+def cmd_library_build(args):
+    objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
+    summary = build(args.crane, args.tasks, args.out, objectives=objectives,
+                    workers=args.workers, scheduler=args.scheduler, limit=args.limit,
+                    N=args.intervals, robustness=not args.no_robustness,
+                    progress=not (args.json == "-"), method=args.method)
+    emit(args, summary)
+    if not args.json:
+        print(f"{summary['library']}: planned {summary['planned']} entries "
+              f"({summary['statuses'] or 'none'}), {summary['skipped_existing']} already there, "
+              f"{summary['seconds']:.1f} s")
+    return 0
+
+
+def cmd_library_info(args):
+    from planner.library.store import LibraryStore
+    with LibraryStore.open(args.library, "r") as db:
+        info = db.info()
+    emit(args, info)
+    if not args.json:
+        d = info.get("duration_s") or {}
+        print(f"{args.library}: {info['entries']} entries ({info['ok']} ok), failures "
+              f"{info['failures'] or 'none'}; duration mean {d.get('mean', float('nan')):.3f} s")
+    return 0
+
+
+def cmd_library_query(args):
+    from planner.library.store import LibraryStore
+    with LibraryStore.open(args.library, "r") as db:
+        try:
+            eid, dist = db.nearest(args.start, args.goal, objective=args.objective)
+        except LookupError as e:
+            raise CLIError(str(e)) from None
+        row = next(r for r in db.index_rows() if r["id"] == eid)
+        traj = db.trajectory(eid)
+        spec_toml = db.spec_toml
+    result = dict(status="ok", id=eid, distance_m=dist, entry=row)
+    if args.q_from:
+        crane = library_crane(spec_toml)
+        try:
+            traj, result["join_duration_s"] = join_from(crane, joint_state(crane, args.q_from),
+                                                        traj)
+        except JoinError as e:
+            raise CLIError(f"--from: {e}") from None
+    if args.out:
+        traj.to_csv(args.out)
+    emit(args, result)
+    if not args.json:
+        print(f"nearest entry {eid} ({row['objective']}, {row['method']}): "
+              f"{dist:.3f} m from the request (start + goal), {row['duration_s']:.3f} s"
+              + (f"; joined from the current state in {result['join_duration_s']:.3f} s"
+                 if args.q_from else ""))
+    return 0
+
+
+def joint_state(crane, text: str) -> np.ndarray:
+    """``--from q1,q2,...`` -> one value per joint of ``crane`` (SI; angles may be '30deg')."""
+    try:
+        q = np.array([parse_angle(v) for v in text.split(",")], float)
+    except ValueError:
+        raise CLIError(f"--from {text!r}: expected {crane.n} joint values "
+                       f"({', '.join(crane.names)})") from None
+    if q.shape != (crane.n,):
+        raise CLIError(f"--from needs {crane.n} joint values ({', '.join(crane.names)}), "
+                       f"got {q.size}")
+    return q
+
+
+def cmd_library_export(args):
+    from planner.library.export import export
+    files = export(args.library, args.out, args.format)
+    emit(args, dict(status="ok", files=[str(f) for f in files]))
+    if not args.json:
+        print(f"{len(files)} file(s) written to {args.out}")
+    return 0
+
+
+def add_parsers(sub) -> None:
+    """``library`` (build, info, query, export)."""
+    lib = sub.add_parser("library", help="trajectory databases (HDF5): info, query, export")
+    lsub = lib.add_subparsers(dest="what", required=True)
+    p = lsub.add_parser("build", help="plan every move of a task suite into LIB.h5 "
+                                      "(resumes an interrupted build)")
+    p.add_argument("crane")
+    p.add_argument("--tasks", required=True, help="task suite id or path (forwarder-cycle)")
+    p.add_argument("--out", required=True, metavar="LIB.h5")
+    p.add_argument("--objectives", default="time", help="comma list of time, energy (time)")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
+    p.add_argument("--limit", type=int, help="only the first N moves of the suite")
+    p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
+    p.add_argument("--method", type=method_arg, default="nlp",
+                   help="registered planning method of every entry (nlp); see plan --help")
+    p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_build)
+    p = lsub.add_parser("info", help="entries, failures, time/energy statistics")
+    p.add_argument("library", metavar="LIB.h5")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_info)
+    p = lsub.add_parser("query", help="the entry nearest to a requested move")
+    p.add_argument("library", metavar="LIB.h5")
+    p.add_argument("--start", type=point_arg, required=True, metavar="r,z,slew")
+    p.add_argument("--goal", type=point_arg, required=True, metavar="r,z,slew")
+    p.add_argument("--objective", help="only entries with this objective")
+    p.add_argument("--from", dest="q_from", metavar="q1,q2,...",
+                   help="current joint configuration: prepend a Ruckig rest-to-rest join to "
+                        "the entry's start (angles may be written 30deg)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the entry's trajectory CSV")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_query)
+    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT or JSON")
+    p.add_argument("library", metavar="LIB.h5")
+    p.add_argument("--format", choices=("csv", "mat", "json"), required=True)
+    p.add_argument("--out", required=True, metavar="DIR")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_export)

@@ -1,0 +1,129 @@
+"""``plan CRANE --start --goal``: one move with a registered method (planner.methods), judged
+by evaluate(); JSON keys per DESIGN.md (CONTRACT: command line)."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from planner.bounds import lower_bound
+from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
+from planner.geometry.obstacles import Wall
+from planner.methods import PlanRequest, UnsupportedRequest, get, plan
+from planner.model import Crane, UnreachableError
+from planner.trajectory import evaluate
+
+
+def cmd_plan(args):
+    """Plan one move with a registered method (planner.methods.registry); JSON keys per
+    DESIGN.md. Failures come back as a status with a reason."""
+    crane = Crane.from_id(args.crane)
+    method = args.method
+    planner = get(method)
+    out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
+               start=list(args.start), goal=list(args.goal))
+    args.path = args.path or planner.default_path
+    out["path"] = args.path
+    walls = tuple(Wall(*w) for w in (args.wall or []))
+    try:
+        req = PlanRequest(args.start, args.goal, objective=args.objective, path=args.path,
+                          duration=args.duration, tip_speed=args.tip_speed, obstacles=walls,
+                          options=dict(intervals=args.intervals, step=args.step,
+                                       tele_step=args.tele_step, window=args.window,
+                                       rate=args.rate, tele0=args.tele0))
+        t0 = time.perf_counter()
+        res = plan(crane, req, method)
+    except UnsupportedRequest as e:
+        raise CLIError(str(e)) from None
+    if "energy_winner" in res.stats:
+        out["energy_winner"] = res.stats["energy_winner"]
+    out["solve_time_s"] = time.perf_counter() - t0  # the whole call, set-up included
+    try:
+        lb = lower_bound(crane, args.start, args.goal)
+    except UnreachableError as e:
+        lb = None
+        if res.ok:
+            raise CLIError(str(e)) from None
+    if not res.ok:
+        out.update(status=res.status, reason=res.reason)
+        emit(args, out)
+        print(f"{method}: {res.status}: {res.reason}", file=sys.stderr)
+        return 3
+    ev = evaluate(crane, res.trajectory)
+    checked = set(ev.checked)
+    for w in res.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    if res.warnings:
+        out["warnings"] = list(res.warnings)
+    if lb is not None:
+        bound = (lb.combined_s if "acceleration" in checked else
+                 max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))
+    out.update(duration_s=ev.duration, energy_J=ev.energy_J,
+               peak_pump_flow_m3s=ev.peak_pump_flow, max_limit_violation=ev.max_limit_violation,
+               violations=ev.violations, checked_limits=sorted(checked),
+               lower_bound_s=bound if lb is not None else None,
+               lower_bounds=lb.as_dict() if lb is not None else None)
+    if args.out:
+        if not str(args.out).endswith(".csv"):
+            raise CLIError(f"--out {args.out}: write a trajectory CSV (.csv)")
+        res.trajectory.to_csv(args.out)
+    if args.plot:
+        from planner.plots import trajectory_figure
+        trajectory_figure(crane, ev, args.plot,
+                          f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s",
+                          walls=walls)
+    emit(args, out)
+    if not args.json:
+        loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
+        print(f"{crane.spec.id} {method} {args.objective}: {ev.duration:.3f} s, "
+              f"{ev.energy_J / 1e3:.2f} kJ, peak pump flow {ev.peak_pump_flow * 6e4:.1f} L/min, "
+              f"max violation of the {len(checked)} limit kinds it respects "
+              f"{100 * ev.max_limit_violation:.3f} %"
+              + (f", lower bound {bound:.3f} s" if lb is not None else "")
+              + ("".join(f"\n  not respected by {method}: {k} exceeded by {100 * v:.1f} %"
+                         for k, v in loose.items())))
+    return 0
+
+
+def wall_arg(text):
+    """argparse type of ``--wall``: r,z_top,z_bottom[,clearance] [m] -> list of floats."""
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) not in (3, 4) or v[1] <= v[2] or (len(v) == 4 and v[3] <= 0):
+        raise argparse.ArgumentTypeError(f"expected r,z_top,z_bottom[,clearance] with "
+                                         f"z_top > z_bottom and clearance > 0, got {text!r}")
+    return v
+
+
+def add_parsers(sub) -> None:
+    """``plan``."""
+    p = sub.add_parser("plan", help="plan one move (DP, DP + TOPP-RA, Ruckig, or a local law)")
+    p.add_argument("crane")
+    p.add_argument("--start", type=point_arg, required=True, metavar="r,z,slew")
+    p.add_argument("--goal", type=point_arg, required=True, metavar="r,z,slew")
+    p.add_argument("--method", type=method_arg, default="dp",
+                   help="a registered method: nlp (CasADi/IPOPT; --path free|line), dp (Bellman "
+                        "along the line), topp (the DP path retimed with acceleration and pump "
+                        "limits), ruckig (jerk-limited joint move, free path), law:NAME "
+                        "(least_norm, max_velocity, max_lift, jla, q_optimal, p_optimal), or a "
+                        "plug-in's")
+    p.add_argument("--objective", choices=("time", "energy"), default="time")
+    p.add_argument("--path", choices=("line", "free"), default=None,
+                   help="tip path (default: free for nlp and ruckig, line for the others)")
+    p.add_argument("--tip-speed", type=float, help="commanded tip speed [m/s] (laws; DP energy)")
+    p.add_argument("--duration", type=float, help="move duration [s] (DP energy)")
+    p.add_argument("--step", type=float, default=0.01, help="DP stage spacing [m] (0.01)")
+    p.add_argument("--tele-step", type=float, default=0.01, help="DP telescope grid [m] (0.01)")
+    p.add_argument("--window", type=int, default=5, help="DP telescope steps per stage (5)")
+    p.add_argument("--rate", type=float, default=100.0, help="law control rate [Hz] (100)")
+    p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
+    p.add_argument("--wall", type=wall_arg, action="append", metavar="r,z_top,z_bottom[,clear]",
+                   help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
+                        "from the slew axis, kept clear by `clear` m (0.3); repeatable")
+    p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
+    p.add_argument("--out", metavar="FILE.csv", help="write the trajectory CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_plan)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from planner.simulation.effects import CATALOGUE
+from planner.model.effects import CATALOGUE
 from planner.io import atomic_write_text
 
 MACHINES = ("cat215b", "s100f", "umea-lab", "cranab850")

@@ -92,12 +92,12 @@ print(f"settings: {'small' if SMALL else 'full'} {S}")
 # %% [markdown]
 # ## The catalogue
 #
-# `planner/simulation/effects.py`: every effect is a small augmentation of the nominal model —
+# `planner/model/effects.py`: every effect is a small augmentation of the nominal model —
 # the same object is injected into the simulated "true" plant and fitted by the workflow.
 
 # %%
 from planner import Crane
-from planner.simulation.effects import catalogue
+from planner.model.effects import catalogue
 
 crane = Crane.from_id("cat215b")
 print(f"{crane.spec.name}: joints {crane.names}")

@@ -13,7 +13,7 @@ from planner import Crane
 from planner.cli import main
 from planner.calibration.compensate import closed_loop
 from planner.calibration.discrepancy import Discrepancy, noise_floor
-from planner.simulation.effects import CATALOGUE
+from planner.model.effects import CATALOGUE
 from planner.calibration.trials import excitation, hidden_trial
 
 DUR = 25.0
@@ -58,7 +58,7 @@ def test_clean_data_give_none(machine, seed):
 
 
 def test_a_second_effect_is_found_on_top(cat):
-    from planner.simulation.effects import make
+    from planner.model.effects import make
     from planner.calibration.trials import record
     plan, ff = excitation(cat, 40.0, seed=5)
     truth = (make("flow_gain", "stick", scale=0.85), make("coulomb_friction", "boom", force=8e3))
@@ -79,7 +79,7 @@ def test_replanned_feedforward_tracks_the_true_plant_better(cat):
 def test_position_only_recordings_work(cat):
     from planner.calibration.trials import record
     plan, ff = excitation(cat, DUR, seed=8)
-    from planner.simulation.effects import make
+    from planner.model.effects import make
     rec = record(cat, plan, ff, (make("valve_lag", "boom", tau=0.15),), seed=8,
                  positions_only=True)
     res = Discrepancy(cat, second=False).fit(rec)
@@ -163,7 +163,7 @@ def test_same_inputs_same_outputs(tmp_path):
 
 
 def test_commands_come_from_the_trajectory_when_the_csv_has_none(tmp_path):
-    from planner.simulation.effects import make
+    from planner.model.effects import make
     from planner.calibration.trials import record
     from planner.simulation.recording import Recording
     crane = Crane.from_id("cat215b")

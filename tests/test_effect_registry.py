@@ -13,7 +13,7 @@ from planner.calibration.trials import TRIAL_MAGNITUDES, draw, hidden_trial
 from planner.cli import main
 from planner.feedforward import commands
 from planner.methods.ruckig import rest_to_rest
-from planner.simulation.effects import (CATALOGUE, Effect, Parameter, StartOffset, make,
+from planner.model.effects import (CATALOGUE, Effect, Parameter, StartOffset, make,
                                         parse_effect, register, unregister)
 from planner.simulation.plant import respond
 from planner.simulation.replay import Plant, replay, stroke_rates

@@ -8,7 +8,7 @@ import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.simulation.effects import CATALOGUE, catalogue, make, parse_effect
+from planner.model.effects import CATALOGUE, catalogue, make, parse_effect
 from planner.feedforward import commands
 from planner.methods.ruckig import rest_to_rest
 from planner.simulation.plant import respond

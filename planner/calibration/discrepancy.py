@@ -33,7 +33,7 @@ commanded trajectory:
 The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
 :func:`planner.calibration.compensate.compensate` re-plans feed-forward commands on it and
 :func:`planner.calibration.report.write_report` writes the report. The candidates are every
-catalogue effect (:data:`planner.simulation.effects.CATALOGUE`) on every joint it can belong
+catalogue effect (:data:`planner.model.effects.CATALOGUE`) on every joint it can belong
 to: a registered effect is searched with no change here.
 """
 from __future__ import annotations
@@ -46,7 +46,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares, minimize_scalar
 
-from planner.simulation.effects import CATALOGUE, Effect
+from planner.model.effects import CATALOGUE, Effect
 from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
 from planner.simulation.replay import stroke_rates

@@ -22,7 +22,7 @@ import numpy as np
 from planner.feedforward import commands
 from planner.methods.nlp import stretch
 from planner.methods.ruckig import rest_to_rest
-from planner.simulation.effects import CATALOGUE, Effect
+from planner.model.effects import CATALOGUE, Effect
 from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
 from planner.simulation.replay import stroke_rates

@@ -6,7 +6,7 @@ import math
 
 from planner.cli.common import CLIError, add_json_arg, emit, read_trajectory
 from planner.model import Crane
-from planner.simulation.effects import catalogue, parse_effect
+from planner.model.effects import catalogue, parse_effect
 from planner.simulation.plant import simulate_to_csv
 from planner.simulation.replay import Plant
 from planner.units import parse_angle

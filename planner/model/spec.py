@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from planner.model.effects import effect_from_dict
 from planner.model.reader import SpecError, TableReader
 from planner.units import parse_angle
 
@@ -163,7 +164,7 @@ class CraneSpec:
     pump: Pump
     transformer: Transformer | None
     laws: LawParams = field(default_factory=LawParams)
-    effects: tuple = ()            # calibrated effects (dicts, planner.simulation.effects), see plant.py
+    effects: tuple = ()            # calibrated effects (dicts, planner.model.effects), see plant.py
     gravity: float = 9.81
     path: str = "<memory>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -397,7 +398,6 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     if not isinstance(er, list):
         R.fail("effects", er, "expected [[effects]] tables (name, joint, parameters)")
     for i, et in enumerate(er):
-        from planner.simulation.effects import effect_from_dict
         if not isinstance(et, dict):
             R.fail(f"effects[{i}]", et, "expected a table")
         if et.get("joint") is not None and et.get("joint") not in names:

@@ -1,6 +1,6 @@
-"""The "true" plant: the nominal open-loop replay plus effects from :mod:`planner.simulation.effects`.
+"""The "true" plant: the nominal open-loop replay plus effects from :mod:`planner.model.effects`.
 
-:func:`respond` runs the stages in order (see :mod:`planner.simulation.effects`):
+:func:`respond` runs the stages in order (see :mod:`planner.model.effects`):
 
 1. commands — what the valves act on (delay, spool lag);
 2. valves — :func:`planner.simulation.replay.replay` with the effects' valve and pump parameters
@@ -35,7 +35,7 @@ from scipy.interpolate import CubicSpline
 
 from planner.feedforward import commands
 from planner.model import Crane, flows
-from planner.simulation.effects import as_effects, effect_from_dict
+from planner.model.effects import as_effects, effect_from_dict
 from planner.simulation.recording import Recording, noise_levels
 from planner.simulation.replay import Plant, describe_plant, differences, replay, stroke_stops
 from planner.trajectory import Trajectory
@@ -210,7 +210,7 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
             replay_cache: dict | None = None) -> Response:
     """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
     (or from the start fitted to ``q_fit`` (N, n) measured on the sample grid, rows
-    ``fit_mask``), with ``effects`` (a sequence of :class:`planner.simulation.effects.Effect`).
+    ``fit_mask``), with ``effects`` (a sequence of :class:`planner.model.effects.Effect`).
     ``plant``: further deviations (a :class:`planner.simulation.replay.Plant` or a sequence of
     effects), applied before the spec's and the given effects. ``replay_cache``: a dict reused
     between calls that differ only in force/stroke/sensor effects (the fitting loop)."""

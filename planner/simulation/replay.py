@@ -28,7 +28,7 @@ Plant model (one step per fixed time step; everything per actuator unless said o
 * pressures (for the "measured" output) from the model's dynamics:
   ``crane.hydraulics(q, qd, qdd, payload)`` at the simulated states (:func:`pressures`).
 
-**The plant is the nominal model plus effects** (:mod:`planner.simulation.effects`): the replay
+**The plant is the nominal model plus effects** (:mod:`planner.model.effects`): the replay
 applies the effects of the commands, start and valves stages (delays and lags, the true start,
 valve gains, dead bands, the pump); :func:`planner.simulation.plant.respond` adds the others
 (forces, leakage, sensors). :class:`Plant` is a thin constructor of such an effect set for the
@@ -48,7 +48,7 @@ import numpy as np
 
 from planner.feedforward import commands
 from planner.model.valves import command_to_stroke_rate, draws_pump, metered_flow, valve_params
-from planner.simulation.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
+from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
                                         ValveDeadband, ValveSet, as_effects)
 from planner.trajectory import Trajectory
 

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from planner.simulation.effects.base import Effect, Parameter, is_slew
+from planner.model.effects.base import Effect, Parameter, is_slew
 
 __all__ = ["CoulombFriction", "ViscousFriction", "PayloadMass", "GrappleLoad", "ActuatorMass",
            "JointOffset", "PressureOffset", "smooth_sign"]

@@ -1,6 +1,6 @@
 """The effect base class, the valve set it changes, and the registry (the catalogue).
 
-An effect is one class (see :mod:`planner.simulation.effects` for the stages and the catalogue).
+An effect is one class (see :mod:`planner.model.effects` for the stages and the catalogue).
 The class carries everything about the effect, so that the plant, the trials and the
 discrepancy search need no branch on its name:
 
@@ -383,5 +383,5 @@ def as_effects(crane, plant) -> tuple:
     out = tuple(plant)
     bad = [e for e in out if not isinstance(e, Effect)]
     if bad:
-        raise TypeError(f"expected effects (planner.simulation.effects), got {bad[0]!r}")
+        raise TypeError(f"expected effects (planner.model.effects), got {bad[0]!r}")
     return out

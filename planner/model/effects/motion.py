@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from planner.simulation.effects.base import Effect, Parameter, is_slew
+from planner.model.effects.base import Effect, Parameter, is_slew
 
 __all__ = ["TimeDelay", "ValveLag", "StartOffset", "FlowGain", "ValveDeadband", "PumpFlowLimit",
            "Leakage"]

@@ -1,11 +1,13 @@
 """The catalogue of effects a nominal crane model can miss (DESIGN "Core ideas" 3).
 
-Each effect is one class (:class:`Effect`, see :mod:`planner.simulation.effects.base`): its
+Each effect is one class (:class:`Effect`, see :mod:`planner.model.effects.base`): its
 parameters (unit, plausible range, neutral value), its injection into the "true" plant, its
 trial magnitude, its command delay and its observability rule. The same object is injected into
 the plant (:func:`planner.simulation.plant.respond`, :func:`planner.simulation.replay.replay`),
 drawn by the hidden-effect trials (:mod:`planner.calibration.trials`) and fitted to data by
 :mod:`planner.calibration.discrepancy` — one definition serves injection and identification.
+Effects are model augmentations, so they live in the model layer: a calibrated machine spec
+carries its ``[[effects]]`` and :func:`planner.model.spec.load_spec` validates them at load.
 
 An effect acts at one stage of the plant (the hooks; the default hooks do nothing):
 
@@ -25,13 +27,13 @@ a built-in one in the tuple below (its place there is its place in the catalogue
 CLI form with :func:`parse_effect` (``"flow_gain:joint=boom,scale=1.05"``) and list the
 catalogue with :func:`catalogue`.
 """
-from planner.simulation.effects.base import (CATALOGUE, STAGES, Effect, Parameter, ValveSet,
+from planner.model.effects.base import (CATALOGUE, STAGES, Effect, Parameter, ValveSet,
                                              as_effects, catalogue, effect_from_dict, make,
                                              parse_effect, register, unregister)
-from planner.simulation.effects.loads import (ActuatorMass, CoulombFriction, GrappleLoad,
+from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleLoad,
                                               JointOffset, PayloadMass, PressureOffset,
                                               ViscousFriction)
-from planner.simulation.effects.motion import (FlowGain, Leakage, PumpFlowLimit, StartOffset,
+from planner.model.effects.motion import (FlowGain, Leakage, PumpFlowLimit, StartOffset,
                                                TimeDelay, ValveDeadband, ValveLag)
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",

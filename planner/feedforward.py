@@ -39,22 +39,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import Polynomial
 
-from planner.model.valves import (ValveParams, command_to_stroke_rate, stroke_rate_to_command,
+from planner.model.valves import (command_to_stroke_rate, stroke_rate_to_command,
                                   valve_params)
 from planner.trajectory import Trajectory, evaluate
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
            "ProgressEstimator", "progress_estimator"]
-
-# the valve model lives in planner.model.valves; these two names stay for the modules that
-# still import them from here (to be removed once they import planner.model.valves)
-valve_parameters = valve_params
-
-
-def _command_to_stroke_rate(u, vp: ValveParams, flow_scale=1.0):
-    """Deprecated alias of :func:`planner.model.valves.command_to_stroke_rate` (old order)."""
-    return command_to_stroke_rate(vp, u, flow_scale)
-
 
 # ----------------------------------------------------------------------------- commands
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ discrepancy search need no branch on its name:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -6,12 +6,13 @@ import json
 import pytest
 
 from planner.bench.run import SUITE_NAMES, parse_suites
-from planner.bench.methods import METHODS
+from planner.bench.methods import method_names
 from planner.bench.figures import pareto
 from planner.cli import main
 
 METRICS = ("duration_s", "energy_J", "peak_pump_flow_m3s", "max_limit_violation", "gap_pct",
            "lower_bound_s", "solve_time_s", "success", "status", "reason", "verdict")
+METHODS = method_names()
 LAWS = [m for m in METHODS if m.startswith("law:")]
 
 

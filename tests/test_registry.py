@@ -110,7 +110,9 @@ def test_registered_method_runs_in_the_bench(dummy, tmp_path):
     assert set(mine) == {"A-B", "B-C", "A-C"}
     for mv, r in mine.items():
         assert r["status"] == "ok" and r["success"], r["verdict"]
-        # oracle: the registry's own ruckig on the same move, at full velocity/acceleration
-        assert 1.5 * full[mv]["duration_s"] < r["duration_s"] < 2.0 * full[mv]["duration_s"] + 1e-6
+        # oracle: the registry's own ruckig on the same move at full limits. Halving velocity
+        # and acceleration (jerk kept) makes the time-optimal move slower, and at most twice
+        # as long (the full-limit move stretched ×2 is feasible at the halved limits)
+        assert full[mv]["duration_s"] < r["duration_s"] <= 2.0 * full[mv]["duration_s"] + 1e-6
     assert res["suites"]["seed000-abc"]["summary"][dummy]["success_rate"] == 1.0
     assert f"| {dummy} |" in (tmp_path / "bench.md").read_text()

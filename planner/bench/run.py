@@ -48,16 +48,19 @@ CLEAR_FRACTION = 0.96     # of an obstacle's clearance, as MoveNLP.clears
 
 
 def parse_suites(suites) -> list[str]:
-    """None (all), 'a,b' or a list of names (each may be a comma list) -> validated names."""
+    """None (all), 'a,b' or a list of names (each may be a comma list) -> validated names: the
+    shipped suites of SUITE_NAMES, or paths to task files with a ``[bench]`` table."""
     if suites is None:
         return list(SUITE_NAMES)
     if isinstance(suites, str):
         suites = [suites]
     names = [x.strip() for s in suites for x in str(s).split(",") if x.strip()]
-    bad = [n for n in names if n not in SUITE_NAMES]
+    bad = [n for n in names if n not in SUITE_NAMES
+           and not (n.endswith(".toml") and Path(n).is_file())]
     if bad or not names:
         raise ValueError(f"unknown suite {', '.join(map(repr, bad)) or '(none given)'}; "
-                         f"known suites: {', '.join(SUITE_NAMES)}")
+                         f"known suites: {', '.join(SUITE_NAMES)} (or a task file .toml "
+                         "with a [bench] table)")
     return list(dict.fromkeys(names))
 
 

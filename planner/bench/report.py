@@ -284,7 +284,8 @@ def _seed_md(name, sres, suite, results):
                     x = (x or {}).get(k)
                 return _f(x, "{:.1f}", 1e-3)
             L.append(f"| {mv} | {e('law:jla')} | {oe('laws', 'jla', 'energy_J')} | "
-                     f"{ref(mv, 'reference_J', 'law:jla', '{:.0f}', 1e-3)} | {e('law:p_optimal')} | "
+                     f"{ref(mv, 'reference_J', 'law:jla', '{:.0f}', 1e-3)} | "
+                     f"{e('law:p_optimal')} | "
                      f"{oe('laws', 'p1', 'energy_J')} | "
                      f"{ref(mv, 'reference_J', 'law:p_optimal', '{:.0f}', 1e-3)}"
                      f" | {e('dp:energy')} | {oe('dp', 'energy_J')} | {e('dp:energy-pinned')} | "

@@ -20,8 +20,8 @@ points (r, z, slew) in the crane's frame 0, DESIGN.md CONTRACT: tip coordinates)
     from in a comment).
 ``[paths.NAME]``
     a tip path, ``kind`` one of
-    ``"line"`` (the move's start → goal), ``"waypoints"`` (``tips = [[r, z, slew], …]``, straight
-    in Cartesian space between them), ``"circle"`` (``center = [x, y, z]`` [m, frame 0],
+    ``"line"`` (the move's start → goal), ``"waypoints"`` (``tips = [[r, z, slew], …]``,
+    straight in Cartesian space between them), ``"circle"`` (``center = [x, y, z]`` [m, frame 0],
     ``radius`` [m], ``theta0`` / ``theta1`` [angle, default ∓180deg], ``plane`` "xz" or "xy";
     :func:`planner.geometry.paths.circle`), ``"parabola"`` (``x0``, ``x1``, ``z_min``,
     ``z_max`` [m], ``azimuth`` [angle]; :func:`planner.geometry.paths.parabola`) or
@@ -190,7 +190,8 @@ class _Reader:
                             self.angle(spec, "azimuth", where)), None, None
         name = spec.get("cycle")
         if name not in CYCLES:
-            self.fail(f"{where}.cycle", name, f"one of {', '.join(CYCLES)} (planner/tasks/cycles.py)")
+            self.fail(f"{where}.cycle", name,
+                      f"one of {', '.join(CYCLES)} (planner/tasks/cycles.py)")
         speed = self.number(spec, "speed", where)
         if speed <= 0:
             self.fail(f"{where}.speed", speed, "a per-axis tip speed > 0 m/s")

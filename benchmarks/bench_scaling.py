@@ -745,7 +745,7 @@ def _tidy(ax, xticks=None):
 
 def fig_dp(d: dict, path) -> None:
     """2 × 2: time vs edges (resolution), accuracy vs Δ, time vs 2w + 1, time vs stages."""
-    from planner.plots import _save, plt
+    from planner.plots import plt, save
     fig, ax = plt.subplots(2, 2, figsize=(10, 8))
     a, acc, win, ln = ax.flat
     for name, rows in d["resolution"].items():
@@ -779,12 +779,12 @@ def fig_dp(d: dict, path) -> None:
         axis.legend(fontsize=8)
     fig.suptitle("DP (minimum time) cost scaling")
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 def fig_nlp(n: dict, path) -> None:
     """2 × 2 vs N: solve time, build time, time per IPOPT iteration, duration gap."""
-    from planner.plots import _save, plt
+    from planner.plots import plt, save
     fig, ax = plt.subplots(2, 2, figsize=(11, 8.5))
     for label, c in n.items():
         rows = c["by_N"]
@@ -814,12 +814,12 @@ def fig_nlp(n: dict, path) -> None:
     fig.suptitle("Minimum-time NLP (free path) vs the horizon N; dashed squares: s100f with "
                  "the telescope frozen")
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 def fig_library(lib: dict, cpus, path) -> None:
     """Wall time and speed-up vs workers (local processes), Dask cited."""
-    from planner.plots import _save, plt
+    from planner.plots import plt, save
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     rows = lib["by_workers"]
     w = [r["workers"] for r in rows]
@@ -842,7 +842,7 @@ def fig_library(lib: dict, cpus, path) -> None:
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 def write_outputs(rep: dict, out) -> list:

@@ -12,7 +12,8 @@ import numpy as np  # noqa: E402
 from planner.io import atomic_write_bytes  # noqa: E402
 
 
-def _save(fig, path):
+def save(fig, path):
+    """Write ``fig`` as a PNG (110 dpi, tight) to ``path`` atomically and close it."""
     import io
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
@@ -76,7 +77,7 @@ def workspace_figure(crane, path, n: int = 90):
     ax.set_title(f"{spec.name}\nreachable tip region at slew 0 (green){tl}", fontsize=10)
     ax.legend(fontsize=7, loc="lower left")
     ax.grid(alpha=0.3)
-    _save(fig, path)
+    save(fig, path)
     return dict(r_max=float(np.max(tip[:, 0])), z_min=float(np.min(tip[:, 1])),
                 z_max=float(np.max(tip[:, 1])))
 
@@ -122,7 +123,7 @@ def trajectory_figure(crane, ev, path, title: str = "", walls=()):
     ax[0, 1].legend(fontsize=8)
     fig.suptitle(title or f"{crane.spec.id}: {ev.duration:.3f} s", fontsize=11)
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 # ----------------------------------------------------------------------------- discrepancy
@@ -162,7 +163,7 @@ def discrepancy_residual_figure(res, path, k: int = 4):
     axes[0, 0].legend(loc="upper right", fontsize=7, ncol=2)
     axes[-1, 0].set_xlabel("t [s] (light bands: held-out blocks; grey: ±1 σ noise floor)")
     fig.suptitle(f"Residuals — {res.message[:90]}", fontsize=9)
-    _save(fig, path)
+    save(fig, path)
 
 
 def discrepancy_overlay_figure(res, path, k: int = 2):
@@ -178,7 +179,7 @@ def discrepancy_overlay_figure(res, path, k: int = 2):
         ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
     axes[0, 0].legend(loc="upper right", fontsize=7, ncol=3)
     axes[-1, 0].set_xlabel("t [s]")
-    _save(fig, path)
+    save(fig, path)
 
 
 def discrepancy_ranking_figure(res, path, k: int = 12):
@@ -194,4 +195,4 @@ def discrepancy_ranking_figure(res, path, k: int = 12):
         ax.axvline(thr, ls="--", color="k", lw=0.8)
     ax.set_xlabel("held-out score ΔJ − k·ln n (symlog)")
     ax.tick_params(axis="y", labelsize=7)
-    _save(fig, path)
+    save(fig, path)

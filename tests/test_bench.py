@@ -6,12 +6,13 @@ import json
 import pytest
 
 from planner.bench.run import SUITE_NAMES, parse_suites
-from planner.bench.methods import METHODS
+from planner.bench.methods import method_names
 from planner.bench.figures import pareto
 from planner.cli import main
 
 METRICS = ("duration_s", "energy_J", "peak_pump_flow_m3s", "max_limit_violation", "gap_pct",
            "lower_bound_s", "solve_time_s", "success", "status", "reason", "verdict")
+METHODS = method_names()
 LAWS = [m for m in METHODS if m.startswith("law:")]
 
 
@@ -113,3 +114,68 @@ def test_parse_suites_and_pareto():
                                                                           "seed003-paths"]
     pts = [(1.0, 5.0), (2.0, 3.0), (1.5, 6.0), (3.0, 3.0), (4.0, 1.0)]
     assert pareto(pts) == [0, 1, 4]
+
+
+# ------------------------------------------------------------------------------ task files
+def test_seed_suites_are_task_files_with_the_seeds_numbers():
+    import math
+
+    from planner.tasks.suites import load_task_file
+    s0 = load_task_file("seed000-abc")
+    assert s0.crane == "cranab850" and [m.id for m in s0.moves] == ["A-B", "B-C", "A-C"]
+    ab, bc, ac = s0.moves
+    assert ab.start == ac.start == (1.5, 1.0, 0.0) and ab.goal == bc.start == (5.5, 1.0, 0.0)
+    assert ac.reference_s == {"dp:time": 1.18, "law:max_velocity": 2.28, "law:max_lift": 2.81}
+    s3 = {m.id: m for m in load_task_file("seed003-paths").moves}
+    # analytic ends: the circle (xC, zC) = (3, 2.5), R = 0.7 starts and ends at θ = ±π
+    assert s3["circle"].closed and s3["circle"].start == pytest.approx((2.3, 2.5, 0.0))
+    # the parabola: x = 1.6 .. 3.07 m, y = tan(−45°)·x, z = 1.5 m at both ends
+    par = s3["parabola"]
+    assert par.start == pytest.approx((1.6 * math.sqrt(2), 1.5, -math.pi / 4))
+    assert par.goal == pytest.approx((3.07 * math.sqrt(2), 1.5, -math.pi / 4))
+    s2 = {m.id: m for m in load_task_file("seed002-hvd").moves}
+    # seed 002's clock at 0.5 m/s: h ends at 59 s, v at 65 s, d at 41 s; at 1 m/s h ends at
+    # 5 + 6 + 3 + 6 + 3 + 6 + 6 = 35 s
+    assert [s2[k].duration_s for k in ("h@0.5", "v@0.5", "d@0.5", "h@1")] == [59, 65, 41, 35]
+    assert s2["v@1"].cycle == ("v", 1.0) and s2["v@1"].reference_J["law:jla"] == 454e3
+
+
+def test_bench_suites_follow_their_bench_tables():
+    from planner.bench.context import Settings
+    from planner.bench.suites import build_suite
+    full, quick = Settings.make(False), Settings.make(True)
+    s0 = build_suite("seed000-abc", full)
+    assert s0.dp_kw(s0.moves[0]) == dict(stages=400, tele_step=0.01, window=5)  # 4 m / 0.01 m
+    assert build_suite("seed000-abc", quick).dp_kw(s0.moves[0])["stages"] == 200
+    assert [m.id for m in build_suite("seed002-hvd", quick).moves] == ["h@1", "v@1", "d@1"]
+    fw = build_suite("forwarder-cycle", quick)
+    assert len(fw.moves) == 2 and fw.kind == "p2p" and fw.obstacles
+    assert all(m.path.name == "cylindrical" for m in fw.moves)
+    assert "2 of the 200 forwarder-cycle moves" in fw.description
+    assert fw.methods["nlp:kin-line"].startswith("the straight Cartesian line")
+    assert build_suite("seed003-paths", full).methods["law:max_lift"].startswith(
+        "umea-lab has no [laws] max_lift")
+
+
+def test_malformed_task_files_name_the_field(tmp_path):
+    from planner.bench.context import Settings
+    from planner.bench.suites import build_suite
+    from planner.model.spec import SpecError
+    from planner.tasks.suites import load_task_file
+    head = '[suite]\ncrane = "cranab850"\n[points]\nA = [1.5, 1.0, 0.0]\n'
+    cases = {'[[moves]]\nid = "x"\nstart = "A"\ngoal = "Q"\n': "moves[0].goal",
+             '[[moves]]\nid = "x"\npath = { kind = "spiral" }\n': "moves[0].path",
+             '[[moves]]\nid = "x"\npath = { kind = "cycle", cycle = "z", speed = 1 }\n':
+                 "cycle"}
+    for i, (body, field) in enumerate(cases.items()):
+        f = tmp_path / f"bad{i}.toml"
+        f.write_text(head + body)
+        with pytest.raises(SpecError, match=field.replace("[", r"\[").replace("]", r"\]")):
+            load_task_file(str(f))
+    ok = head + '[[moves]]\nid = "x"\nstart = "A"\ngoal = [5.5, 1.0, "0deg"]\n'
+    for bench, msg in (('methods = ["dp:energy"]', "no runner for p2p"),
+                       ('methods = ["law:nope"]', "unknown variant")):
+        f = tmp_path / "b.toml"
+        f.write_text(ok + f"[bench]\n{bench}\n")
+        with pytest.raises(ValueError, match=msg):
+            build_suite(str(f), Settings.make(True))

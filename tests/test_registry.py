@@ -90,3 +90,29 @@ def test_unknown_method_names_the_registered_ones(dummy, capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "nope" in err and dummy in err and "law:jla" in err
+
+
+def test_registered_method_runs_in_the_bench(dummy, tmp_path):
+    from planner.bench.context import Settings
+    from planner.bench.methods import METHODS, method_names
+    from planner.bench.run import run_bench
+    from planner.bench.suites import build_suite
+    assert dummy in method_names() and dummy not in METHODS      # joins after the variants
+    quick = Settings.make(quick=True)
+    # where its declared paths / obstacle handling do not fit, it is n/a with the reason
+    assert "obstacles" in build_suite("forwarder-cycle", quick).methods[dummy]
+    assert "free paths" in build_suite("seed003-paths", quick).methods[dummy]
+    res = run_bench("seed000-abc", tmp_path, quick=True, progress=False,
+                    methods=[dummy, "ruckig"])
+    rows = res["suites"]["seed000-abc"]["rows"]
+    mine = {r["move"]: r for r in rows if r["method"] == dummy}
+    full = {r["move"]: r for r in rows if r["method"] == "ruckig"}
+    assert set(mine) == {"A-B", "B-C", "A-C"}
+    for mv, r in mine.items():
+        assert r["status"] == "ok" and r["success"], r["verdict"]
+        # oracle: the registry's own ruckig on the same move at full limits. Halving velocity
+        # and acceleration (jerk kept) makes the time-optimal move slower, and at most twice
+        # as long (the full-limit move stretched ×2 is feasible at the halved limits)
+        assert full[mv]["duration_s"] < r["duration_s"] <= 2.0 * full[mv]["duration_s"] + 1e-6
+    assert res["suites"]["seed000-abc"]["summary"][dummy]["success_rate"] == 1.0
+    assert f"| {dummy} |" in (tmp_path / "bench.md").read_text()

@@ -6,13 +6,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.bench.methods import METHODS
-from planner.bench.report import _by_move, _ok
+from planner.bench.methods import method_names
+from planner.bench.rows import by_move, succeeded
 
 
-def _colour(m):
+def _colour(m, methods=None):
+    """The method's colour: its place in the bench's method list (the variants first, so
+    their colours never depend on what else is registered)."""
     import matplotlib
-    return matplotlib.colormaps["tab20"](METHODS.index(m) % 20)
+    methods = list(methods or method_names())
+    if m not in methods:
+        methods.append(m)
+    return matplotlib.colormaps["tab20"](methods.index(m) % 20)
 
 
 def pareto(points):
@@ -32,13 +37,13 @@ def _grid(n):
 
 
 def fig_time_energy(name, sres, path):
-    from planner.plots import _save, plt
-    R = _by_move(sres)
+    from planner.plots import plt, save
+    R = by_move(sres)
     rows, cols = _grid(len(R))
     fig, axs = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
     seen = {}
     for ax, (mv, rr) in zip(axs.flat, R.items()):
-        pts = [(r["duration_s"], r["energy_J"] / 1e3, m) for m, r in rr.items() if _ok(r)]
+        pts = [(r["duration_s"], r["energy_J"] / 1e3, m) for m, r in rr.items() if succeeded(r)]
         for t, e, m in pts:
             seen[m] = ax.scatter(t, e, color=_colour(m), s=36, edgecolor="k", lw=0.4, zorder=3)
         f = pareto([(t, e) for t, e, _ in pts])
@@ -55,21 +60,21 @@ def fig_time_energy(name, sres, path):
     fig.tight_layout()
     fig.legend(list(seen.values()), list(seen), loc="center left", fontsize=8,
                bbox_to_anchor=(1.0, 0.5))
-    _save(fig, path)
+    save(fig, path)
 
 
 def fig_bars(name, sres, path):
-    from planner.plots import _save, plt
-    R = _by_move(sres)
+    from planner.plots import plt, save
+    R = by_move(sres)
     energy = sres["kind"] == "cycle"   # every method runs a cycle's clock: compare energies
-    meths = [m for m in METHODS if sres["summary"][m]["applicable"]]
+    meths = [m for m, s in sres["summary"].items() if s["applicable"]]
     fig, ax = plt.subplots(figsize=(max(7, 1.2 * len(R) * len(meths) / 4), 4.5))
     w = 0.8 / max(1, len(meths))
     for j, m in enumerate(meths):
         for i, (mv, rr) in enumerate(R.items()):
             r = rr.get(m)
             x = i + (j - (len(meths) - 1) / 2) * w
-            if _ok(r):
+            if succeeded(r):
                 ax.bar(x, r["energy_J"] / 1e3 if energy else r["duration_s"], w,
                        color=_colour(m), label=m if i == 0 else None)
             else:
@@ -81,12 +86,12 @@ def fig_bars(name, sres, path):
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 def fig_profiles(name, keep, crane, move_id, path):
     """Joint positions (left) and cylinder strokes (right) of one move, one line per method."""
-    from planner.plots import _save, plt
+    from planner.plots import plt, save
     n = crane.n
     fig, axs = plt.subplots(n, 2, figsize=(12, 2.2 * n), sharex=True, squeeze=False)
     for m, out in keep.items():
@@ -112,7 +117,7 @@ def fig_profiles(name, keep, crane, move_id, path):
     axs[0, 0].legend(fontsize=7, ncol=2)
     fig.suptitle(f"{name}, move {move_id}: joints (left) and actuator strokes (right)")
     fig.tight_layout()
-    _save(fig, path)
+    save(fig, path)
 
 
 __all__ = ["pareto", "fig_time_energy", "fig_bars", "fig_profiles"]

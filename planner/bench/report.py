@@ -1,7 +1,12 @@
 """The benchmark's outputs: acceptance checks, seed tables side by side, ``bench.md``,
 ``bench.json`` and the figures (time–energy scatter with the Pareto front, per-move bars,
 joint and cylinder-stroke profiles). Energies in the markdown are kJ, flows L/min; the JSON
-stays SI."""
+stays SI.
+
+The seed tables compare with the seeds' published numbers (the suites' task files:
+``reference_s`` / ``reference_J``) and with the committed reports of ``benchmarks/`` scripts,
+read from the folder ``results`` (default ``benchmarks/results`` relative to the current
+directory; a missing file is said so in the report)."""
 from __future__ import annotations
 
 import json
@@ -10,25 +15,17 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.bench.methods import METHODS
-from planner.bench.suites import SEED000_TIMES, SEED002_KJ
+from planner.bench.figures import fig_bars, fig_profiles, fig_time_energy
+from planner.bench.methods import LAW_VARIANTS
+from planner.bench.rows import by_move as _by_move
+from planner.bench.rows import succeeded as _ok
 from planner.io import atomic_write_text, dumps
+from planner.tasks.cycles import START_TELE
 
-REPO_RESULTS = Path(__file__).resolve().parents[2] / "benchmarks" / "results"
-LAWS = [m for m in METHODS if m.startswith("law:")]
+DEFAULT_RESULTS = Path("benchmarks/results")
+LAWS = list(LAW_VARIANTS)   # the seeds' laws: the local references of the acceptance checks
 GLOBAL_ENERGY = ("dp:energy", "dp:energy-pinned", "nlp:energy-path")  # DP or NLP on the cycles
 SAVING_TARGET = 0.15
-
-
-def _by_move(sres):
-    out = {}
-    for r in sres["rows"]:
-        out.setdefault(r["move"], {})[r["method"]] = r
-    return out
-
-
-def _ok(r):
-    return r is not None and r.get("success")
 
 
 # ------------------------------------------------------------------------------ acceptance
@@ -121,11 +118,14 @@ def _pf(ok):
     return "**PASS**" if ok else "**MISS**"
 
 
-def _repo_json(name):
-    p = REPO_RESULTS / name
+def _results_json(results, name, missing: list):
+    """The committed report ``results/name`` (JSON), or None (its path added to ``missing``)
+    when absent or unreadable."""
+    p = Path(results) / name
     try:
         return json.loads(p.read_text(encoding="utf-8"))
     except (OSError, ValueError):
+        missing.append(str(p))
         return None
 
 
@@ -180,7 +180,6 @@ def _acceptance_md(res):
               if r["method"] == "dp:energy" and r["success"]]
         pin = g["methods"].get("dp:energy-pinned", {}).get("mean_saving_vs_jla")
         if st and pin is not None:
-            from planner.tasks.cycles import START_TELE
             L += [f"Where the saving comes from: `dp:energy` chooses its first telescope value "
                   f"freely ({min(st):.2f} m" + (f"–{max(st):.2f} m" if max(st) > min(st) else "")
                   + " here) while the laws start at the "
@@ -237,41 +236,42 @@ def _acceptance_md(res):
     return L
 
 
-def _seed_md(name, sres):
+def _seed_md(name, sres, suite, results):
     R = _by_move(sres)
-    L = []
+    refs = {m.id: m for m in suite.moves} if suite is not None else {}
+    L, missing = [], []
+
+    def ref(mv, kind, method, fmt="{:.2f}", scale=1.0):
+        m = refs.get(mv)
+        return _f(getattr(m, kind).get(method) if m is not None else None, fmt, scale)
     if name == "seed000-abc":
         L += ["Seed 000 side by side (times [s]; seed: Table 8.1 DP, Table 8.2 laws at 2.5 m/s):",
               "", "| move | dp:time | seed DP | law:max_velocity | seed | law:max_lift | seed | "
               "nlp:kin-line | nlp:time-free-kin | nlp:time-free |",
               "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-        for i, mv in enumerate(("A-B", "B-C", "A-C")):
-            if mv not in R:
-                continue
+        for mv in (x for x in refs if x in R):
 
             def t(m):
                 r = R[mv].get(m)
                 return _f(r["duration_s"]) if _ok(r) else "fail"
-            L.append(f"| {mv} | {t('dp:time')} | {SEED000_TIMES['dp:time'][i]:.2f} | "
-                     f"{t('law:max_velocity')} | {SEED000_TIMES['law:max_velocity'][i]:.2f} | "
-                     f"{t('law:max_lift')} | {SEED000_TIMES['law:max_lift'][i]:.2f} | "
+            L.append(f"| {mv} | {t('dp:time')} | {ref(mv, 'reference_s', 'dp:time')} | "
+                     f"{t('law:max_velocity')} | {ref(mv, 'reference_s', 'law:max_velocity')} | "
+                     f"{t('law:max_lift')} | {ref(mv, 'reference_s', 'law:max_lift')} | "
                      f"{t('nlp:kin-line')} | {t('nlp:time-free-kin')} | {t('nlp:time-free')} |")
     elif name == "seed002-hvd":
-        ref = _repo_json("seed002_table.json")
+        table = _results_json(results, "seed002_table.json", missing)
         old = {}
-        for row in (ref or {}).get("table", []):
+        for row in (table or {}).get("table", []):
             if row["system"] == "conventional":
                 old[f"{row['cycle']}@{row['speed']:g}"] = row
-        L += ["Seed 002 side by side (pump energy [kJ]; 'table' = benchmarks/results/"
-              "seed002_table.md, same model and code path; 'paper' = seed 002 Table 5.1, known "
-              "only for v at 1 m/s):", "",
+        L += ["Seed 002 side by side (pump energy [kJ]; 'table' = "
+              f"{Path(results) / 'seed002_table.md'}, same model and code path; 'paper' = "
+              "seed 002 Table 5.1, known only for v at 1 m/s):", "",
               "| cycle | law:jla | table | paper | law:p_optimal | table P¹ | paper P¹ | "
               "dp:energy | table DP | dp:energy-pinned | table DP pinned |",
               "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for mv, rr in R.items():
             o = old.get(mv)
-            name_, sp = mv.split("@")
-            paper = SEED002_KJ.get((name_, float(sp)), {})
 
             def e(m):
                 r = rr.get(m)
@@ -284,14 +284,16 @@ def _seed_md(name, sres):
                     x = (x or {}).get(k)
                 return _f(x, "{:.1f}", 1e-3)
             L.append(f"| {mv} | {e('law:jla')} | {oe('laws', 'jla', 'energy_J')} | "
-                     f"{_f(paper.get('law:jla'), '{:.0f}')} | {e('law:p_optimal')} | "
-                     f"{oe('laws', 'p1', 'energy_J')} | {_f(paper.get('law:p_optimal'), '{:.0f}')}"
+                     f"{ref(mv, 'reference_J', 'law:jla', '{:.0f}', 1e-3)} | "
+                     f"{e('law:p_optimal')} | "
+                     f"{oe('laws', 'p1', 'energy_J')} | "
+                     f"{ref(mv, 'reference_J', 'law:p_optimal', '{:.0f}', 1e-3)}"
                      f" | {e('dp:energy')} | {oe('dp', 'energy_J')} | {e('dp:energy-pinned')} | "
                      f"{oe('dp_pinned_start', 'energy_J')} |")
     elif name == "seed003-paths":
-        nl = _repo_json("seed003_nlp.json") or []
-        ph = _repo_json("seed003_paths.json") or {}
-        L += ["Seed 003 side by side (times [s]; 'repo' = benchmarks/results/seed003_nlp.md "
+        nl = _results_json(results, "seed003_nlp.json", missing) or []
+        ph = _results_json(results, "seed003_paths.json", missing) or {}
+        L += [f"Seed 003 side by side (times [s]; 'repo' = {Path(results) / 'seed003_nlp.md'} "
               "(N = 60) and seed003_paths.md (TOPP-RA, velocity + acceleration, on the "
               "phase-plane-optimised telescope path)):", "",
               "| path | nlp:time-path | repo NLP | topp:dp | repo TOPP-RA (phase-plane path) | "
@@ -309,10 +311,13 @@ def _seed_md(name, sres):
                 return _f(r["duration_s"]) if _ok(r) else "fail"
             L.append(f"| {mv} | {t('nlp:time-path')} | {_f(rn)} | {t('topp:dp')} | {_f(rt)} | "
                      f"{t('dp:time')} | {t('law:max_velocity')} |")
+    if missing:
+        L += ["", "Not found: " + ", ".join(missing) + " (its columns show —; `--results DIR` "
+              "names the folder of the committed reports)."]
     return L + ([""] if L else [])
 
 
-def _suite_md(name, sres, figs):
+def _suite_md(name, sres, figs, suite=None, results=DEFAULT_RESULTS):
     L = [f"## Suite `{name}` ({sres['crane']})", "", sres["description"] + ".",
          f"Wall time {sres['wall_time_s']:.1f} s; NLP construction (excluded from solve times): "
          + (", ".join(f"{k} {v:.2f} s" for k, v in sres["build_s"].items()) or "none") + "."]
@@ -346,12 +351,14 @@ def _suite_md(name, sres, figs):
                  f"{_gap(r['gap_pct'])} | {_f(st.get('median'))} "
                  f"({_f(st.get('min'))}–{_f(st.get('max'))}, {st.get('runs', 0)}) |")
     L += [""] + (["Not applicable here:"] + na + [""] if na else [])
-    L += _seed_md(name, sres)
+    L += _seed_md(name, sres, suite, results)
     L += [f"![{k}]({v})" for k, v in figs.items()] + [""]
     return L
 
 
-def markdown(res, figs) -> str:
+def markdown(res, figs, suites=None, results=DEFAULT_RESULTS) -> str:
+    """bench.md of the result ``res``: ``figs`` {suite: {title: file}}, ``suites`` {name:
+    Suite} (for the seeds' published numbers), ``results`` the committed reports' folder."""
     m, s = res["machine"], res["settings"]
     L = ["# crane-planner bench: global planners vs local laws", "",
          f"Generated by `crane-planner bench` on {m['date_utc']} ({m['platform']}, "
@@ -366,16 +373,16 @@ def markdown(res, figs) -> str:
          "others), minus 1. Energies are pump energies (quasi-static load-sensing model; "
          "piecewise-linear trajectories — laws, DP — carry no inertial forces). Laws: "
          f"{s['law_speed']:g} m/s commanded tip speed at {s['law_rate']:g} Hz (cycles: the "
-         "cycle's clock). Methods: see planner/bench_methods.py.", ""]
+         "cycle's clock). Methods: see planner/bench/methods.py.", ""]
     L += _acceptance_md(res)
     for name, sres in res["suites"].items():
-        L += _suite_md(name, sres, figs.get(name, {}))
+        L += _suite_md(name, sres, figs.get(name, {}), (suites or {}).get(name), results)
     return "\n".join(L) + "\n"
 
 
-def write_outputs(res, keep, out: Path, t0: float):
-    """Figures, then bench.md and bench.json (atomically) into ``out``."""
-    from planner.bench.figures import fig_bars, fig_profiles, fig_time_energy
+def write_outputs(res, keep, out: Path, t0: float, results=DEFAULT_RESULTS):
+    """Figures, then bench.md and bench.json (atomically) into ``out``; ``keep``: {suite:
+    (profile outcomes, Suite, Crane)}; ``results``: the committed reports' folder."""
     out.mkdir(parents=True, exist_ok=True)
     figs = {}
     for name, (kp, suite, crane) in keep.items():
@@ -391,7 +398,8 @@ def write_outputs(res, keep, out: Path, t0: float):
         figs[name] = f
         sres["figures"] = f
     res["output_time_s"] = _time.perf_counter() - t0 - res["wall_time_s"]
-    atomic_write_text(out / "bench.md", markdown(res, figs))
+    atomic_write_text(out / "bench.md", markdown(res, figs, {n: k[1] for n, k in keep.items()},
+                                                 results))
     atomic_write_text(out / "bench.json", dumps(res) + "\n")
 
 

@@ -29,11 +29,18 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.bench.methods import BASE_KINDS, METHODS, Ctx, Outcome, Settings
+from tqdm import tqdm
+
+from planner.bench.context import BASE_KINDS, Ctx, Outcome, Settings
+from planner.bench.methods import method_names
+from planner.bench.report import DEFAULT_RESULTS, global_vs_local, nlp_vs_laws, write_outputs
 from planner.bench.suites import SUITE_NAMES, build_suite
+from planner.bounds import lower_bound
+from planner.geometry.paths import tip_to_xyz
+from planner.model import Crane, UnreachableError
 from planner.trajectory import LIMIT_KINDS, evaluate
 
-DEFAULT_OUT = Path("benchmarks/results/bench")
+DEFAULT_OUT = Path("benchmarks/results/bench")   # relative to the current directory
 REPEAT_BELOW_S = 2.0      # [s] solves faster than this are repeated (``repeats`` times)
 OK_TOL = 1e-3             # relative limit excess counted as within the limits (0.1 %)
 JUMP_TOL = 1e-6           # [rad | m] largest joint jump between pieces of one cycle
@@ -41,16 +48,19 @@ CLEAR_FRACTION = 0.96     # of an obstacle's clearance, as MoveNLP.clears
 
 
 def parse_suites(suites) -> list[str]:
-    """None (all), 'a,b' or a list of names (each may be a comma list) -> validated names."""
+    """None (all), 'a,b' or a list of names (each may be a comma list) -> validated names: the
+    shipped suites of SUITE_NAMES, or paths to task files with a ``[bench]`` table."""
     if suites is None:
         return list(SUITE_NAMES)
     if isinstance(suites, str):
         suites = [suites]
     names = [x.strip() for s in suites for x in str(s).split(",") if x.strip()]
-    bad = [n for n in names if n not in SUITE_NAMES]
+    bad = [n for n in names if n not in SUITE_NAMES
+           and not (n.endswith(".toml") and Path(n).is_file())]
     if bad or not names:
         raise ValueError(f"unknown suite {', '.join(map(repr, bad)) or '(none given)'}; "
-                         f"known suites: {', '.join(SUITE_NAMES)}")
+                         f"known suites: {', '.join(SUITE_NAMES)} (or a task file .toml "
+                         "with a [bench] table)")
     return list(dict.fromkeys(names))
 
 
@@ -62,7 +72,6 @@ def machine_info() -> dict:
 
 # ------------------------------------------------------------------------------ one run
 def _status_of(e: Exception) -> str:
-    from planner.model import UnreachableError
     return "unreachable" if isinstance(e, UnreachableError) else \
         "invalid" if isinstance(e, ValueError) else "error"
 
@@ -111,7 +120,6 @@ def _bound(ctx, move, checked, cache):
     jerk = "jerk" in checked
     key = (move.id, jerk)
     if key not in cache:
-        from planner.bounds import lower_bound
         crane = ctx.crane if jerk else ctx.variant(1.0, float("inf"))
         cache[key] = lower_bound(crane, move.start, move.goal)
     lb = cache[key]
@@ -152,7 +160,6 @@ def judge(ctx, move, method, out: Outcome, times, cache) -> dict:
         k = max(checked, key=lambda k: row["violations"][k])
         problems.append(f"exceeds {k} by {100 * row['violations'][k]:.2f} %")
     if ctx.obstacles:
-        from planner.geometry.paths import tip_to_xyz
         clear = min(float(ob.distance(tip_to_xyz(e.tip), e.tip).min())
                     for e in evs for ob in ctx.obstacles)
         row["clearance_m"] = clear
@@ -180,10 +187,11 @@ def _med(xs):
     return statistics.median(xs) if xs else None
 
 
-def summarise(rows) -> dict:
-    """Per method: runs, successes, success rate and medians over the successful rows."""
+def summarise(rows, methods) -> dict:
+    """Per method of ``methods``: runs, successes, success rate and medians over the
+    successful rows."""
     out = {}
-    for m in METHODS:
+    for m in methods:
         rs = [r for r in rows if r["method"] == m]
         att = [r for r in rs if r["status"] != "n/a"]
         if not att:
@@ -202,21 +210,36 @@ def summarise(rows) -> dict:
     return out
 
 
-def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True):
-    """Run one suite. Returns (result dict, {method: Outcome} of its profile move, suite,
-    crane)."""
-    from tqdm import tqdm
+def select_methods(methods=None) -> list[str]:
+    """None (every method of :func:`planner.bench.methods.method_names`), 'a,b' or a list of
+    names -> validated names in the bench's order."""
+    known = method_names()
+    if methods is None:
+        return known
+    if isinstance(methods, str):
+        methods = [methods]
+    names = {x.strip() for s in methods for x in str(s).split(",") if x.strip()}
+    bad = sorted(names - set(known))
+    if bad or not names:
+        raise ValueError(f"unknown bench method {', '.join(map(repr, bad)) or '(none given)'}; "
+                         f"known: {', '.join(known)}")
+    return [m for m in known if m in names]
 
-    from planner.model import Crane
+
+def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True,
+              methods=None):
+    """Run one suite with ``methods`` (None: all, see :func:`select_methods`). Returns (result
+    dict, {method: Outcome} of its profile move, suite, crane)."""
+    meths = select_methods(methods)
     suite = build_suite(name, settings)
     crane = Crane.from_id(suite.crane_id)
     ctx = Ctx(crane, settings, suite)
     rows, keep, cache = [], {}, {}
     t0 = _time.perf_counter()
-    bar = tqdm(total=len(suite.moves) * len(METHODS), desc=name, unit="run",
+    bar = tqdm(total=len(suite.moves) * len(meths), desc=name, unit="run",
                disable=not progress, leave=True)
     for move in suite.moves:
-        for m in METHODS:
+        for m in meths:
             runner = suite.methods[m]
             bar.set_postfix_str(f"{move.id} {m}", refresh=False)
             if isinstance(runner, str):
@@ -236,14 +259,13 @@ def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True
                            cycle=list(mv.cycle) if mv.cycle else None,
                            duration_s=mv.duration_s) for mv in suite.moves],
                build_s=ctx.build_s, wall_time_s=_time.perf_counter() - t0,
-               rows=rows, summary=summarise(rows))
+               rows=rows, summary=summarise(rows, meths))
     return res, keep, suite, crane
 
 
 # ------------------------------------------------------------------------------ acceptance
 def acceptance(res: dict) -> dict:
     """The issue's three acceptance items, measured on this run (None when not run)."""
-    from planner.bench.report import global_vs_local, nlp_vs_laws
     S = res["suites"]
     acc = dict(seed002_global_energy=global_vs_local(S["seed002-hvd"])
                if "seed002-hvd" in S else None,
@@ -260,12 +282,15 @@ def acceptance(res: dict) -> dict:
 
 
 def run_bench(suites=None, out=DEFAULT_OUT, repeats: int | None = None, quick: bool = False,
-              progress: bool = True) -> dict:
+              progress: bool = True, results=DEFAULT_RESULTS, methods=None) -> dict:
     """Run the benchmark on ``suites`` (None: all of SUITE_NAMES; names or comma lists) and
     write bench.md, bench.json and the figures into ``out``. ``repeats`` (default 3, 1 with
-    ``quick``) times every solve faster than REPEAT_BELOW_S that often. Returns the JSON dict."""
-    from planner.bench.report import write_outputs
+    ``quick``) times every solve faster than REPEAT_BELOW_S that often; ``results``: the folder
+    of the committed reports the seed tables compare with (default benchmarks/results relative
+    to the current directory; the CLI's ``--results DIR``); ``methods``: the methods to run
+    (None: every one of :func:`planner.bench.methods.method_names`). Returns the JSON dict."""
     names = parse_suites(suites)
+    meths = select_methods(methods)
     settings = Settings.make(quick)
     repeats = (1 if quick else 3) if repeats is None else int(repeats)
     if repeats < 1:
@@ -275,15 +300,18 @@ def run_bench(suites=None, out=DEFAULT_OUT, repeats: int | None = None, quick: b
                settings=dict(suites=names, repeats=repeats, repeat_below_s=REPEAT_BELOW_S,
                              ok_tolerance=OK_TOL, **{k: v for k, v in vars(settings).items()}),
                suites={})
+    if methods is not None:   # a partial run says which methods it ran
+        res["settings"]["methods"] = meths
     keep = {}
     for name in names:
-        r, kp, suite, crane = run_suite(name, settings, repeats, progress)
+        r, kp, suite, crane = run_suite(name, settings, repeats, progress, meths)
         res["suites"][name] = r
         keep[name] = (kp, suite, crane)
     res["wall_time_s"] = _time.perf_counter() - t0
     res["acceptance"] = acceptance(res)
-    write_outputs(res, keep, Path(out), t0)   # figures, then bench.md and bench.json
+    write_outputs(res, keep, Path(out), t0, results)   # figures, then bench.md, bench.json
     return res
 
 
-__all__ = ["run_bench", "parse_suites", "SUITE_NAMES", "DEFAULT_OUT"]
+__all__ = ["run_bench", "run_suite", "parse_suites", "select_methods", "SUITE_NAMES",
+           "DEFAULT_OUT", "DEFAULT_RESULTS"]

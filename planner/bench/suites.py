@@ -1,7 +1,5 @@
-"""The benchmark's task suites: machines, moves, and which method runs on which suite.
-
-A suite is a machine plus a list of :class:`BenchMove` and, for every method of
-:data:`planner.bench.methods.METHODS`, either the runner used on it or the reason why the method
+"""The benchmark's task suites: a task file (problems/tasks/<name>.toml, read by
+:mod:`planner.tasks.suites`) plus its ``[bench]`` table, and per method its runner or why it
 does not apply ("n/a"). Tip points are (r, z, slew) [m, m, rad] in the crane's frame 0.
 
 | suite | machine | moves |
@@ -10,156 +8,84 @@ does not apply ("n/a"). Tip points are (r, z, slew) [m, m, rad] in the crane's f
 | ``seed002-hvd`` | s100f | seed 002's timed cycles h, v, d, 0.5 and 1 m/s per axis (cycles.py) |
 | ``seed003-paths`` | umea-lab | seed 003's circle and parabola (α = −45°, see seed003_paths.md) |
 | ``forwarder-cycle`` | s100f | a seeded sample of problems/tasks/forwarder-cycle.toml; headboard |
+
+The ``[bench]`` table of a task file (read here):
+
+``description``
+    the report's sentence on the suite; ``{sample}``, ``{total}`` and ``{seed}`` are replaced
+    by the sample size, the number of moves in the file and the sampling seed.
+``methods``
+    the bench variants that run on the suite (:data:`planner.bench.methods.METHODS`); each must
+    have a runner for the suite's kind (timed cycles, curved paths or point to point).
+``default_reason`` and ``[bench.not_applicable]``
+    why the other variants do not run ("n/a" in the report): a reason per variant name, the
+    default for the rest. Registered methods outside the variants are matched by rule
+    (:func:`planner.bench.runners.fit`), not listed here.
+``profile_move``
+    the move whose joint and stroke profiles are drawn: an id, ``"first"`` or ``"last"``.
+``notes``
+    sentences printed under the suite's heading.
+``sample``
+    true: run a seeded sample of :attr:`Settings.forwarder_moves` moves
+    (``numpy.random.default_rng(Settings.seed)``) instead of all.
+``path``
+    ``"line"`` (default): path-following methods follow each move's own path or its straight
+    line; ``"cylindrical"``: r, z and slew interpolated linearly, over the obstacles' via
+    points (:meth:`planner.geometry.obstacles.Plate.vias`).
+``[bench.dp]`` and ``[bench.dp_quick]`` (``--quick``)
+    the DP grid: ``step`` [m] (stage spacing along the path) or ``axis_step`` [m] (stages of
+    that length along the larger of |Δr|, |Δz|, seed 000's grid), ``tele_step`` [m] and
+    ``window`` (telescope steps per stage).
+
+Timed cycles keep the speeds in :attr:`Settings.cycle_speeds` (``--quick``: 1 m/s only).
 """
 from __future__ import annotations
 
-import math
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.bench import methods as bm
-from planner.geometry.paths import Curve, Line, circle, parabola, tip_to_xyz
+from planner.bench.context import Settings
+from planner.bench.methods import LAW_VARIANTS, applicability
+from planner.geometry.paths import Curve, tip_to_xyz
+from planner.model import Crane
+from planner.model.spec import SpecError
+from planner.tasks.suites import load_task_file
 
 SUITE_NAMES = ("seed000-abc", "seed002-hvd", "seed003-paths", "forwarder-cycle")
-
-SEED000_POINTS = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))
-# seed 000, Table 8.1 (DP) and Table 8.2 (laws at 2.5 m/s) [s], moves A–B, B–C, A–C
-SEED000_TIMES = {"dp:time": (1.15, 0.89, 1.18), "law:max_velocity": (1.6, 1.6, 2.28),
-                 "law:max_lift": (1.7, 1.89, 2.81)}
-# seed 002, Table 5.1 (v cycle, 1 m/s, conventional) [kJ]
-SEED002_KJ = {("v", 1.0): {"law:jla": 454.0, "law:p_optimal": 351.0}}
-
-
-@dataclass(frozen=True)
-class BenchMove:
-    """One move of a suite. ``path``: the tip path the path-following methods use (None: the
-    straight line start → goal); ``cycle``: (name, per-axis speed [m/s]) of a timed seed-002
-    cycle, whose clock fixes ``duration_s`` [s]; ``closed``: start = goal (no point-to-point
-    lower bound)."""
-    id: str
-    start: tuple
-    goal: tuple
-    path: object = None
-    cycle: tuple | None = None
-    duration_s: float | None = None
-    closed: bool = False
-
-    def line_or_path(self):
-        return self.path if self.path is not None else Line(self.start, self.goal)
+PATHS = ("line", "cylindrical")
 
 
 @dataclass
 class Suite:
     """A machine, its moves, and per method a runner ``f(ctx, move) -> Outcome`` or an "n/a"
     reason (str). ``dp_kw(move)`` gives the DP grid; ``profile_move`` the move whose joint and
-    stroke profiles are drawn; ``kind``: "p2p", "path" or "cycle"."""
+    stroke profiles are drawn; ``kind``: "p2p", "path" or "cycle"; ``path``: the ``[bench]
+    path`` rule; ``laws``: the law variants (names without "law:") that run here."""
     name: str
     crane_id: str
     description: str
     kind: str
     moves: list
-    methods: dict
-    dp_kw: object = None
+    methods: dict = field(default_factory=dict)
+    dp_grid: dict = field(default_factory=dict)
     obstacles: tuple = ()
     profile_move: str = ""
     notes: list = field(default_factory=list)
+    path: str = "line"
+    laws: tuple = ()
+
+    def dp_kw(self, move) -> dict:
+        """The DP's grid keywords for ``move`` (``[bench.dp]``)."""
+        g = dict(self.dp_grid)
+        if "axis_step" in g:
+            n = int(round(max(abs(move.goal[0] - move.start[0]),
+                              abs(move.goal[1] - move.start[1])) / g.pop("axis_step")))
+            g["stages"] = max(1, n)
+        return g
 
 
-def _methods(crane_id, applicable: dict, default_reason: str) -> dict:
-    """Every method of bm.METHODS: its runner if applicable, else the n/a reason."""
-    from planner.model import Crane
-    out = {m: applicable.get(m, default_reason) for m in bm.METHODS}
-    if "law:max_lift" in applicable and not Crane.from_id(crane_id).spec.laws.max_lift:
-        out["law:max_lift"] = (f"{crane_id} has no [laws] max_lift table: seed 000's "
-                               "maximum-lifting-capacity circle is defined for the Cranab 850 only")
-    return out
-
-
-def _laws(*names):
-    return {f"law:{n}": bm.law_runner(n) for n in names}
-
-
-ALL_LAWS = ("least_norm", "max_velocity", "max_lift", "jla", "p_optimal")
-
-
-# ------------------------------------------------------------------------------ seed 000
-def seed000(settings: bm.Settings) -> Suite:
-    pts = SEED000_POINTS
-    moves = [BenchMove(f"{a}-{b}", pts[a], pts[b]) for a, b in ("AB", "BC", "AC")]
-
-    def dp_kw(move):  # the seed's grid: Δ = 0.01 m along the larger axis, Δd3 = 0.01 m, q = 5
-        n = int(round(max(abs(move.goal[0] - move.start[0]),
-                          abs(move.goal[1] - move.start[1])) / 0.01))
-        if settings.quick:
-            return dict(stages=max(1, n // 2), tele_step=0.02, window=5)
-        return dict(stages=n, tele_step=0.01, window=5)
-    run = {**_laws(*ALL_LAWS), "ruckig": bm.ruckig, "dp:time": bm.dp_time, "topp:dp": bm.topp_dp,
-           "topp:law": bm.topp_law, "nlp:time-free": bm.nlp_time_free,
-           "nlp:time-free-kin": bm.nlp_time_free_kin, "nlp:time-free-acc": bm.nlp_time_free_acc,
-           "nlp:time-path": bm.nlp_time_path, "nlp:energy-free": bm.nlp_energy_free,
-           "nlp:kin-line": bm.nlp_kin_line}
-    return Suite("seed000-abc", "cranab850",
-                 "seed 000's moves A–B, B–C, A–C on the Cranab 850 (straight tip lines for the "
-                 "path methods; laws at the seed's 2.5 m/s)", "p2p", moves,
-                 _methods("cranab850", run, "energy methods on timed paths: seed-002 cycles only"),
-                 dp_kw=dp_kw, profile_move="A-C")
-
-
-# ------------------------------------------------------------------------------ seed 002
-def seed002(settings: bm.Settings) -> Suite:
-    from planner.tasks.cycles import CYCLES, cycle
-    moves = []
-    for name in CYCLES:
-        for speed in settings.cycle_speeds:
-            _, dur, secs = cycle(name, speed)
-            moves.append(BenchMove(f"{name}@{speed:g}", tuple(secs[0].start), tuple(secs[-1].end),
-                                   cycle=(name, speed), duration_s=dur))
-    run = {**_laws(*ALL_LAWS), "dp:energy": bm.dp_energy_cycle,
-           "dp:energy-pinned": bm.dp_energy_cycle_pinned, "topp:dp": bm.topp_dp_cycle,
-           "nlp:energy-path": bm.nlp_energy_cycle}
-    if settings.quick:
-        run["nlp:energy-path"] = ("skipped with --quick (≈ 1 min per cycle: an energy NLP per "
-                                  "section)")
-    return Suite("seed002-hvd", "s100f",
-                 "seed 002's timed cycles h, v, d on the s100f (conventional system), every "
-                 "method on the cycle's straight sections and clock", "cycle", moves,
-                 _methods("s100f", run, "timed cycle: the tip follows the cycle's sections on "
-                                        "the seed's clock; minimum-time and free-path methods "
-                                        "do not apply"),
-                 profile_move=moves[-1].id,
-                 notes=["The laws run the cycle with `follow_command` at 100 Hz from the assumed "
-                        "start (planner/cycles.py START, START_TELE), as "
-                        "benchmarks/seed002_table.py. Rests cost no pump energy (zero flow)."])
-
-
-# ------------------------------------------------------------------------------ seed 003
-def seed003(settings: bm.Settings) -> Suite:
-    curves = {"circle": circle((3.0, 0.0, 2.5), 0.7, -math.pi, math.pi),
-              "parabola": parabola(1.6, 3.07, 1.5, 3.0, -math.pi / 4)}
-    moves = []
-    for name, cv in curves.items():
-        a, b = cv.tip(np.array([0.0, cv.length]))
-        moves.append(BenchMove(name, tuple(a), tuple(b), path=cv,
-                               closed=bool(np.allclose(a, b, atol=1e-9))))
-
-    def dp_kw(move):  # a fine telescope grid against coarse stages (see the module doc)
-        return (dict(step=0.1, tele_step=0.01, window=30) if settings.quick
-                else dict(step=0.05, tele_step=0.005, window=40))
-    run = {**_laws(*ALL_LAWS), "dp:time": bm.dp_time, "topp:dp": bm.topp_dp,
-           "topp:law": bm.topp_law, "nlp:time-path": bm.nlp_time_path}
-    meths = _methods("umea-lab", run, "path suite: the tip must stay on the circle / parabola; "
-                                      "free-path and straight-line methods leave it")
-    return Suite("seed003-paths", "umea-lab",
-                 "seed 003's circle (θ ∈ [−π, π], closed) and parabola (α = −45° instead of the "
-                 "unreachable −60°) on the umea-lab crane, tip on the path", "path", moves, meths,
-                 dp_kw=dp_kw, profile_move="parabola",
-                 notes=["DP grid: 0.05 m stages with a 0.005 m telescope grid and a 40-step "
-                        "window; at the seed-000 grid (0.01 m / 0.01 m / 5) the telescope's "
-                        "quantisation makes the DP 66 % slower on the circle (7.09 s vs 4.26 s)."])
-
-
-# ------------------------------------------------------------------------------ forwarder
 def cylindrical_path(tips) -> Curve:
     """Tip path through ``tips`` (r, z, slew) interpolating r, z and slew linearly between them
     (how a slewing crane moves; the NLP's guesses and Plate.vias use the same interpolation)."""
@@ -176,48 +102,67 @@ def cylindrical_path(tips) -> Curve:
     return cv
 
 
-def forwarder(settings: bm.Settings) -> Suite:
-    from planner.tasks.suites import load_suite
-    meta, all_moves = load_suite("forwarder-cycle")
-    obstacles = meta["obstacles"]
-    k = min(settings.forwarder_moves, len(all_moves))
-    pick = sorted(np.random.default_rng(settings.seed).choice(len(all_moves), k, replace=False))
-    moves = []
-    for i in pick:
-        m = all_moves[int(i)]
-        a, b = np.asarray(m.start, float), np.asarray(m.goal, float)
-        vias = [v for ob in obstacles for v in ob.vias(a, b)]
-        moves.append(BenchMove(m.id, m.start, m.goal, path=cylindrical_path([a, *vias, b])))
-
-    def dp_kw(move):
-        return (dict(step=0.05, tele_step=0.02, window=10) if settings.quick
-                else dict(step=0.02, tele_step=0.01, window=10))
-    run = {**_laws(*ALL_LAWS), "ruckig": bm.ruckig, "dp:time": bm.dp_time, "topp:dp": bm.topp_dp,
-           "topp:law": bm.topp_law, "nlp:time-free": bm.nlp_time_free,
-           "nlp:energy-free": bm.nlp_energy_free}
-    meths = _methods("s100f", run, "not run on this suite")
-    meths["nlp:time-path"] = ("the path (r, z, slew interpolated over the headboard) has no "
-                              "symbolic face for MoveNLP's path mode")
-    meths["nlp:time-free-kin"] = "seed-000 setting only (velocity limits as the laws)"
-    meths["nlp:time-free-acc"] = "seed-000 comparison with topp:law only"
-    meths["nlp:kin-line"] = "the straight Cartesian line passes near the slew axis: not used here"
-    for m in ("dp:energy", "dp:energy-pinned", "nlp:energy-path"):
-        meths[m] = "energy methods on timed paths: seed-002 cycles only"
-    return Suite("forwarder-cycle", "s100f",
-                 f"{k} of the {len(all_moves)} forwarder-cycle moves (seeded sample, seed "
-                 f"{settings.seed}) on the s100f; the tip keeps clear of the headboard "
-                 "(checked at 1 kHz for every method)", "p2p", moves, meths, dp_kw=dp_kw,
-                 obstacles=tuple(obstacles), profile_move=moves[0].id,
-                 notes=["Path methods (laws, DP, TOPP-RA) follow r, z and slew interpolated "
-                        "linearly, over a via point above the headboard where the move meets it "
-                        "(planner.geometry.obstacles.Plate.vias); free-path methods choose their own."])
+def _kind(moves, path: str) -> str:
+    if any(m.cycle for m in moves):
+        return "cycle"
+    return "path" if path == "line" and any(m.path is not None for m in moves) else "p2p"
 
 
-BUILDERS = {"seed000-abc": seed000, "seed002-hvd": seed002, "seed003-paths": seed003,
-            "forwarder-cycle": forwarder}
+def _table(tf, key, expected):
+    b = tf.tables["bench"]
+    v = b.get(key)
+    if not isinstance(v, dict) or not {"tele_step", "window"} <= set(v) or \
+            len({"step", "axis_step"} & set(v)) != 1:
+        raise SpecError(str(tf.path), f"bench.{key}", v, expected)
+    return dict(v)
 
 
-def build_suite(name: str, settings: bm.Settings) -> Suite:
-    if name not in BUILDERS:
-        raise KeyError(f"unknown suite {name!r}; known suites: {', '.join(SUITE_NAMES)}")
-    return BUILDERS[name](settings)
+def build_suite(name: str, settings: Settings) -> Suite:
+    """The bench suite of the task file ``name`` (a shipped suite or a path to a .toml with a
+    ``[bench]`` table) under ``settings``."""
+    tf = load_task_file(name)
+    b = tf.tables.get("bench")
+    f = str(tf.path)
+    if not isinstance(b, dict):
+        raise SpecError(f, "bench", b, "a [bench] table (see planner/bench/suites.py)")
+    path = b.get("path", "line")
+    if path not in PATHS:
+        raise SpecError(f, "bench.path", path, f"one of {', '.join(PATHS)}")
+    moves, total = list(tf.moves), len(tf.moves)
+    if any(m.cycle for m in moves):
+        moves = [m for m in moves if not m.cycle or m.cycle[1] in settings.cycle_speeds]
+    k = len(moves)
+    if b.get("sample"):
+        k = min(settings.forwarder_moves, len(moves))
+        pick = sorted(np.random.default_rng(settings.seed).choice(len(moves), k, replace=False))
+        moves = [moves[int(i)] for i in pick]
+    if path == "cylindrical":
+        new = []
+        for m in moves:
+            a, g = np.asarray(m.start, float), np.asarray(m.goal, float)
+            vias = [v for ob in tf.obstacles for v in ob.vias(a, g)]
+            new.append(dataclasses.replace(m, path=cylindrical_path([a, *vias, g])))
+        moves = new
+    if not moves:
+        raise SpecError(f, "moves", [], "at least one move for the bench's settings")
+    prof = b.get("profile_move", "first")
+    prof = moves[0].id if prof == "first" else moves[-1].id if prof == "last" else prof
+    grid = _table(tf, "dp_quick" if settings.quick else "dp",
+                  "a table with step or axis_step [m], tele_step [m], window") \
+        if "dp" in b or "dp_quick" in b else {}
+    suite = Suite(tf.id, tf.crane, str(b.get("description", tf.description)).format(
+                      sample=k, total=total, seed=settings.seed), _kind(moves, path), moves,
+                  dp_grid=grid, obstacles=tuple(tf.obstacles), profile_move=prof,
+                  notes=list(b.get("notes", [])), path=path)
+    listed = b.get("methods", [])
+    if not isinstance(listed, list):
+        raise SpecError(f, "bench.methods", listed, "a list of bench variant names")
+    crane = Crane.from_id(tf.crane)
+    suite.methods = applicability(suite, f, listed, dict(b.get("not_applicable", {})),
+                                  str(b.get("default_reason", "not run on this suite")),
+                                  tf.crane, bool(crane.spec.laws.max_lift), settings)
+    suite.laws = tuple(m[4:] for m in LAW_VARIANTS if callable(suite.methods[m]))
+    return suite
+
+
+__all__ = ["SUITE_NAMES", "Suite", "build_suite", "cylindrical_path"]

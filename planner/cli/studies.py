@@ -15,7 +15,10 @@ def cmd_bench(args):
         raise CLIError(str(e)) from None
     if args.repeats is not None and args.repeats < 1:
         raise CLIError(f"--repeats must be >= 1, got {args.repeats}")
-    res = run_bench(suites, args.out, repeats=args.repeats, quick=args.quick)
+    methods = ([m.strip() for m in args.methods.split(",") if m.strip()]
+               if args.methods else None)
+    res = run_bench(suites, args.out, repeats=args.repeats, quick=args.quick,
+                    results=args.results, methods=methods)
     emit(args, res)
     if args.json != "-":
         print(f"bench written to {args.out}/ (bench.md, bench.json, figures): "
@@ -50,6 +53,11 @@ def add_parsers(sub) -> None:
                    help="timed solves of every method faster than 2 s (3; --quick: 1)")
     p.add_argument("--quick", action="store_true",
                    help="small settings for tests and the demo: fewer moves, coarser grids")
+    p.add_argument("--methods", metavar="NAME[,NAME]",
+                   help="only these bench methods (default: every variant and registered method)")
+    p.add_argument("--results", default="benchmarks/results", metavar="DIR",
+                   help="folder of the committed reports the seed tables compare with "
+                        "(default benchmarks/results)")
     add_json_arg(p)
     p.set_defaults(func=cmd_bench)
     p = sub.add_parser("demo", help="the main job: machines, seed 000, a small library, a short "

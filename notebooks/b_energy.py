@@ -33,58 +33,19 @@
 # %matplotlib inline
 # Settings. CRANE_NB_SMALL=1 (set by the test suite): small settings that run in seconds;
 # otherwise the full study (`make notebooks`). CRANE_NB_OUT: where figure files go.
-import io
-import os
-import tempfile
 import time
-from pathlib import Path
 
-SMALL = os.environ.get("CRANE_NB_SMALL", "0") == "1"
+import matplotlib.pyplot as plt
+import numpy as np
+from IPython.display import Markdown, display
+from nbtools import show, span, study, table
+
 SMALL_SETTINGS = dict(cycles=("d",), speeds=(1.0,), laws=("jla", "q_optimal", "p1", "p2"),
                       rate=100.0, dp_step=0.05, dp_window=3, nlp_N=20)
 FULL_SETTINGS = dict(cycles=("h", "v", "d"), speeds=(0.5, 1.0),
                      laws=("jla", "q_optimal", "p1", "p1_5", "p2"), rate=100.0, dp_step=0.02,
                      dp_window=3, nlp_N=40)
-S = SMALL_SETTINGS if SMALL else FULL_SETTINGS
-OUT = Path(os.environ.get("CRANE_NB_OUT") or tempfile.mkdtemp(prefix="crane-nb-"))
-OUT.mkdir(parents=True, exist_ok=True)
-T_START = time.perf_counter()
-
-import matplotlib.pyplot as plt
-import numpy as np
-from IPython.display import Image, Markdown, display
-
-
-def show(fig):
-    """Show a figure inline as a PNG (independent of the backend: planner.plots uses Agg)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    display(Image(data=buf.getvalue()))
-
-
-def show_file(path):
-    display(Image(filename=str(path)))
-
-
-def table(header, rows):
-    """A markdown table from a header and rows of cells."""
-    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
-    display(Markdown("\n".join(lines)))
-
-
-def fmt(x, spec=".3f", none="—"):
-    return none if x is None or not np.isfinite(x) else format(x, spec)
-
-
-def span(vals, scale=1.0, spec=".1f", unit=""):
-    """'lo to hi unit' of scaled values (one number when they print alike)."""
-    lo, hi = format(scale * min(vals), spec), format(scale * max(vals), spec)
-    return f"{lo}{unit}" if lo == hi else f"{lo} to {hi}{unit}"
-
-
-print(f"settings: {'small' if SMALL else 'full'} {S}")
+SMALL, S, OUT, T_START = study(SMALL_SETTINGS, FULL_SETTINGS)  # reads CRANE_NB_SMALL
 
 # %% [markdown]
 # ## The machine and the cycles

@@ -143,7 +143,9 @@ def execute(src: Path, out_dir: Path, *, small: bool, timeout: int = 1800):
     if dst.resolve() != Path(src).resolve():
         shutil.copyfile(src, dst)
     nb = nbformat.read(dst, as_version=4)
-    env = dict(os.environ, CRANE_NB_SMALL="1" if small else "0",
+    # the kernel runs in out_dir: put this folder on its path for the shared nbtools module
+    path = os.pathsep.join(p for p in (str(HERE), os.environ.get("PYTHONPATH", "")) if p)
+    env = dict(os.environ, CRANE_NB_SMALL="1" if small else "0", PYTHONPATH=path,
                CRANE_NB_OUT=str(out_dir / f"{dst.stem}_files"))
     client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name(),
                             resources={"metadata": {"path": str(out_dir)}})

@@ -145,6 +145,16 @@ class Layout:
 
     # ------------------------------------------------------------------ the NLP
     @property
+    def var_names(self) -> list:
+        """Variable block names in the order added."""
+        return list(self._vars)
+
+    @property
+    def con_names(self) -> list:
+        """Constraint block names in the order first used."""
+        return list(self._cons)
+
+    @property
     def nw(self) -> int:
         return self._nw
 

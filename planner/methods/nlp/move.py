@@ -35,7 +35,6 @@ guess comes from when that move is feasible (pump, obstacles): equal intervals c
 long move's jerk switches exactly (measured: up to 2.5 % lost at N = 40 on slew-dominated
 forwarder moves), so the exact move is returned when faster (``stats["winner"] == "ruckig"``).
 """
-
 from __future__ import annotations
 
 import time as _time

@@ -160,3 +160,76 @@ def test_the_nlp_keeps_its_own_solution_when_ruckig_exceeds_the_pump(s100f):
     assert r.ok and "winner" not in r.stats
     assert len(r.trajectory.t) == 41
     assert evaluate(s100f, r.trajectory).max_limit_violation <= 1e-3
+
+
+def test_layout_offsets_rows_and_parameters_by_name():
+    """Layout against hand-counted offsets: blocks stacked column by column in the order added,
+    bounds broadcast alike, constraint rows accumulated per name, parameters packed in the
+    declared order whatever the keyword order."""
+    import casadi as ca
+
+    from planner.methods.nlp.transcription import Layout
+    lay = Layout()
+    par = lay.parameters(a=2, b=1)
+    X = lay.add_var("X", (2, 3), np.array([[0.0], [1.0]]), 5.0)   # lo per row
+    T = lay.add_var("T", 1, 0.1, 9.0)
+    lay.add_con("c", X[:, 0] - par["a"], 0.0, 0.0)
+    lay.add_con("d", T - par["b"], -ca.inf, 0.0)
+    lay.add_con("c", X[0, 1:], -1.0, 1.0)
+    assert lay.slice("X") == slice(0, 6) and lay.slice("T") == slice(6, 7) and lay.nw == 7
+    lbw, ubw, lbg, ubg = lay.bounds()
+    np.testing.assert_array_equal(lbw, [0, 1, 0, 1, 0, 1, 0.1])     # column-major
+    np.testing.assert_array_equal(lay.rows("c"), [0, 1, 3, 4])
+    np.testing.assert_array_equal(lay.rows("d"), [2])
+    np.testing.assert_array_equal(lay.param_vector(b=7.0, a=[1.0, 2.0]), [1.0, 2.0, 7.0])
+    w = np.arange(7.0)
+    np.testing.assert_array_equal(lay.unpack(w, "X"), [[0, 2, 4], [1, 3, 5]])
+    lay.pack(w, "X", np.zeros((2, 3)))
+    assert w.tolist() == [0, 0, 0, 0, 0, 0, 6]
+    with pytest.raises(ValueError, match="exists"):
+        lay.add_var("X", 1, 0, 1)
+    with pytest.raises(KeyError, match="known X, T"):
+        lay.slice("Y")
+    with pytest.raises(ValueError, match="missing"):
+        lay.param_vector(a=[1.0, 2.0])
+
+
+def test_layout_nlp_solves_to_the_analytic_optimum():
+    """A small NLP written with Layout: min Σ (x_i − c_i)² subject to Σ x = 1, x ≥ 0.2 is the
+    projection of c onto that set, known analytically (KKT): the component with the lowest
+    c_i on its bound, the other two c_i − shift with the shift that makes the sum 1."""
+    import casadi as ca
+
+    from planner.methods.nlp.transcription import STATUS_OK, Layout
+    lay = Layout()
+    c = lay.parameters(c=3)["c"]
+    x = lay.add_var("x", 3, 0.2, ca.inf)
+    lay.add_con("sum", ca.sum1(x), 1.0, 1.0)
+    S = ca.nlpsol("t", "ipopt", {"x": lay.w, "p": lay.P, "f": ca.sumsqr(x - c), "g": lay.g},
+                  {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}})
+    lbw, ubw, lbg, ubg = lay.bounds()
+    cv = np.array([0.9, 0.7, -0.4])   # optimum (0.5, 0.3, 0.2): the bound strictly active
+    sol = S(x0=np.full(3, 0.3), p=lay.param_vector(c=cv), lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
+    assert S.stats()["return_status"] in STATUS_OK
+    # third component sits on its bound 0.2; the other two share the rest equally shifted
+    shift = (cv[0] + cv[1] - 0.8) / 2
+    np.testing.assert_allclose(lay.unpack(sol["x"], "x").ravel(),
+                               [cv[0] - shift, cv[1] - shift, 0.2], atol=1e-6)
+
+
+def test_movenlp_layout_names_every_variable_once(s100f):
+    """The move NLP's blocks tile the decision vector exactly (no gap, no overlap), in the
+    documented order X, U, T, then the per-check-point slacks; its constraint blocks tile the
+    constraints."""
+    nlp = MoveNLP(s100f, "energy", "free", N=6)
+    lay, n = nlp.layout, s100f.n
+    assert lay.slice("X") == slice(0, 3 * n * 7)
+    assert lay.slice("U") == slice(3 * n * 7, 3 * n * 7 + n * 6)
+    assert lay.slice("T").start == lay.slice("U").stop == nlp._nx + n * 6
+    names = lay.var_names
+    spans = sorted((lay.slice(k).start, lay.slice(k).stop) for k in names)
+    assert spans[0][0] == 0 and spans[-1][1] == nlp.nw == len(nlp.lbw)
+    assert all(a[1] == b[0] for a, b in zip(spans, spans[1:]))
+    rows = np.sort(np.concatenate([lay.rows(k) for k in lay.con_names]))
+    np.testing.assert_array_equal(rows, np.arange(len(nlp.lbg)))
+    assert len(lay.rows("dynamics")) == 3 * n * 6 and len(lay.rows("duration")) == 1

@@ -233,3 +233,32 @@ def test_from_rest_circle_keeps_cycling(lab, circle_profile):
     (f, _), (qn, vn, _) = circle_profile.nominal_state(lab, np.array([math.pi]))
     assert np.allclose(tr.q[-1], qn[0], atol=1e-9) and np.allclose(tr.qd[-1], vn[0], atol=1e-9)
     assert evaluate(lab, tr).max_limit_violation <= 1e-6
+
+
+@pytest.mark.parametrize("which", ["circle", "parabola"])
+def test_seed_path_arc_length_face(which):
+    """SeedPath.arc_length(): the same curve by arc length. Oracles: the half circle's length is
+    πR; the parabola's is the quadrature of |dp/dθ| (its analytic derivative); points at equal
+    arc steps are equally far apart along the curve; the shared circle()/parabola() are the
+    seed paths' arc-length faces."""
+    from planner.geometry.paths import Curve, circle, parabola
+    if which == "circle":
+        sp = ph.circle_path()
+        cv = sp.arc_length()
+        assert cv.length == pytest.approx(2 * math.pi * 0.7, rel=1e-6)
+        half = circle((3.0, 0.0, 2.5), 0.7, -math.pi / 2, math.pi / 2)
+        assert half.length == pytest.approx(math.pi * 0.7, rel=1e-6)
+    else:
+        sp = ph.parabola_path(alpha=ALPHA)
+        cv = sp.arc_length()
+        th = sp.grid(20001)
+        ref = np.trapezoid(np.linalg.norm(sp.dxyz(th), axis=1), th)
+        assert cv.length == pytest.approx(ref, rel=1e-6)
+        other = parabola(1.6, 3.07, 1.5, 3.0, ALPHA)
+        assert other.length == cv.length and other.source.params == sp.params
+    assert isinstance(cv, Curve) and cv.source is sp and cv.name == sp.name
+    s = np.linspace(0.0, cv.length, 401)   # short chords: chord ≈ arc to O(κ²Δs²)
+    steps = np.linalg.norm(np.diff(cv.xyz(s), axis=0), axis=1)
+    assert steps == pytest.approx(np.full(400, cv.length / 400), rel=1e-4)
+    np.testing.assert_allclose(cv.xyz([0.0, cv.length]), sp.xyz([sp.theta0, sp.theta1]),
+                               atol=1e-9)

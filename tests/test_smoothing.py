@@ -43,3 +43,34 @@ def test_out_of_limit_configuration_is_refused():
     bad[1] = 2.0
     r = rest_to_rest(crane, q, bad)
     assert r.status == "invalid" and "boom" in r.reason
+
+
+def test_state_to_state_sampling_reproduces_the_profile():
+    """The shared Ruckig wrapper: a 1-DOF move from a moving state to rest. Oracle: the samples
+    at the switch times lie on Ruckig's own profile, the sampled motion integrates (trapezoid
+    on the fine grid) to the travelled distance, and the limits hold at every sample."""
+    from planner.methods.ruckig import sample, state_to_state, switch_times
+    tr = state_to_state(([0.0], [0.5], [0.2]), ([1.0], [0.0], [0.0]), [1.0], [-1.0], [2.0],
+                        [10.0])
+    t, q, qd, qdd = sample(tr, 1000.0)
+    sw = switch_times(tr)
+    assert sw[0] == 0.0 and sw[-1] == pytest.approx(tr.duration) and np.all(np.diff(sw) > 0)
+    assert np.abs(t[:, None] - sw[None, :]).min(axis=0).max() < 1e-4  # every switch sampled
+    k = np.argmin(np.abs(t[:, None] - sw[None, :]), axis=0)
+    np.testing.assert_allclose(q[k, 0], [tr.at_time(x)[0][0] for x in t[k]], atol=1e-12)
+    assert np.all(np.diff(t) >= 1e-4 - 1e-15) and t[-1] == tr.duration
+    assert q[-1, 0] == pytest.approx(1.0, abs=1e-9) and qd[-1, 0] == pytest.approx(0, abs=1e-9)
+    assert np.trapezoid(qd[:, 0], t) == pytest.approx(1.0, abs=1e-5)
+    assert qd.max() <= 1.0 + 1e-9 and np.abs(qdd).max() <= 2.0 + 1e-9
+
+
+def test_state_to_state_relaxed_raises_the_limits_until_a_move_exists():
+    """Arriving at 0.9 m/s² with only 0.5 m/s² allowed is impossible for Ruckig; the relaxed
+    wrapper scales acceleration and jerk by 1.25 until 0.9 fits: 1.25³ = 1.95 ≥ 1.8."""
+    from planner.methods.ruckig import state_to_state, state_to_state_relaxed
+    cur, tgt = ([0.0], [0.0], [0.0]), ([1.0], [0.3], [0.9])
+    with pytest.raises(RuntimeError, match="Ruckig"):
+        state_to_state(cur, tgt, [1.0], [-1.0], [0.5], [5.0])
+    tr, scale = state_to_state_relaxed(cur, tgt, [1.0], [-1.0], [0.5], [5.0])
+    assert scale == pytest.approx(1.25 ** 3) and tr.at_time(tr.duration)[2][0] == \
+        pytest.approx(0.9)

@@ -1,0 +1,83 @@
+"""Point-to-point moves as CasADi NLPs (IPOPT), built once and solved many times, and the
+``nlp`` planner.
+
+- :mod:`~planner.methods.nlp.transcription`: the variable/constraint/parameter layout
+  (:class:`Layout`) and IPOPT's status as a result code;
+- :mod:`~planner.methods.nlp.move`: :class:`MoveNLP` (minimum time, least energy or a blend;
+  free path, tip line or a curve; obstacles; the exact-Ruckig swap-in);
+- :mod:`~planner.methods.nlp.guess`: its warm starts (and :func:`stretch`);
+- :mod:`~planner.methods.nlp.energy`: :func:`energy_optimal`, :func:`pareto_front`;
+- :mod:`~planner.methods.nlp.kinematic`: :func:`kinematic_line_nlp` (seed 000's setting).
+
+:class:`NLPPlanner` is registered as ``nlp`` when this package is imported.
+"""
+from __future__ import annotations
+
+from planner.geometry.obstacles import Plate, Wall
+from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.nlp.energy import energy_optimal, pareto_front
+from planner.methods.nlp.guess import stretch
+from planner.methods.nlp.kinematic import kinematic_line_nlp
+from planner.methods.nlp.move import MoveNLP
+from planner.methods.nlp.transcription import STATUS_OK, Layout
+from planner.methods.registry import register
+
+__all__ = ["MoveNLP", "Layout", "energy_optimal", "pareto_front", "stretch",
+           "kinematic_line_nlp", "OBSTACLE_TYPES", "Wall", "Plate", "STATUS_OK", "NLPPlanner"]
+
+OBSTACLE_TYPES = (Wall, Plate)   # the obstacles MoveNLP accepts (re-exported here)
+
+
+class NLPPlanner(Planner):
+    """``nlp``: the CasADi/IPOPT move NLP (:class:`MoveNLP`), minimum time or least pump energy
+    within ``duration`` (required for energy; free path: :func:`energy_optimal`, never above the
+    time-optimal move's energy), free path or on the tip line, clear of the request's
+    obstacles. Options: ``intervals`` (N, 40); ``time_result`` (energy: the time-optimal
+    result of the same move, reused instead of solved again). Each NLP is built once per
+    (machine, objective, path, N, obstacles) in this process and solved many times."""
+    name = "nlp"
+    description = "CasADi/IPOPT NLP: time or energy, free path or tip line, obstacles"
+    objectives = ("time", "energy")
+    paths = ("free", "line")
+    obstacles = True
+    uses_duration = True
+
+    def __init__(self):
+        self._built: dict = {}
+
+    def check(self, request: PlanRequest) -> None:
+        super().check(request)
+        if request.objective == "energy" and request.duration is None:
+            raise UnsupportedRequest("--method nlp --objective energy needs --duration T [s] "
+                                     "(e.g. 1.2 × the minimum time)")
+
+    def built(self, crane, objective: str, path: str = "free", N: int = 40,
+              obstacles: tuple = ()) -> MoveNLP:
+        """The MoveNLP for this formulation, built on first use and kept for the process."""
+        # keyed by the crane object (kept alive with its NLP, so its id is never reused):
+        # variants of one machine with other limits share the spec id but not the NLP
+        key = (id(crane), objective, path, int(N), tuple(obstacles))
+        if key not in self._built:
+            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles))
+            self._built[key] = (crane, nlp)
+        return self._built[key][1]
+
+    def clear(self) -> None:
+        """Forget the NLPs built in this process (a timed build then starts from scratch)."""
+        self._built.clear()
+
+    def plan(self, crane, request: PlanRequest) -> PlanResult:
+        N = request.option("intervals", 40)
+        obs = request.obstacles
+        if request.objective == "energy" and request.path == "free":
+            res, info = energy_optimal(crane, request.start, request.goal, request.duration,
+                                       time_result=request.option("time_result"),
+                                       time_nlp=self.built(crane, "time", "free", N, obs),
+                                       energy_nlp=self.built(crane, "energy", "free", N, obs))
+            res.stats["energy_winner"] = info.get("winner")
+            return res
+        nlp = self.built(crane, request.objective, request.path, N, obs)
+        return nlp.solve(request.start, request.goal, T_max=request.duration)
+
+
+register(NLPPlanner())

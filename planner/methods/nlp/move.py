@@ -1,0 +1,486 @@
+"""MoveNLP: a point-to-point move as one CasADi NLP (IPOPT), built once and solved many times.
+
+Transcription: N intervals of equal length h = T/N; every joint is a triple integrator with
+piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so acceleration and jerk
+limits hold everywhere by construction; velocity, position, the pump flow and (path mode) the
+tip path are imposed at the nodes and the interval midpoints. Velocity is quadratic on an
+interval, so its extremum lies at most h/4 from a check point and exceeds it by at most
+j_max·h²/32: the checked velocity is tightened by exactly that, and the limit holds everywhere.
+Ends: tip positions (the redundancy is free at both ends) at rest (q̇ = q̈ = 0).
+
+Pump flow without abs/max (anchors.md): per check point and actuator a slack s ≥ A_a·ẋ,
+s ≥ −A_b·ẋ (single-acting: s ≥ A_a·ẋ), s ≥ 0, and Σ s ≤ (1 − pump_margin)·Q_max; the flow is
+nonlinear in q between check points, the 0.5 % default margin covers that (measured overshoot
+≤ 0.15 % at N = 30).
+
+Energy (load sensing) without max/abs: flows split by direction (s⁺ piston side extending, s⁻
+annulus retracting, as fractions of Q_max); per node a pump-pressure variable p [MPa] ≥ standby
+with p ≥ margin + p_meter-in for every function marked active at that node — the activity mask
+is an NLP parameter (inactive ones relaxed by a big M, so all constraints are smooth), taken
+from the warm start, then from each solution, re-solving warm until it settles (≤ 4 rounds;
+functions once active stay so). Power p·Q/η, trapezoid rule. Measured: 0.9–1.4 s and ~150
+IPOPT iterations per energy solve; earlier complementarity products (p − p_i)·s_i ≥ 0 took
+500–950 iterations. The result is judged by :func:`~planner.trajectory.evaluate`. The variable,
+constraint and parameter layout is kept by :class:`~planner.methods.nlp.transcription.Layout`.
+
+Objectives: "time" (free T), "energy" (T ≤ T_max given), "blend" (T + λ·E). Paths: "free" or
+"line" (tip on the straight line between the ends at every node). Obstacles
+(:mod:`planner.geometry.obstacles`: a :class:`Wall` in the r–z plane, a :class:`Plate` such as a
+forwarder's headboard) are kept clear at the check points; every free-path solution is then
+verified on a 1 kHz resampling, from the plain guess and from a guess over the obstacles the move
+meets, and the fastest one that clears is kept, else status "obstacle" (the over-the-wall guess
+matters: a 4.56 s move at N = 60 came out as a 20.8 s detour at N = 40 from a poor guess).
+Minimum time on a free path is never slower than the jerk-limited Ruckig rest-to-rest move the
+guess comes from when that move is feasible (pump, obstacles): equal intervals cannot place a
+long move's jerk switches exactly (measured: up to 2.5 % lost at N = 40 on slew-dominated
+forwarder moves), so the exact move is returned when faster (``stats["winner"] == "ruckig"``).
+"""
+from __future__ import annotations
+
+import time as _time
+
+import casadi as ca
+import numpy as np
+
+from planner.bounds import lower_bound
+from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
+from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
+from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
+from planner.model.hydraulics import ACTIVE_FLOW
+from planner.trajectory import Trajectory, evaluate
+
+__all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
+
+IPOPT_DEFAULTS = {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
+                  "acceptable_tol": 1e-5, "mu_strategy": "adaptive", "max_wall_time": 60.0}
+BIG_T = 1e3  # [s] upper bound of the duration
+
+
+def _step(q, v, a, j, h):
+    """The exact triple-integrator step: (q, q̇, q̈) after time h under constant jerk j."""
+    return (q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j, v + h * a + h ** 2 / 2 * j, a + h * j)
+
+
+class MoveNLP:
+    """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
+
+    objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
+    face (:func:`planner.geometry.paths.circle` / :func:`~planner.geometry.paths.parabola`);
+    N intervals. ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
+    jerk per interval, "T", per check point the flow slacks "sp<k>"/"sm<k>" and the pump
+    pressure "p<k>", curve mode "TH") and the constraint blocks."""
+
+    def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
+                 pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
+                 obstacles: tuple = (), ipopt_options: dict | None = None):
+        if objective not in ("time", "energy", "blend"):
+            raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
+        self.curve = None
+        if not isinstance(path, str):  # a Curve with a symbolic face: tip on p(θ)
+            if getattr(path, "p_sym", None) is None:
+                raise ValueError("a path object needs a symbolic face p_sym(θ) (see "
+                                 "planner.geometry.paths.circle / parabola)")
+            self.curve, path = path, "curve"
+        elif path not in ("free", "line"):
+            raise ValueError(f"path must be 'free', 'line' or a Curve, not {path!r}")
+        self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
+        self.obstacles = tuple(obstacles)
+        n = crane.n
+        self.L = L = crane.limit_arrays()
+        acts = crane.spec.joints
+        self._Aa = np.array([j.actuator.area_a for j in acts])
+        self._Ab = np.array([j.actuator.area_b for j in acts])
+        self._dbl = np.array([j.actuator.acting == "double" for j in acts])
+        self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
+        lay = self.layout = Layout()
+        par = lay.parameters(start=3, goal=3, T_max=1, lam=1, payload=1, activity=self._n_act)
+        # ---- variables: node states, jerk per interval, duration (exact integration inside)
+        jmax = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 1e3)
+        xlo = np.concatenate([L["q_min"], L["qd_min"], -L["qdd_max"]])
+        xhi = np.concatenate([L["q_max"], L["qd_max"], L["qdd_max"]])
+        X = lay.add_var("X", (3 * n, N + 1), np.tile(xlo[:, None], (1, N + 1)),
+                        np.tile(xhi[:, None], (1, N + 1)))
+        U = lay.add_var("U", (n, N), np.tile(-jmax[:, None], (1, N)),
+                        np.tile(jmax[:, None], (1, N)))
+        T = lay.add_var("T", 1, 1e-3, BIG_T)
+        h = T / N
+        for k in range(N):
+            lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*self._at(X, U, k, h)), 0.0, 0.0)
+        # ---- ends: the tips given, at rest
+        fk = crane.f_fk
+        lay.add_con("start", fk(X[:n, 0])[0] - par["start"], 0.0, 0.0)
+        lay.add_con("goal", fk(X[:n, N])[0] - par["goal"], 0.0, 0.0)
+        lay.add_con("start_at_rest", X[n:, 0], 0.0, 0.0)
+        lay.add_con("goal_at_rest", X[n:, N], 0.0, 0.0)
+        # ---- check points: nodes and interval midpoints
+        pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
+        mids = [self._at(X, U, k, h / 2) for k in range(N)]
+        self._add_joint_limits(pts, mids, jmax * h ** 2 / 32)
+        if self.obstacles:
+            self._add_obstacles(pts + mids + [self._at(X, U, k, hh)
+                                              for k in range(N) for hh in (h / 4, 3 * h / 4)])
+        TH = self._add_curve(X) if path == "curve" else None
+        if path == "line":
+            self._add_line(pts, par["start"], par["goal"])
+        energy = self._add_pump_and_energy(pts, mids, h, par["payload"], par["activity"],
+                                           pump_margin)
+        # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
+        # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
+        smooth = reg * h * ca.sumsqr(U)
+        if objective == "time":
+            f = T + smooth
+        elif objective == "energy":
+            lay.add_con("duration", T - par["T_max"], -ca.inf, 0.0)
+            f = energy * 1e-5 + smooth
+        else:
+            f = T + par["lam"] * energy + smooth
+        if TH is not None:
+            lay.add_var("TH", TH, *self._th_bounds())  # last block: θ per node
+        wv = lay.w
+        self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
+        opts = {"expand": True, "print_time": False, "ipopt": dict(IPOPT_DEFAULTS)}
+        if ipopt_options:
+            opts["ipopt"].update(ipopt_options)
+        self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": lay.P, "f": f, "g": lay.g},
+                                opts)
+        self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
+        self.nw = lay.nw
+        self._last = None
+        self._plain = (None, None)   # (key, _plain_traj result) of the last move: built once
+
+    @property
+    def _nx(self) -> int:
+        """Number of node-state variables (kept for benchmarks/bench_scaling.py: the jerks
+        start here; prefer ``layout.slice("U")``)."""
+        return self.layout.slice("U").start
+
+    # ------------------------------------------------------------------------ formulation
+    def _at(self, X, U, k, hh):
+        """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
+        n = self.crane.n
+        return _step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
+
+    def _add_joint_limits(self, pts, mids, gap):
+        """Positions at the midpoints (the nodes are bounded as variables); velocities at every
+        check point, tightened by ``gap`` = j_max·h²/32, the largest overshoot between them."""
+        L, lay = self.L, self.layout
+        for q, v, a in mids:
+            lay.add_con("position", q, L["q_min"], L["q_max"])
+        for q, v, a in pts + mids:
+            lay.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
+            lay.add_con("velocity", v - gap, L["qd_min"], ca.inf)
+
+    def _add_obstacles(self, checks):
+        """Clearance from every obstacle at the nodes, midpoints and quarter points (q is a
+        cubic per interval: the tip moves a quarter interval between checks)."""
+        for q, _, _ in checks:
+            xyz, cyl = self.crane.f_fk(q)
+            for ob in self.obstacles:
+                for expr, lo in ob.constraints(xyz, cyl):
+                    self.layout.add_con("obstacle", expr, lo, ca.inf)
+
+    def _th_bounds(self):
+        u0, u1 = self.curve.u_range
+        return min(u0, u1), max(u0, u1)
+
+    def _add_curve(self, X):
+        """One path parameter per node (returned; added as the last variable block),
+        monotone, fixed at the ends; the tip on p(θ_k) at the nodes: per interval n jerks + 1 θ
+        − 3 equations leave n − 2 free directions."""
+        n, N, lay = self.crane.n, self.N, self.layout
+        u0, u1 = self.curve.u_range
+        TH = ca.SX.sym("TH", N + 1)
+        for k in range(N + 1):
+            lay.add_con("curve", self.crane.f_fk(X[:n, k])[0] - self.curve.p_sym(TH[k]), 0.0, 0.0)
+        lay.add_con("curve_ends", TH[0] - u0, 0.0, 0.0)
+        lay.add_con("curve_ends", TH[N] - u1, 0.0, 0.0)
+        sgn = 1.0 if u1 >= u0 else -1.0
+        lay.add_con("curve_monotone", sgn * (TH[1:] - TH[:-1]), 0.0, ca.inf)
+        return TH
+
+    def _add_line(self, pts, pa, pb):
+        """The tip on the straight line pa → pb at the interior nodes only: per interval the n
+        jerks leave n − 2 free directions (progress and redundancy); also imposing the
+        midpoints would fix the motion completely."""
+        d = pb - pa
+        dn = d / ca.norm_2(d)
+        # two unit vectors perpendicular to the line (robust for any direction)
+        helper = ca.if_else(ca.fabs(dn[2]) < 0.9, ca.DM([0, 0, 1]), ca.DM([1, 0, 0]))
+        e1 = ca.cross(dn, helper)
+        e1 = e1 / ca.norm_2(e1)
+        e2 = ca.cross(dn, e1)
+        for q, _, _ in pts[1:-1]:
+            r = self.crane.f_fk(q)[0] - pa
+            self.layout.add_con("line", ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0)
+            self.layout.add_con("line_progress", ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
+
+    def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
+        """Pump flow slacks and limit at every check point; for the energy objectives the
+        load-sensing pump pressure per node and the pump energy (trapezoid rule), returned
+        (0 when not needed)."""
+        crane, spec, lay, n, N = self.crane, self.crane.spec, self.layout, self.crane.n, self.N
+        Aa, Ab, dbl = self._Aa, self._Ab, self._dbl
+        n_dbl = int(dbl.sum())
+        Qm = spec.pump.max_flow
+        need_energy = self.objective in ("energy", "blend")
+        if not (self.pump or need_energy):
+            return 0
+        checks = pts + mids if self.pump else pts
+        powers = []
+        for idx, (q, v, a) in enumerate(checks):
+            _, dxdq = crane.f_stroke(q)
+            xd = dxdq * v
+            # flows drawn from the pump as fractions of Q_max: extending (piston side) and
+            # retracting (annulus; none for a single-acting cylinder lowering)
+            sp = lay.add_var(f"sp{idx}", n, 0.0, 10.0)
+            lay.add_con("flow_extend", Qm * sp - Aa * xd, 0.0, ca.inf)
+            flows = [sp]
+            if dbl.any():
+                sm = lay.add_var(f"sm{idx}", n_dbl, 0.0, 10.0)
+                lay.add_con("flow_retract", Qm * sm + Ab[dbl] * xd[np.flatnonzero(dbl)], 0.0,
+                            ca.inf)
+                flows.append(sm)
+            total = sum(ca.sum1(f_) for f_ in flows)
+            if self.pump:
+                lay.add_con("pump", total, -ca.inf, 1 - pump_margin)
+            if need_energy and idx <= N:
+                F = crane.f_id(q, v, a, payload) / dxdq
+                if spec.pump.kind == "load_sensing":
+                    p = lay.add_var(f"p{idx}", 1, spec.pump.standby / 1e6, 1e3)  # [MPa]
+                    mg = spec.pump.margin / 1e6
+                    # load sensing: a function raises the pump pressure only while it draws
+                    # flow. Which ones do is the activity mask (a parameter, updated from the
+                    # solution and re-solved: see solve); inactive ones are relaxed by a big M,
+                    # so every constraint is smooth
+                    base = idx * (n + n_dbl)
+                    m_pos = act_mask[base:base + n]
+                    lay.add_con("pressure", p - mg - F / Aa / 1e6 + 1e3 * (1 - m_pos), 0.0,
+                                ca.inf)
+                    if dbl.any():
+                        k = np.flatnonzero(dbl)
+                        m_neg = act_mask[base + n:base + n + n_dbl]
+                        lay.add_con("pressure", p - mg + F[k] / Ab[k] / 1e6 + 1e3 * (1 - m_neg),
+                                    0.0, ca.inf)
+                else:
+                    p = lay.add_var(f"p{idx}", 1, spec.pump.pressure / 1e6,
+                                    spec.pump.pressure / 1e6)
+                powers.append(p * 1e6 * Qm * total / spec.pump.efficiency)
+        if not need_energy:
+            return 0
+        return h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
+
+    # ------------------------------------------------------------------------ guesses
+    def guess_from(self, traj) -> np.ndarray:
+        """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
+        N, lay = self.N, self.layout
+        t = np.linspace(traj.t[0], traj.t[-1], N + 1)
+        q, qd, qdd, _ = traj.sample(t)
+        h = (t[-1] - t[0]) / N
+        w0 = np.zeros(self.nw)
+        lay.pack(w0, "X", np.vstack([q.T, qd.T, qdd.T]))
+        lay.pack(w0, "U", np.diff(qdd, axis=0).T / h)
+        lay.pack(w0, "T", traj.duration)
+        rest = lay.slice("T").stop
+        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
+        if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
+            u = np.linspace(*self.curve.u_range, 4001)
+            P = np.asarray(self.curve.p(u))
+            tips = self.crane.fk(q)
+            k = np.argmin(((tips[:, None, :] - P[None, :, :]) ** 2).sum(-1), axis=1)
+            th = np.maximum.accumulate(u[k]) if u[-1] > u[0] else np.minimum.accumulate(u[k])
+            th[0], th[-1] = u[0], u[-1]
+            lay.pack(w0, "TH", th)
+        return w0
+
+    def default_guess(self, start, goal):
+        """Free path: Ruckig rest-to-rest between the ends at the lower bound's best telescope
+        values, slowed to the pump bound when the pump limits. Line: a coarse DP along the line
+        retimed by TOPP-RA (velocity, acceleration, pump)."""
+        crane = self.crane
+        lb = lower_bound(crane, start, goal)
+        if self.path in ("line", "curve"):
+            geo = self.curve if self.path == "curve" else Line(start, goal)
+            return self.guess_from(path_guess(crane, geo)), lb
+        return self._plain_guess(start, goal, lb), lb
+
+    def _plain_guess(self, start, goal, lb):
+        """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
+        return self.guess_from(self._plain_traj(start, goal, lb)[0])
+
+    def _plain_traj(self, start, goal, lb):
+        """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
+        Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
+        key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
+               lb.combined_s)
+        if self._plain[0] != key:
+            self._plain = (key, ruckig_guess(self.crane, start, goal, lb))
+        return self._plain[1]
+
+    def _prefer_exact(self, res, start, goal, lb, t0):
+        """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes
+        from, when it is faster than the NLP's solution and itself feasible — every limit of
+        the NLP (the pump too) on a 1 kHz resampling, clear of the obstacles. N equal intervals
+        cannot put the jerk switches of a long, one-joint-dominated move where they belong (up
+        to about one interval is lost); Ruckig's switch times are exact. The move is kept at
+        its switch times only: between them every joint is a cubic, which the quintic
+        interpolation reproduces exactly."""
+        try:
+            exact = self._plain_traj(start, goal, lb)[1]
+        except ValueError:
+            return res
+        if res.ok and exact.duration >= res.duration_s * (1 - 1e-6):
+            return res
+        ts = np.asarray(exact.meta["switch_times"])
+        q, qd, qdd, _ = exact.sample(ts)
+        kinds = ("position", "velocity", "acceleration", "jerk") + (
+            ("pump_flow",) if self.pump else ())
+        tr = Trajectory(ts, q, qd, qdd, joint_names=tuple(self.crane.names), method="nlp",
+                        objective="time", limits=kinds,
+                        meta=dict(N=self.N, path="free", winner="rest-to-rest (Ruckig)",
+                                  nlp=(f"{res.duration_s:.4f} s" if res.ok else res.status)))
+        ev = evaluate(self.crane, tr, kinds=kinds)
+        if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
+            return res
+        return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
+                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig"),
+                          solve_time_s=_time.perf_counter() - t0)
+
+    def _activity(self, w) -> np.ndarray:
+        """Which functions draw pump flow at each node (per direction) in the primal ``w``:
+        the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
+        crane, n = self.crane, self.crane.n
+        X = self.layout.unpack(w, "X")
+        _, dxdq = crane.stroke(X[:n].T)
+        xd = dxdq * X[n:2 * n].T
+        eps = ACTIVE_FLOW * crane.spec.pump.max_flow
+        pos = (self._Aa * xd > eps).astype(float)
+        neg = (-self._Ab[self._dbl] * xd[:, self._dbl] > eps).astype(float)
+        return np.hstack([pos, neg]).ravel()
+
+    # ------------------------------------------------------------------------ solve
+    def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
+              payload: float | None = None, w0=None):
+        """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
+        [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`). Returns a
+        :class:`~planner.methods.base.PlanResult`."""
+        t0 = _time.perf_counter()
+        if self.curve is not None and start is None:  # curve mode: the curve's ends
+            ends = np.asarray(self.curve.p(np.array(self.curve.u_range)))
+            start, goal = xyz_to_tip(ends[0]), xyz_to_tip(ends[1])
+        if start is None or goal is None:
+            raise ValueError("give start and goal tips (r, z, slew)")
+        if self.objective == "energy" and T_max is None:
+            raise ValueError("objective 'energy' needs T_max [s]")
+        if w0 is None and self.obstacles and self.path == "free":
+            return self._solve_among_obstacles(start, goal, T_max, lam, payload, t0)
+        try:
+            guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
+        except ValueError as e:  # unreachable end
+            return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0)
+        if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
+            res = self._prefer_exact(res, start, goal, lb, t0)
+        return res
+
+    def _solve_among_obstacles(self, start, goal, T_max, lam, payload, t0):
+        """Obstacle problems are multimodal: try the plain and (when the move meets an
+        obstacle) the over-the-obstacle guess; keep the fastest solution that clears every
+        obstacle on a fine resampling."""
+        try:
+            lb = lower_bound(self.crane, start, goal)
+            guesses = [self._plain_guess(start, goal, lb)]
+            if vias(self.obstacles, start, goal):
+                guesses.append(self.guess_from(over_obstacles_guess(self.crane, self.obstacles,
+                                                                    start, goal, lb)))
+        except ValueError as e:
+            return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+        res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
+        good = [r for r in res if r.ok and self.clears(r.trajectory)]
+        if good:
+            best = min(good, key=lambda r: r.duration_s)
+        else:
+            best = next((r for r in res if not r.ok), res[0])
+            if best.ok:
+                best = nlp_result("obstacle", "no solution clears every obstacle between the "
+                                  "check points: raise N or the clearance",
+                                  iterations=best.iterations)
+        if self._exact_applies(T_max, lam, payload):
+            best = self._prefer_exact(best, start, goal, lb, t0)
+        best.solve_time_s = _time.perf_counter() - t0
+        return best
+
+    def _exact_applies(self, T_max, lam, payload) -> bool:
+        return self.objective == "time" and T_max is None and lam == 0 and payload is None
+
+    def clears(self, traj, rate: float = 1000.0) -> bool:
+        """True when the tip keeps ≥ 0.96·clearance from every wall on a fine resampling."""
+        t = traj.resample(rate)
+        cyl = self.crane.tip(traj.sample(t)[0])
+        xyz = tip_to_xyz(cyl)
+        return all(ob.distance(xyz, cyl).min() >= 0.96 * ob.clearance for ob in self.obstacles)
+
+    def _slowed_to(self, guess, T_max):
+        """The guess slowed uniformly to the duration T_max (when longer than its own)."""
+        lay, n = self.layout, self.crane.n
+        T0 = guess[lay.slice("T")][0]
+        if T_max <= T0:
+            return guess
+        k = T_max / T0
+        g = guess.copy()
+        X = lay.unpack(g, "X")
+        X[n:2 * n] /= k
+        X[2 * n:] /= k ** 2
+        lay.pack(g, "X", X)
+        g[lay.slice("U")] /= k ** 3
+        lay.pack(g, "T", T_max)
+        return g
+
+    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0):
+        crane, lay = self.crane, self.layout
+        if T_max is not None and self.objective == "energy":
+            guess = self._slowed_to(guess, T_max)  # start from the guess slowed to the budget
+        m = crane.spec.payload.total if payload is None else payload
+        pars = dict(start=tip_to_xyz(np.asarray(start, float)),
+                    goal=tip_to_xyz(np.asarray(goal, float)),
+                    T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
+        mask = self._activity(guess)
+        iters = 0
+        for _round in range(4 if self.objective != "time" else 1):
+            P = lay.param_vector(**pars, activity=mask)
+            try:
+                sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
+                                  ubg=self.ubg)
+            except RuntimeError as e:
+                return nlp_result("error", f"IPOPT failed: {e}",
+                                  solve_time_s=_time.perf_counter() - t0)
+            st = self.solver.stats()
+            iters += st.get("iter_count", 0)
+            ist = st.get("return_status", "")
+            w = np.array(sol["x"]).ravel()
+            if ist not in STATUS_OK or self.objective == "time":
+                break
+            new = self._activity(w)
+            if np.array_equal(new, mask):
+                break
+            mask, guess = np.maximum(mask, new), w  # keep functions once seen active
+        if ist not in STATUS_OK:
+            return nlp_result(ipopt_code(ist), f"IPOPT: {ist}", iterations=iters,
+                              ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
+        n, N = crane.n, self.N
+        X, U = lay.unpack(w, "X"), lay.unpack(w, "U")
+        T = float(w[lay.slice("T")][0])
+        t = np.linspace(0.0, T, N + 1)
+        h = T / N
+        for k in range(N):  # re-integrate exactly: node states consistent with the jerks
+            X[:n, k + 1], X[n:2 * n, k + 1], X[2 * n:, k + 1] = _step(
+                X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], h)
+        traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
+                          method="nlp", objective=self.objective,
+                          limits=("position", "velocity", "acceleration", "jerk")
+                          + (("pump_flow",) if self.pump else ()),
+                          meta=dict(N=N, path=self.path, ipopt_status=ist))
+        self._last = w
+        E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
+        return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
+                          iterations=iters, ipopt_status=ist,
+                          solve_time_s=_time.perf_counter() - t0)

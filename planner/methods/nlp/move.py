@@ -46,6 +46,7 @@ from planner.bounds import lower_bound
 from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
+from planner.model.flows import actuator_table
 from planner.model.hydraulics import ACTIVE_FLOW
 from planner.trajectory import Trajectory, evaluate
 
@@ -87,10 +88,8 @@ class MoveNLP:
         self.obstacles = tuple(obstacles)
         n = crane.n
         self.L = L = crane.limit_arrays()
-        acts = crane.spec.joints
-        self._Aa = np.array([j.actuator.area_a for j in acts])
-        self._Ab = np.array([j.actuator.area_b for j in acts])
-        self._dbl = np.array([j.actuator.acting == "double" for j in acts])
+        acts = actuator_table(crane.spec)   # the model's hydraulic constants (planner.model.flows)
+        self._Aa, self._Ab, self._dbl = acts.area_a, acts.area_b, ~acts.single
         self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
         lay = self.layout = Layout()
         par = lay.parameters(start=3, goal=3, T_max=1, lam=1, payload=1, activity=self._n_act)

@@ -1,19 +1,46 @@
+"""Shared fixtures: the shipped machines (problems/cranes/*.toml), each once per session.
+
+``crane`` runs a test on every machine; ``cranab850``, ``umea_lab``, ``s100f`` and ``cat215b``
+name one. ``random_configs`` draws joint configurations inside a machine's limits.
+"""
 import numpy as np
 import pytest
 from hypothesis import settings
 
 from planner import Crane
+from problems import crane_ids
 
 settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True,
                           print_blob=True)
 settings.load_profile("ci")
 
-MACHINES = ["cranab850", "umea-lab", "s100f", "cat215b"]
+MACHINES = crane_ids()
 
 
 @pytest.fixture(scope="session", params=MACHINES)
 def crane(request):
+    """Every shipped machine in turn."""
     return Crane.from_id(request.param)
+
+
+@pytest.fixture(scope="session")
+def cranab850():
+    return Crane.from_id("cranab850")
+
+
+@pytest.fixture(scope="session")
+def umea_lab():
+    return Crane.from_id("umea-lab")
+
+
+@pytest.fixture(scope="session")
+def s100f():
+    return Crane.from_id("s100f")
+
+
+@pytest.fixture(scope="session")
+def cat215b():
+    return Crane.from_id("cat215b")
 
 
 def random_configs(crane, n, seed=0, margin=0.02):

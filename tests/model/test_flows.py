@@ -13,7 +13,7 @@ from planner.model.hydraulics import OUTPUTS
 from planner.model.spec import parse_spec
 from problems import crane_path
 
-from .conftest import MACHINES, random_configs
+from tests.conftest import MACHINES, random_configs
 
 
 def _variant(cid, edit, name):

@@ -6,7 +6,7 @@ import pytest
 
 from planner import Crane
 
-from .conftest import random_configs
+from tests.conftest import random_configs
 
 
 def test_stroke_derivative_matches_finite_differences(crane):

@@ -12,7 +12,7 @@ import pytest
 from planner.cli import main
 from planner.units import parse_point
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 IDS = ["cat215b", "cranab850", "s100f", "umea-lab"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from planner import Crane
 from planner.methods.laws import (LeastNorm, MaxLift, MaxVelocity, follow, rate_box,
                                   weighted_pinv_saturated)
 from planner.geometry.paths import Line
@@ -14,29 +13,24 @@ from planner.trajectory import evaluate
 B, C = (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)
 
 
-@pytest.fixture(scope="module")
-def cranab():
-    return Crane.from_id("cranab850")
-
-
 @pytest.mark.parametrize("law,v", [(LeastNorm(), 0.5), (MaxVelocity(), 0.5), (MaxLift(), 0.2)])
-def test_unsaturated_laws_track_the_path_at_the_commanded_speed(cranab, law, v):
-    r = follow(cranab, Line(B, C), law, v, tele0=None if law.name == "max_lift" else 0.6)
+def test_unsaturated_laws_track_the_path_at_the_commanded_speed(cranab850, law, v):
+    r = follow(cranab850, Line(B, C), law, v, tele0=None if law.name == "max_lift" else 0.6)
     assert r.ok, r.reason
     assert r.min_beta == 1.0
     assert r.duration_s == pytest.approx(4.0 / v, rel=1e-9)
     assert r.max_path_error_m < 2e-3
-    tips = cranab.tip(r.trajectory.q)
+    tips = cranab850.tip(r.trajectory.q)
     np.testing.assert_allclose(tips[-1], C, atol=2e-3)
 
 
-def test_saturation_keeps_the_path_and_lowers_the_speed(cranab):
-    r = follow(cranab, Line(B, C), MaxVelocity(), 10.0, tele0=0.6)
+def test_saturation_keeps_the_path_and_lowers_the_speed(cranab850):
+    r = follow(cranab850, Line(B, C), MaxVelocity(), 10.0, tele0=0.6)
     assert r.ok
     assert r.min_beta < 0.8                    # the command had to be scaled ...
     assert r.duration_s > 4.0 / 10.0 * 1.05    # ... so the move takes longer ...
     assert r.max_path_error_m < 0.02           # ... but the tip stays on the line
-    ev = evaluate(cranab, r.trajectory)
+    ev = evaluate(cranab850, r.trajectory)
     assert ev.violations["velocity"] <= 1e-9 and ev.violations["position"] == 0.0
 
 
@@ -65,35 +59,35 @@ def test_pinning_solves_exactly_then_scales():
     assert np.sum(np.isclose(np.abs(qd), 1.0)) >= 2            # two joints pinned at limits
 
 
-def test_max_lift_telescope_follows_the_cubic(cranab):
+def test_max_lift_telescope_follows_the_cubic(cranab850):
     law = MaxLift()
-    p = cranab.spec.laws.max_lift
-    d3, f, g = law.tele_of(cranab, p["rc"] + 4.2, p["zc"])   # ρ = 4.2, mid-band
+    p = cranab850.spec.laws.max_lift
+    d3, f, g = law.tele_of(cranab850, p["rc"] + 4.2, p["zc"])   # ρ = 4.2, mid-band
     u = 4.2 - 0.5 * (p["rho_min"] + p["rho_max"])
     qh = 0.5 * (p["rho_max"] - p["rho_min"])
     assert d3 == pytest.approx(0.7 * (1 + 1.5 * u / qh - 0.5 * u ** 3 / qh ** 3))
     h = 1e-6
-    fd = (law.tele_of(cranab, p["rc"] + 4.2 + h, p["zc"])[0]
-          - law.tele_of(cranab, p["rc"] + 4.2 - h, p["zc"])[0]) / (2 * h)
+    fd = (law.tele_of(cranab850, p["rc"] + 4.2 + h, p["zc"])[0]
+          - law.tele_of(cranab850, p["rc"] + 4.2 - h, p["zc"])[0]) / (2 * h)
     assert f == pytest.approx(fd, rel=1e-6) and g == pytest.approx(0.0, abs=1e-12)
-    r = follow(cranab, Line(B, C), law, 1.0)
+    r = follow(cranab850, Line(B, C), law, 1.0)
     assert r.ok
-    tips = cranab.tip(r.trajectory.q)
-    want = np.array([law.tele_of(cranab, t[0], t[1])[0] for t in tips])
+    tips = cranab850.tip(r.trajectory.q)
+    want = np.array([law.tele_of(cranab850, t[0], t[1])[0] for t in tips])
     np.testing.assert_allclose(r.trajectory.q[:, 3], want, atol=5e-3)
 
 
-def test_rate_box_stops_at_position_limits(cranab):
-    L = cranab.limit_arrays()
+def test_rate_box_stops_at_position_limits(cranab850):
+    L = cranab850.limit_arrays()
     q = 0.5 * (L["q_min"] + L["q_max"])
     q[1] = L["q_max"][1]
-    lo, hi = rate_box(cranab, q)
+    lo, hi = rate_box(cranab850, q)
     assert hi[1] == 0.0 and lo[1] == L["qd_min"][1]
     q[1] = L["q_max"][1] - 0.01
-    lo, hi = rate_box(cranab, q)
+    lo, hi = rate_box(cranab850, q)
     assert hi[1] == pytest.approx(math.sqrt(2 * L["qdd_max"][1] * 0.01))
 
 
-def test_unreachable_start_is_reported(cranab):
-    r = follow(cranab, Line((30.0, 1.0, 0.0), B), MaxVelocity(), 1.0)
+def test_unreachable_start_is_reported(cranab850):
+    r = follow(cranab850, Line((30.0, 1.0, 0.0), B), MaxVelocity(), 1.0)
     assert r.status == "unreachable" and "r=30.000" in r.reason

@@ -12,7 +12,7 @@ import pytest
 from planner import Crane
 from planner.methods.nlp import MoveNLP
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_scaling.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_scaling.py"
 _spec = importlib.util.spec_from_file_location("bench_scaling", SCRIPT)
 bs = importlib.util.module_from_spec(_spec)
 sys.modules["bench_scaling"] = bs  # dataclasses look their module up while it loads

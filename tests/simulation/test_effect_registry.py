@@ -55,17 +55,12 @@ def registered():
         unregister(NAME)
 
 
-@pytest.fixture(scope="module")
-def cat():
-    return Crane.from_id("cat215b")
-
-
-def test_a_registered_effect_is_listed_and_parsed(registered, cat, capsys):
+def test_a_registered_effect_is_listed_and_parsed(registered, cat215b, capsys):
     assert main(["effects", "list", "--json", "-"]) == 0
     by = {e["name"]: e for e in json.loads(capsys.readouterr().out)}
     assert by[NAME]["parameters"] == {"joint": "joint name", "coefficient": [0.0, 1.0e7]}
     assert by[NAME]["stage"] == "forces" and by[NAME]["description"]
-    e = parse_effect(f"{NAME}:joint=boom,coefficient=2e6", cat)
+    e = parse_effect(f"{NAME}:joint=boom,coefficient=2e6", cat215b)
     assert isinstance(e, QuadraticDrag) and e.coefficient == 2e6
     assert TRIAL_MAGNITUDES[NAME] == (0.5, 1.0)
     unregister(NAME)
@@ -90,14 +85,14 @@ def test_registration_refuses_a_taken_name_or_a_bad_class():
     assert "test_no_stage" not in CATALOGUE
 
 
-def test_its_force_reaches_the_plant(registered, cat):
+def test_its_force_reaches_the_plant(registered, cat215b):
     """Oracle: the analytic drag c·ẋ|ẋ| at the nominal states' stroke speeds."""
-    L = cat.limit_arrays()
+    L = cat215b.limit_arrays()
     a = L["q_min"] + 0.3 * (L["q_max"] - L["q_min"])
     b = L["q_min"] + 0.7 * (L["q_max"] - L["q_min"])
-    ff = commands(cat, rest_to_rest(cat, a, b, scale=0.6).trajectory, 50.0)
-    nom = respond(cat, ff.t, ff.u, a)
-    dr = respond(cat, ff.t, ff.u, a, [make(NAME, "boom", coefficient=2e6)])
+    ff = commands(cat215b, rest_to_rest(cat215b, a, b, scale=0.6).trajectory, 50.0)
+    nom = respond(cat215b, ff.t, ff.u, a)
+    dr = respond(cat215b, ff.t, ff.u, a, [make(NAME, "boom", coefficient=2e6)])
     np.testing.assert_allclose(dr.q, nom.q)                    # positions unaffected
     xd = nom.state.xd[:, 1]
     np.testing.assert_allclose(dr.state.force[:, 1] - nom.state.force[:, 1],
@@ -105,21 +100,21 @@ def test_its_force_reaches_the_plant(registered, cat):
     np.testing.assert_array_equal(dr.state.force[:, [0, 2]], nom.state.force[:, [0, 2]])
 
 
-def test_trials_draw_it_and_the_search_names_it(registered, cat):
+def test_trials_draw_it_and_the_search_names_it(registered, cat215b):
     # the random draw: its own magnitude, only on joints its observability rule allows
     for seed in range(20):
-        e = draw(cat, NAME, np.random.default_rng(seed))
+        e = draw(cat215b, NAME, np.random.default_rng(seed))
         assert isinstance(e, QuadraticDrag) and e.joint != "swing"
-        a = cat.spec.joints[e.index(cat)].actuator
+        a = cat215b.spec.joints[e.index(cat215b)].actuator
         full = 1e6 * a.area_a / (a.flow_gain / a.area_a) ** 2
         assert 0.5 * full <= e.coefficient <= 1.0 * full
     # the search's candidates: the new effect on every joint
-    cands = candidates(cat)
-    assert [c.joint for c in cands if c.name == NAME] == list(cat.names)
+    cands = candidates(cat215b)
+    assert [c.joint for c in cands if c.name == NAME] == list(cat215b.names)
     # a hidden trial with it, and the search names it among its look-alikes
-    rec, _, _, truth = hidden_trial(cat, NAME, 41, 25.0, joint="boom")
+    rec, _, _, truth = hidden_trial(cat215b, NAME, 41, 25.0, joint="boom")
     assert isinstance(truth, QuadraticDrag) and truth.joint == "boom"
-    res = Discrepancy(cat, candidates=[NAME, "viscous_friction", "coulomb_friction"],
+    res = Discrepancy(cat215b, candidates=[NAME, "viscous_friction", "coulomb_friction"],
                       second=False).fit(rec)
     assert (res.effect, res.joint) == (NAME, "boom"), (res.message, res.ranking[:3])
     sd = res.uncertainty["coefficient"]

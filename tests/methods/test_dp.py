@@ -12,17 +12,12 @@ from planner.trajectory import evaluate
 B, C = (5.5, 1.0, 0.0), (5.5, -3.0, 0.0)
 
 
-@pytest.fixture(scope="module")
-def cranab():
-    return Crane.from_id("cranab850")
-
-
-def test_vectorised_dp_equals_loop_reference(cranab):
+def test_vectorised_dp_equals_loop_reference(cranab850):
     path = Line(B, C)
     kw = dict(step=0.1, tele_step=0.05, window=2)
-    fast = dp(cranab, path, pump=False, **kw)
+    fast = dp(cranab850, path, pump=False, **kw)
     assert fast.ok
-    assert fast.duration_s == pytest.approx(dp_time_reference(cranab, path, **kw), rel=1e-12)
+    assert fast.duration_s == pytest.approx(dp_time_reference(cranab850, path, **kw), rel=1e-12)
 
 
 @pytest.mark.parametrize("cid,a,b", [("cranab850", B, C), ("cranab850", (2.5, 2.0, 0.0), B),
@@ -42,9 +37,9 @@ def test_dp_respects_limits_and_the_velocity_bound(cid, a, b):
     np.testing.assert_allclose(s_tip, Line(a, b).tip(res.s), atol=1e-8)
 
 
-def test_dp_converges_as_the_grid_is_refined(cranab):
+def test_dp_converges_as_the_grid_is_refined(cranab850):
     path = Line(B, C)
-    T = [dp(cranab, path, step=d, tele_step=d, window=5).duration_s for d in (0.04, 0.02, 0.01)]
+    T = [dp(cranab850, path, step=d, tele_step=d, window=5).duration_s for d in (0.04, 0.02, 0.01)]
     assert abs(T[2] - T[1]) < abs(T[1] - T[0]) + 1e-3
     assert abs(T[2] - T[1]) / T[2] < 0.02
 
@@ -74,9 +69,9 @@ def test_blend_trades_time_for_energy():
     assert frugal.energy_J <= fast.energy_J + 1e-6
 
 
-def test_any_path_kind(cranab):
+def test_any_path_kind(cranab850):
     wp = Waypoints([B, (4.0, 0.0, 0.0), C])
-    assert dp(cranab, wp, step=0.05, tele_step=0.05, window=3).ok
+    assert dp(cranab850, wp, step=0.05, tele_step=0.05, window=3).ok
     umea = Crane.from_id("umea-lab")
     circ = circle((3.0, 0.0, 2.5), 0.7, -np.pi / 2, np.pi / 2)
     r = dp(umea, circ, step=0.05, tele_step=0.02, window=3)
@@ -84,16 +79,16 @@ def test_any_path_kind(cranab):
     assert evaluate(umea, r.trajectory).ok()
 
 
-def test_unreachable_path_names_the_point(cranab):
-    r = dp(cranab, Line(B, (25.0, 1.0, 0.0)), step=0.05)
+def test_unreachable_path_names_the_point(cranab850):
+    r = dp(cranab850, Line(B, (25.0, 1.0, 0.0)), step=0.05)
     assert r.status == "unreachable"
     assert "leaves the workspace at s =" in r.reason and "out of reach" in r.reason
-    r = dp(cranab, Line((30.0, 1.0, 0.0), B), step=0.05)
+    r = dp(cranab850, Line((30.0, 1.0, 0.0), B), step=0.05)
     assert r.status == "unreachable" and "at the start" in r.reason
 
 
-def test_bad_arguments(cranab):
+def test_bad_arguments(cranab850):
     with pytest.raises(ValueError, match="tip_speed"):
-        dp(cranab, Line(B, C), objective="energy")
+        dp(cranab850, Line(B, C), objective="energy")
     with pytest.raises(ValueError, match="objective"):
-        dp(cranab, Line(B, C), objective="fastest")
+        dp(cranab850, Line(B, C), objective="fastest")

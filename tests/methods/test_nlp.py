@@ -9,11 +9,6 @@ from planner.geometry.paths import tip_to_xyz
 from planner.trajectory import evaluate
 
 
-@pytest.fixture(scope="module")
-def s100f():
-    return Crane.from_id("s100f")
-
-
 @pytest.mark.parametrize("cid,a,b", [("s100f", (6.0, -1.0, 0.0), (3.0, 2.5, 1.5)),
                                      ("s100f", (7.0, 0.0, 0.0), (4.0, 0.0, 0.0)),
                                      ("umea-lab", (3.0, 1.8, 0.0), (2.5, 3.0, -0.5))])

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from planner import Crane, UnreachableError
 
-from .conftest import MACHINES, random_configs
+from tests.conftest import MACHINES, random_configs
 
 
 def _elbow_side(crane, q):

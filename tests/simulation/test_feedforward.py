@@ -11,7 +11,7 @@ from planner.methods.ruckig import rest_to_rest
 from planner.model.valves import valve_params
 from planner.trajectory import Trajectory
 
-from .conftest import random_configs
+from tests.conftest import random_configs
 
 ROUND_TRIP_MACHINES = ["s100f", "umea-lab", "cranab850"]
 

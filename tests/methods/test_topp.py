@@ -9,24 +9,19 @@ from planner.geometry.paths import Line
 from planner.trajectory import evaluate
 
 
-@pytest.fixture(scope="module")
-def cranab():
-    return Crane.from_id("cranab850")
-
-
-def test_velocity_only_retiming_reproduces_the_dp_time(cranab):
-    r = dp(cranab, Line((5.5, 1.0, 0.0), (5.5, -3.0, 0.0)), stages=400)
-    t = retime(cranab, r.path_q, limits=("velocity",), gridpoints=400)
+def test_velocity_only_retiming_reproduces_the_dp_time(cranab850):
+    r = dp(cranab850, Line((5.5, 1.0, 0.0), (5.5, -3.0, 0.0)), stages=400)
+    t = retime(cranab850, r.path_q, limits=("velocity",), gridpoints=400)
     assert t.ok
     assert t.duration_s == pytest.approx(r.duration_s, rel=0.01)
     assert t.duration_s >= r.duration_s * (1 - 1e-3)  # the DP is optimal on its own grid
 
 
-def test_full_limits_pass_the_judge(cranab):
-    r = dp(cranab, Line((1.5, 1.0, 0.0), (5.5, -3.0, 0.0)), step=0.02, tele_step=0.02, window=3)
-    t = retime(cranab, r.path_q)
+def test_full_limits_pass_the_judge(cranab850):
+    r = dp(cranab850, Line((1.5, 1.0, 0.0), (5.5, -3.0, 0.0)), step=0.02, tele_step=0.02, window=3)
+    t = retime(cranab850, r.path_q)
     assert t.ok
-    ev = evaluate(cranab, t.trajectory)
+    ev = evaluate(cranab850, t.trajectory)
     assert set(ev.checked) == {"position", "velocity", "acceleration", "pump_flow"}
     assert ev.max_limit_violation <= 1e-3
     np.testing.assert_allclose(t.trajectory.qd[[0, -1]], 0.0, atol=1e-9)  # rest to rest
@@ -46,11 +41,11 @@ def test_pump_limit_binds_on_a_hydraulically_limited_machine():
     assert pumped.duration_s > free.duration_s
 
 
-def test_fixed_duration_and_infeasible_duration(cranab):
-    r = dp(cranab, Line((5.5, 1.0, 0.0), (5.5, -3.0, 0.0)), step=0.05, tele_step=0.05, window=2)
-    slow = retime(cranab, r.path_q, duration=5.0)
+def test_fixed_duration_and_infeasible_duration(cranab850):
+    r = dp(cranab850, Line((5.5, 1.0, 0.0), (5.5, -3.0, 0.0)), step=0.05, tele_step=0.05, window=2)
+    slow = retime(cranab850, r.path_q, duration=5.0)
     assert slow.ok and slow.duration_s == pytest.approx(5.0, rel=1e-3)
-    short = retime(cranab, r.path_q, duration=0.1)
+    short = retime(cranab850, r.path_q, duration=0.1)
     assert short.status == "infeasible" and "duration" in short.reason
     with pytest.raises(ValueError, match="unsupported"):
-        retime(cranab, r.path_q, limits=("jerk",))
+        retime(cranab850, r.path_q, limits=("jerk",))

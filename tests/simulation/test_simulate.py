@@ -16,12 +16,7 @@ from planner.simulation.replay import (Plant, default_perturbations, pressures, 
                                        robustness, stroke_rates)
 from planner.trajectory import evaluate
 
-from .conftest import random_configs
-
-
-@pytest.fixture(scope="module")
-def s100f():
-    return Crane.from_id("s100f")
+from tests.conftest import random_configs
 
 
 def _move(crane, seed=3, scale=0.5):

@@ -16,7 +16,7 @@ import jupytext  # the dev extra installs jupytext, nbformat, nbclient and ipyke
 import nbformat
 import pytest
 
-NB_DIR = Path(__file__).resolve().parents[1] / "notebooks"
+NB_DIR = Path(__file__).resolve().parents[2] / "notebooks"
 NAMES = ("a_seed000_revisited", "b_energy", "c_open_loop", "d_calibration")
 
 

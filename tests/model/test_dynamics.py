@@ -13,7 +13,7 @@ from planner.model.kinematics import joint_transforms
 from planner.model.spec import parse_spec
 from problems import crane_path
 
-from .conftest import random_configs
+from tests.conftest import random_configs
 
 G = 9.81
 

@@ -18,7 +18,7 @@ from planner.model import Crane
 from planner.model.spec import SpecError, load_spec, parse_spec
 from planner.units import parse_angle
 
-UMEA = Path(__file__).resolve().parents[1] / "problems" / "cranes" / "umea-lab.toml"
+UMEA = Path(__file__).resolve().parents[2] / "problems" / "cranes" / "umea-lab.toml"
 FILE = "x.toml"
 JOINT_KEYS = ["actuator", "com", "dh", "inertia", "limits", "mass", "name", "source", "type"]
 

@@ -7,7 +7,7 @@ from planner.bounds import lower_bound, rest_to_rest_time
 from planner.methods.ruckig import rest_to_rest
 from planner.trajectory import evaluate
 
-from .conftest import MACHINES, random_configs
+from tests.conftest import MACHINES, random_configs
 
 
 @pytest.mark.parametrize("cid", MACHINES)

@@ -16,11 +16,6 @@ from planner.library.store import LibraryStore, StoreError
 from planner.trajectory import evaluate
 
 
-@pytest.fixture(scope="module")
-def s100f():
-    return Crane.from_id("s100f")
-
-
 def _config(crane, frac):
     L = crane.limit_arrays()
     return L["q_min"] + np.asarray(frac) * (L["q_max"] - L["q_min"])

@@ -19,11 +19,6 @@ from planner.calibration.trials import excitation, hidden_trial
 DUR = 25.0
 
 
-@pytest.fixture(scope="module")
-def cat():
-    return Crane.from_id("cat215b")
-
-
 def test_noise_floor_recovers_white_noise_under_a_smooth_signal():
     rng = np.random.default_rng(0)
     t = np.linspace(0, 60, 3000)
@@ -34,10 +29,10 @@ def test_noise_floor_recovers_white_noise_under_a_smooth_signal():
 
 
 @pytest.mark.parametrize("name", list(CATALOGUE))
-def test_each_hidden_effect_is_named(cat, name):
+def test_each_hidden_effect_is_named(cat215b, name):
     seed = 300 + list(CATALOGUE).index(name)
-    rec, _, _, truth = hidden_trial(cat, name, seed, DUR)
-    res = Discrepancy(cat, second=False).fit(rec)
+    rec, _, _, truth = hidden_trial(cat215b, name, seed, DUR)
+    res = Discrepancy(cat215b, second=False).fit(rec)
     assert res.effect == name, (truth, res.message, res.ranking[:3])
     if truth.joint:
         assert res.joint == truth.joint
@@ -57,32 +52,32 @@ def test_clean_data_give_none(machine, seed):
     assert res.message.startswith("none: the nominal model explains the data within noise")
 
 
-def test_a_second_effect_is_found_on_top(cat):
+def test_a_second_effect_is_found_on_top(cat215b):
     from planner.model.effects import make
     from planner.calibration.trials import record
-    plan, ff = excitation(cat, 40.0, seed=5)
+    plan, ff = excitation(cat215b, 40.0, seed=5)
     truth = (make("flow_gain", "stick", scale=0.85), make("coulomb_friction", "boom", force=8e3))
-    rec = record(cat, plan, ff, truth, seed=5)
-    res = Discrepancy(cat).fit(rec)
+    rec = record(cat215b, plan, ff, truth, seed=5)
+    res = Discrepancy(cat215b).fit(rec)
     names = {(res.effect, res.joint), (res.second["effect"], res.second["joint"])}
     assert names == {("flow_gain", "stick"), ("coulomb_friction", "boom")}
 
 
-def test_replanned_feedforward_tracks_the_true_plant_better(cat):
+def test_replanned_feedforward_tracks_the_true_plant_better(cat215b):
     from planner.calibration.trials import trackable
-    rec, plan, _, truth = hidden_trial(cat, "flow_gain", 21, DUR)
-    res = Discrepancy(cat, second=False).fit(rec)
-    cl = closed_loop(cat, trackable(cat, plan), res.effects, plant_effects=(truth,))
+    rec, plan, _, truth = hidden_trial(cat215b, "flow_gain", 21, DUR)
+    res = Discrepancy(cat215b, second=False).fit(rec)
+    cl = closed_loop(cat215b, trackable(cat215b, plan), res.effects, plant_effects=(truth,))
     assert cl["after"]["rms_m"] < 0.05 * cl["before"]["rms_m"]
 
 
-def test_position_only_recordings_work(cat):
+def test_position_only_recordings_work(cat215b):
     from planner.calibration.trials import record
-    plan, ff = excitation(cat, DUR, seed=8)
+    plan, ff = excitation(cat215b, DUR, seed=8)
     from planner.model.effects import make
-    rec = record(cat, plan, ff, (make("valve_lag", "boom", tau=0.15),), seed=8,
+    rec = record(cat215b, plan, ff, (make("valve_lag", "boom", tau=0.15),), seed=8,
                  positions_only=True)
-    res = Discrepancy(cat, second=False).fit(rec)
+    res = Discrepancy(cat215b, second=False).fit(rec)
     assert res.effect == "valve_lag" and res.joint == "boom"
     assert all(c.startswith("q_") for c in res.rms_before)
 

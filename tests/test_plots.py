@@ -147,8 +147,7 @@ def test_pump_panel_legend_and_colours_apart_from_the_joints(s100f):
 def test_telescope_metres_on_their_own_axis(s100f):
     fig = trajectory_figure(s100f, _evaluation(s100f))
     by_label = {ln.get_label(): ln.axes for a in fig.axes for ln in a.get_lines()}
-    tele = [k for k in by_label if k.startswith("tele")][0]
-    boom = [k for k in by_label if k.startswith("boom")][0]
+    tele, boom = "tele [m] (right)", "boom [°]"  # the joint-position panel's lines
     assert by_label[tele] is not by_label[boom]
     assert "[m]" in by_label[tele].get_ylabel() and "[°]" in by_label[boom].get_ylabel()
     # the telescope's line is in metres (its data equal the joint's positions)

@@ -18,6 +18,8 @@ def cmd_library_build(args):
                     workers=args.workers, scheduler=args.scheduler, limit=args.limit,
                     N=args.intervals, robustness=not args.no_robustness,
                     progress=not (args.json == "-"), method=args.method)
+    # the unified keys beside the old ones (docs/json-keys.md)
+    summary.update(crane_id=summary["crane"], solve_time_s=summary["seconds"])
     emit(args, summary)
     if not args.json:
         print(f"{summary['library']}: planned {summary['planned']} entries "

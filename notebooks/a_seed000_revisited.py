@@ -85,7 +85,7 @@ table(["joint", "range", "speed limit"],
        for i, j in enumerate(spec.joints)])
 
 # %%
-from planner.plots import workspace_figure
+from planner.plots import workspace_extent, workspace_figure
 
 POINTS = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))
 MOVES = ("AB", "BC", "AC")
@@ -93,7 +93,8 @@ MOVES = ("AB", "BC", "AC")
 SEED_DP = dict(AB=1.15, BC=0.89, AC=1.18)
 SEED_LAW = {("max_velocity", 1.0): (4.00, 4.00, 5.67), ("max_velocity", 2.5): (1.6, 1.6, 2.28),
             ("max_lift", 1.0): (4.00, 4.05, 5.76), ("max_lift", 2.5): (1.7, 1.89, 2.81)}
-ws = workspace_figure(crane, OUT / "workspace_cranab850.png")
+workspace_figure(crane, OUT / "workspace_cranab850.png")
+ws = workspace_extent(crane)
 show_file(OUT / "workspace_cranab850.png")
 print(f"max reach {ws['r_max']:.2f} m; tip height {ws['z_min']:.2f} … {ws['z_max']:.2f} m")
 

@@ -27,7 +27,7 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     from planner.methods.laws import LAWS, follow
     from planner.model import Crane
     from planner.geometry.paths import Line
-    from planner.plots import trajectory_figure, workspace_figure
+    from planner.plots import trajectory_figure, workspace_extent, workspace_figure
     from planner.trajectory import evaluate
 
     out = Path(out)
@@ -41,7 +41,8 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     for cid in crane_ids():
         crane = Crane.from_id(cid)
         fig = out / f"workspace_{cid}.png"
-        info = workspace_figure(crane, fig)
+        workspace_figure(crane, fig)
+        info = workspace_extent(crane)
         s = crane.spec
         L.append(f"| {s.name} | {', '.join(s.joint_names)} | {info['r_max']:.2f} | "
                  f"{s.pump.max_flow * 6e4:.0f} | [{fig.name}]({fig.name}) |")

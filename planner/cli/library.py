@@ -18,6 +18,8 @@ def cmd_library_build(args):
                     workers=args.workers, scheduler=args.scheduler, limit=args.limit,
                     N=args.intervals, robustness=not args.no_robustness,
                     progress=not (args.json == "-"), method=args.method)
+    # the unified keys beside the old ones (docs/json-keys.md)
+    summary.update(crane_id=summary["crane"], solve_time_s=summary["seconds"])
     emit(args, summary)
     if not args.json:
         print(f"{summary['library']}: planned {summary['planned']} entries "
@@ -82,7 +84,8 @@ def joint_state(crane, text: str) -> np.ndarray:
 
 def cmd_library_export(args):
     from planner.library.export import export
-    files = export(args.library, args.out, args.format)
+    files = export(args.library, args.out, args.format, rate=args.out_rate,
+                   units_row=args.units_row)
     emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
         print(f"{len(files)} file(s) written to {args.out}")
@@ -124,9 +127,17 @@ def add_parsers(sub) -> None:
     p.add_argument("--out", metavar="FILE.csv", help="write the entry's trajectory CSV")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_query)
-    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT or JSON")
+    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, or ROS "
+                                       "JointTrajectory documents (JSON / YAML)")
     p.add_argument("library", metavar="LIB.h5")
-    p.add_argument("--format", choices=("csv", "mat", "json"), required=True)
+    p.add_argument("--format", choices=("csv", "mat", "json", "ros", "ros-yaml"), required=True,
+                   help="ros / ros-yaml: one trajectory_msgs/JointTrajectory-shaped file per "
+                        "entry")
+    p.add_argument("--rate", "--out-rate", dest="out_rate", type=float, metavar="HZ",
+                   help="csv, ros: resample every entry at a fixed control rate, with the valve "
+                        "commands u_* at that rate")
+    p.add_argument("--units-row", action="store_true",
+                   help="csv: a second line '# s,rad,...' with every column's unit")
     p.add_argument("--out", required=True, metavar="DIR")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_export)

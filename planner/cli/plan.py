@@ -3,25 +3,32 @@ by evaluate(); JSON keys per DESIGN.md (CONTRACT: command line)."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
 from planner.bounds import lower_bound
 from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
+from planner.feedforward import commands
 from planner.geometry.obstacles import Wall
 from planner.methods import PlanRequest, UnsupportedRequest, get, plan
 from planner.model import Crane, UnreachableError
+from planner.plots import FigureFormatError, figure_format, trajectory_figure
 from planner.trajectory import evaluate
+
+CONTROL_RATE_HZ = 50.0  # the valve commands of a plan stored with --out FILE.h5 (as a library)
 
 
 def cmd_plan(args):
     """Plan one move with a registered method (planner.methods.registry); JSON keys per
     DESIGN.md. Failures come back as a status with a reason."""
+    check_outputs(args)
     crane = Crane.from_id(args.crane)
     method = args.method
     planner = get(method)
     out = dict(status="ok", crane=crane.spec.id, method=method, objective=args.objective,
                start=list(args.start), goal=list(args.goal))
+    out["crane_id"] = out["crane"]  # the unified key beside the old one (docs/json-keys.md)
     args.path = args.path or planner.default_path
     out["path"] = args.path
     walls = tuple(Wall(*w) for w in (args.wall or []))
@@ -63,15 +70,7 @@ def cmd_plan(args):
                violations=ev.violations, checked_limits=sorted(checked),
                lower_bound_s=bound if lb is not None else None,
                lower_bounds=lb.as_dict() if lb is not None else None)
-    if args.out:
-        if not str(args.out).endswith(".csv"):
-            raise CLIError(f"--out {args.out}: write a trajectory CSV (.csv)")
-        res.trajectory.to_csv(args.out)
-    if args.plot:
-        from planner.plots import trajectory_figure
-        trajectory_figure(crane, ev, args.plot,
-                          f"{crane.spec.id} {method} ({args.objective}): {ev.duration:.3f} s",
-                          walls=walls)
+    write_outputs(args, crane, res, ev, walls, out)
     emit(args, out)
     if not args.json:
         loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
@@ -83,6 +82,64 @@ def cmd_plan(args):
               + ("".join(f"\n  not respected by {method}: {k} exceeded by {100 * v:.1f} %"
                          for k, v in loose.items())))
     return 0
+
+
+OUT_SUFFIXES = (".csv", ".h5")
+
+
+def check_outputs(args) -> None:
+    """Refuse bad ``--out`` / ``--plot`` / ``--out-rate`` / ``--units-row`` before planning."""
+    out = str(args.out or "")
+    if out and not out.lower().endswith(OUT_SUFFIXES):
+        raise CLIError(f"--out {out}: unknown file type; allowed: a trajectory CSV (.csv) or a "
+                       "one-entry database (.h5)")
+    if args.plot:
+        try:
+            figure_format(args.plot)
+        except FigureFormatError as e:
+            raise CLIError(f"--plot {args.plot}: {str(e).split(': ', 1)[1]}") from None
+    rate = args.out_rate
+    if rate is not None and not (math.isfinite(rate) and rate > 0):
+        raise CLIError(f"--out-rate {rate}: must be a positive number of Hz")
+    if (rate is not None or args.units_row) and not out:
+        raise CLIError("--out-rate / --units-row shape the --out file: give --out FILE")
+    if args.units_row and not out.lower().endswith(".csv"):
+        raise CLIError(f"--units-row applies to a CSV --out, not {out}")
+
+
+def write_outputs(args, crane, res, ev, walls, out: dict) -> None:
+    """``--out`` (trajectory CSV, fixed-rate controller CSV, or a one-entry database) and
+    ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
+    traj = res.trajectory
+    path = str(args.out or "")
+    if path.lower().endswith(".csv"):
+        if args.out_rate is None and not args.units_row:
+            traj.to_csv(path)  # the method's own samples (CONTRACT: trajectory CSV)
+        else:
+            from planner.library.export import write_trajectory_csv  # h5py: only when needed
+            write_trajectory_csv(path, crane, traj, rate=args.out_rate, units_row=args.units_row)
+    elif path:
+        from planner.library.export import write_single_entry  # h5py: only when needed
+        # stored like a library entry: the plan on the control grid (50 Hz, plus its own
+        # nodes: the quintic through the rows reproduces it) with its valve commands; at
+        # --out-rate the fixed-rate rows; a piecewise-linear plan (DP, laws) at its own nodes
+        if args.out_rate is not None:
+            stored = commands(crane, traj, args.out_rate).attach(traj)
+        elif traj.interpolation == "quintic":
+            stored = commands(crane, traj, CONTROL_RATE_HZ).attach(traj, knots=True)
+        else:
+            stored = traj
+        entry = f"plan:{args.objective}"
+        write_single_entry(path, crane, stored, entry_id=entry, start=args.start,
+                           goal=args.goal, objective=args.objective, method=args.method,
+                           evaluation=ev if stored is traj else evaluate(crane, stored),
+                           attrs=dict(solve_time_s=out["solve_time_s"], path=out["path"],
+                                      source="crane-planner plan"))
+        out["entry"] = entry
+    if args.plot:
+        trajectory_figure(crane, ev, args.plot,
+                          f"{crane.spec.id} {args.method} ({args.objective}): "
+                          f"{ev.duration:.3f} s", walls=walls)
 
 
 def wall_arg(text):
@@ -123,7 +180,15 @@ def add_parsers(sub) -> None:
                    help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
                         "from the slew axis, kept clear by `clear` m (0.3); repeatable")
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
-    p.add_argument("--out", metavar="FILE.csv", help="write the trajectory CSV")
-    p.add_argument("--plot", metavar="FILE.png", help="draw joints, rates, tip path, pump")
+    p.add_argument("--out", metavar="FILE.csv|FILE.h5",
+                   help="write the trajectory CSV, or a one-entry database (.h5; read it back "
+                        "as FILE.h5 or FILE.h5#plan:OBJECTIVE)")
+    p.add_argument("--out-rate", type=float, metavar="HZ",
+                   help="--out at a fixed control rate: resampled rows t0 + k/HZ with the valve "
+                        "commands u_* and the hydraulic channels")
+    p.add_argument("--units-row", action="store_true",
+                   help="CSV --out: a second line '# s,rad,...' with every column's unit")
+    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg",
+                   help="draw joints, rates, tip path, pump (format from the suffix)")
     add_json_arg(p)
     p.set_defaults(func=cmd_plan)

@@ -1,5 +1,5 @@
-"""``problems list`` · ``problems show ID`` · ``bound CRANE --start --goal``: the shipped
-machines and the analytic lower bounds of a move."""
+"""``problems list`` · ``problems show ID`` · ``problems urdf ID`` · ``bound CRANE --start
+--goal``: the shipped machines, their URDF, and the analytic lower bounds of a move."""
 from __future__ import annotations
 
 import dataclasses
@@ -9,8 +9,19 @@ import sys
 from problems import crane_ids, load_crane
 
 from planner.bounds import lower_bound
-from planner.cli.common import add_json_arg, emit, point_arg
+from planner.cli.common import CLIError, add_json_arg, emit, point_arg
+from planner.io import atomic_write_text
 from planner.model import Crane
+from planner.model.urdf import urdf_xml
+from planner.plots import FigureFormatError, figure_format, workspace_extent, workspace_figure
+
+
+def plot_path(path) -> None:
+    """Refuse a ``--plot`` path whose suffix is no figure format (before any work)."""
+    try:
+        figure_format(path)
+    except FigureFormatError as e:
+        raise CLIError(f"--plot {path}: {str(e).split(': ', 1)[1]}") from None
 
 
 def cmd_problems_list(args):
@@ -27,14 +38,17 @@ def cmd_problems_list(args):
 
 
 def cmd_problems_show(args):
+    if args.plot:
+        plot_path(args.plot)
     spec = load_crane(args.crane)
     d = dataclasses.asdict(spec)
     d.pop("raw", None)
     d.pop("text", None)
     emit(args, d)
     if args.plot:
-        from planner.plots import workspace_figure  # matplotlib: only when drawing
-        info = workspace_figure(Crane(spec), args.plot)
+        crane = Crane(spec)
+        workspace_figure(crane, args.plot)
+        info = workspace_extent(crane)
         print(f"workspace figure written to {args.plot} (r_max {info['r_max']:.2f} m)",
               file=sys.stderr if args.json == "-" else sys.stdout)
     if not args.json:
@@ -51,11 +65,26 @@ def cmd_problems_show(args):
               f"{spec.payload.tool_mass:.0f} kg")
 
 
+def cmd_problems_urdf(args):
+    crane = Crane.from_id(args.crane)
+    text = urdf_xml(crane)
+    if args.out:
+        atomic_write_text(args.out, text)
+    else:
+        sys.stdout.write(text)
+    emit(args, dict(status="ok", crane=crane.spec.id, crane_id=crane.spec.id,
+                    file=str(args.out) if args.out else None,
+                    joints=list(crane.names), links=["base_link", *crane.names, "tip"]))
+    if args.out and not args.json:
+        print(f"URDF of {crane.spec.id} written to {args.out}")
+    return 0
+
+
 def cmd_bound(args):
     crane = Crane.from_id(args.crane)
     lb = lower_bound(crane, args.start, args.goal)
-    emit(args, dict(status="ok", crane=crane.spec.id, start=args.start, goal=args.goal,
-                    **lb.as_dict()))
+    emit(args, dict(status="ok", crane=crane.spec.id, crane_id=crane.spec.id, start=args.start,
+                    goal=args.goal, **lb.as_dict()))
     if not args.json:
         print(f"lower bounds for {crane.spec.id} {args.start} -> {args.goal}:\n"
               f"  velocity {lb.velocity_s:.3f} s, rest-to-rest {lb.rest_to_rest_s:.3f} s, "
@@ -73,8 +102,15 @@ def add_parsers(sub) -> None:
     p = psub.add_parser("show", help="show one machine (id or path to a TOML file)")
     p.add_argument("crane")
     add_json_arg(p)
-    p.add_argument("--plot", metavar="FILE.png", help="draw the workspace figure")
+    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg",
+                   help="draw the workspace figure (format from the suffix)")
     p.set_defaults(func=cmd_problems_show)
+    p = psub.add_parser("urdf", help="a URDF of one machine (DH kinematics, limits, inertias) "
+                                     "for ROS / MoveIt tools")
+    p.add_argument("crane")
+    p.add_argument("--out", metavar="FILE.urdf", help="write it to FILE (default: stdout)")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_problems_urdf)
     p = sub.add_parser("bound", help="analytic minimum-time lower bounds for a move")
     p.add_argument("crane")
     p.add_argument("--start", type=point_arg, required=True, metavar="r,z,slew")

@@ -229,7 +229,12 @@ def test_export(tmp_path, s100f, moves):
                                        "index.csv"}
     with open(tmp_path / "csv" / "move1-time.csv") as fh:
         header = fh.readline().strip().split(",")
-    assert header == ["t"] + [f"{p}_{j}" for p in ("q", "qd", "qdd", "u") for j in names]
+    assert header[:1 + 4 * len(names)] == ["t"] + [f"{p}_{j}" for p in ("q", "qd", "qdd", "u")
+                                                   for j in names]
+    # then the hydraulic channels the HDF5 file stores (issue 16, item 16)
+    assert header[1 + 4 * len(names):] == (
+        [f"{c}_{j}" for c in ("x", "xd") for j in names]
+        + [f"p_{j}_{s}" for s in ("a", "b") for j in names] + ["q_pump", "power"])
     data = np.loadtxt(tmp_path / "csv" / "move1-time.csv", delimiter=",", skiprows=1)
     np.testing.assert_allclose(data[:, 0], moves[1][1].t, rtol=1e-9)
     with open(tmp_path / "csv" / "index.csv") as fh:

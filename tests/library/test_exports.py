@@ -18,7 +18,7 @@ from planner.library.store import LibraryStore, StoreError
 from planner.methods.ruckig import rest_to_rest
 from planner.trajectory import Trajectory, evaluate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PLAN = ["plan", "s100f", "--start", "6,-1,0", "--goal", "4,1,0.5", "--method", "ruckig"]
 
 

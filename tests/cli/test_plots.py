@@ -21,7 +21,7 @@ from planner.plots import (PUMP_FLOW_COLOUR, PUMP_POWER_COLOUR, FigureFormatErro
 from planner.trajectory import Trajectory, evaluate
 from tests.conftest import random_configs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _evaluation(crane):

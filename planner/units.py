@@ -8,7 +8,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "DEG"]
+__all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "checked_trajectory",
+           "DEG"]
 
 DEG = math.pi / 180.0
 SLEW_TOL = 1e-9   # [rad] slack on the ±π range of a tip's slew (rounding of "180deg")
@@ -86,4 +87,12 @@ def check_joint_units(joints, names, q, source: str = "trajectory") -> None:
         unit, hint = (("rad", "looks like degrees; write radians") if j.type == "revolute"
                       else ("m", "looks like millimetres; write metres"))
         raise ValueError(f"{source}: column q_{j.name} = {col[k]:g} {unit} in data row "
-                         f"{k + 1} is far outside the joint range [{lo:.4g}, {hi:.4g}] {unit}: {hint}")
+                         f"{k + 1} is far outside the joint range [{lo:.4g}, {hi:.4g}] "
+                         f"{unit}: {hint}")
+
+
+def checked_trajectory(crane, traj, source: str = "trajectory"):
+    """``traj`` (a :class:`~planner.trajectory.Trajectory` of ``crane``) after
+    :func:`check_joint_units` on its positions: where a trajectory file is read."""
+    check_joint_units(crane.spec.joints, traj.joint_names, traj.q, source)
+    return traj

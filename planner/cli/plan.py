@@ -60,12 +60,17 @@ def cmd_plan(args):
         lb = lower_bound(crane, args.start, args.goal, jerk="jerk" in checked)
     except UnreachableError as e:
         raise CLIError(str(e)) from None
-    for w in res.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    if res.warnings:
-        out["warnings"] = list(res.warnings)
     bound = (lb.combined_s if "acceleration" in checked else
              max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))
+    warnings = list(res.warnings)
+    if ev.duration < bound * (1 - 1e-6):   # possible only by exceeding a limit (tolerances)
+        warnings.append(f"duration {ev.duration:.4f} s is below the lower bound {bound:.4f} s "
+                        f"by {100 * (1 - ev.duration / bound):.3f} %: the plan exceeds a limit "
+                        f"it plans with by {100 * ev.max_limit_violation:.3f} %")
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    if warnings:
+        out["warnings"] = warnings
     out.update(duration_s=ev.duration, energy_J=ev.energy_J,
                peak_pump_flow_m3s=ev.peak_pump_flow, max_limit_violation=ev.max_limit_violation,
                violations=ev.violations, checked_limits=sorted(checked),

@@ -33,10 +33,13 @@ from planner.trajectory import Trajectory
 
 
 MAX_BYTES = 2 * 2 ** 30   # [B] largest DP grid planned (peak estimate of grid_bytes)
-# peak bytes per edge-array entry (stage × node × window slot), per joint, measured with
-# tracemalloc (benchmarks/dp_memory.py, results in benchmarks/results/dp_memory.md) and rounded
-# up: the time objective and the energy objective (its edge energies need more temporaries)
+# peak bytes per edge-array entry (stage × node × window slot) per joint, measured with
+# tracemalloc (benchmarks/dp_memory.py -> benchmarks/results/dp_memory.md: 56 B for time,
+# 96–111 B for energy) and rounded up; plus per stage and joint (what dominates without a
+# telescope: one node per stage) and a fixed allowance
 BYTES_PER_EDGE = {"time": 80.0, "energy": 130.0, "blend": 130.0}
+BYTES_PER_STAGE = 500.0
+BYTES_FIXED = 16 * 2 ** 20
 
 
 def grid_bytes(stages: int, tele_nodes: int, window: int, joints: int,
@@ -44,7 +47,8 @@ def grid_bytes(stages: int, tele_nodes: int, window: int, joints: int,
     """Estimated peak memory [B] of :func:`dp` on a grid of ``stages`` × ``tele_nodes`` with
     ``window`` telescope steps per stage for a crane with ``joints`` joints."""
     edges = float(stages) * tele_nodes * (2 * window + 1)
-    return BYTES_PER_EDGE[objective] * edges * joints
+    return (BYTES_PER_EDGE[objective] * edges + BYTES_PER_STAGE * stages) * joints \
+        + BYTES_FIXED
 
 
 _STATS = dict(objective="time", path_q=None, s=None, times=None, tele_index=None,

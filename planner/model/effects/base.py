@@ -347,7 +347,7 @@ def _given(name, values: dict) -> None:
     """Refuse user input that names an effect but none of its parameters: it would silently
     be the neutral (no) effect, e.g. ``coulomb_friction:joint=boom`` meaning zero friction."""
     cls = CATALOGUE.get(name)
-    if cls is None or not cls.parameters or any(p.name in values for p in cls.parameters):
+    if cls is None or not cls.parameters or values:   # unknown names: make() says which
         return
     ps = cls.parameters
     what = (f"its parameter {ps[0].name} [{ps[0].unit}] (plausible range [{ps[0].low:g}, "

@@ -91,9 +91,17 @@ def _end_configs(crane: Crane, tip, q, tele):
     return qq[ok], np.asarray(tele, float)[ok]
 
 
-def _pair_bounds(crane: Crane, qs, qg):
+def _limits(crane: Crane, jerk: bool) -> dict:
+    """The crane's limit arrays; without jerk limits (qddd_max = inf) when ``jerk`` is False."""
+    L = dict(crane.limit_arrays())
+    if not jerk:
+        L["qddd_max"] = np.full(crane.n, np.inf)
+    return L
+
+
+def _pair_bounds(crane: Crane, qs, qg, jerk: bool = True):
     """Bounds for all pairs: arrays (Ns, Ng) of velocity, r2r, pump times and energy."""
-    L = crane.limit_arrays()
+    L = _limits(crane, jerk)
     spec = crane.spec
     dq = qg[None, :, :] - qs[:, None, :]
     v = np.where(dq >= 0, L["qd_max"], -L["qd_min"])
@@ -127,12 +135,12 @@ def _end_grids(crane: Crane, tip, q, grids):
     return qq.reshape(S, G, crane.n), grids, ok
 
 
-def _pair_bounds_batch(crane: Crane, A, B):
+def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
     """:func:`_pair_bounds` for S grid pairs at once: ends ``A`` = (joints (S, Gs, n),
     telescopes, mask) from :func:`_end_grids` and ``B`` likewise; returns (S, Gs, Gg) arrays,
     +inf where an end is unreachable."""
     (qs, _, oks), (qg, _, okg) = A, B
-    L = crane.limit_arrays()
+    L = _limits(crane, jerk)
     spec = crane.spec
 
     def per_config(Q, ok):  # strokes and potential energy of the reachable configurations
@@ -156,21 +164,25 @@ def _pair_bounds_batch(crane: Crane, A, B):
 
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
-                n_grid: int = 121, refine: int = 3, starts: int = 8) -> LowerBound:
+                n_grid: int = 121, refine: int = 3, starts: int = 8,
+                jerk: bool = True) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
     configurations ``q_start``/``q_goal``.
 
     Free telescope values are searched on an ``n_grid`` grid at each free end; the best grid
     pairs of every bound (they are not convex in the telescope values: several basins) are then
     refined ``refine`` times on 5× finer local grids; the smallest values found are returned.
-    The refinements of all starting pairs run together (one IK call per end and level)."""
+    The refinements of all starting pairs run together (one IK call per end and level).
+    ``jerk=False`` leaves the spec's jerk limits out of the rest-to-rest (and combined) bound:
+    the bound of a method that does not plan with jerk limits (TOPP-RA, the DP, the laws),
+    which may legitimately be faster than the jerk-limited bound."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
     grid = np.linspace(*tr, n_grid) if tr else np.zeros(1)
     qs, ts = _end_configs(crane, start, q_start, grid)
     qg, tg = _end_configs(crane, goal, q_goal, grid)
-    Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg)
+    Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg, jerk)
     comb = np.maximum(Tr, Tp)
     best = dict(vel=Tv.min(), r2r=Tr.min(), pump=Tp.min(), comb=comb.min(), E=E.min())
     i, k = np.unravel_index(np.argmin(comb), comb.shape)
@@ -191,7 +203,7 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
                      for c in centres.T]   # a fixed end (NaN centre) ignores its grid
             A = _end_grids(crane, start, q_start, grids[0])
             B = _end_grids(crane, goal, q_goal, grids[1])
-            Tv2, Tr2, Tp2, E2 = _pair_bounds_batch(crane, A, B)
+            Tv2, Tr2, Tp2, E2 = _pair_bounds_batch(crane, A, B, jerk)
             comb2 = np.maximum(Tr2, Tp2)
             m2 = dict(comb=comb2, vel=Tv2, r2r=Tr2, pump=Tp2, E=E2)
             for s, key in enumerate(keys):   # each start moves to its own metric's minimum

@@ -8,9 +8,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["parse_angle", "parse_point", "DEG"]
+__all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "checked_trajectory",
+           "DEG"]
 
 DEG = math.pi / 180.0
+SLEW_TOL = 1e-9   # [rad] slack on the ±π range of a tip's slew (rounding of "180deg")
 
 
 def parse_angle(value: Any) -> float:
@@ -41,4 +43,56 @@ def parse_point(text: str) -> tuple[float, float, float]:
         raise ValueError(f"expected numbers in r,z[,slew], got {text!r}") from None
     if not all(math.isfinite(v) for v in (r, z, s)):
         raise ValueError(f"non-finite value in {text!r}")
+    return check_tip((r, z, s), repr(text))
+
+
+def check_tip(tip, field: str = "tip") -> tuple[float, float, float]:
+    """A tip (r [m], z [m], slew [rad]) as three floats, or ValueError naming ``field``: every
+    value finite and the slew inside [-π, π] (±180°). A slew outside that range is
+    refused rather than wrapped: 170 is far more often 170° typed without ``deg`` than a
+    27-turn rotation, and a wrapped value would be echoed as one thing and planned as another.
+    """
+    try:
+        r, z, s = (float(v) for v in tip)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field}: expected three numbers r, z, slew, got {tip!r}") from None
+    if not all(math.isfinite(v) for v in (r, z, s)):
+        raise ValueError(f"{field}: non-finite value in ({r:g}, {z:g}, {s:g}); "
+                         "allowed: finite numbers")
+    if abs(s) > math.pi + SLEW_TOL:
+        wrapped = math.remainder(s, 2 * math.pi)
+        raise ValueError(f"{field}: slew = {s:g} rad is outside [-pi, pi] (±180deg); write "
+                         f"degrees with a suffix ({s:g}deg) or the same direction in range "
+                         f"({wrapped:.6g} rad)")
     return r, z, s
+
+
+def check_joint_units(joints, names, q, source: str = "trajectory") -> None:
+    """Refuse joint positions that look like the wrong unit. ``joints``: the spec's joints
+    (``.name``, ``.type``, ``.limits.q``); ``names``: the joint name of each column of ``q``
+    (samples × columns). A column outside its joint's range by more than the range's own width
+    (at least 1 rad or 1 m) raises ValueError naming the column and ``source``: a revolute
+    column in degrees, a prismatic one in millimetres. Values just outside the range (a
+    measured overshoot) pass."""
+    names = list(names)
+    for j in joints:
+        if j.name not in names:
+            continue
+        col = q[:, names.index(j.name)]
+        lo, hi = j.limits.q
+        far = (col < lo - max(hi - lo, 1.0)) | (col > hi + max(hi - lo, 1.0))
+        if not far.any():
+            continue
+        k = int(far.argmax())
+        unit, hint = (("rad", "looks like degrees; write radians") if j.type == "revolute"
+                      else ("m", "looks like millimetres; write metres"))
+        raise ValueError(f"{source}: column q_{j.name} = {col[k]:g} {unit} in data row "
+                         f"{k + 1} is far outside the joint range [{lo:.4g}, {hi:.4g}] "
+                         f"{unit}: {hint}")
+
+
+def checked_trajectory(crane, traj, source: str = "trajectory"):
+    """``traj`` (a :class:`~planner.trajectory.Trajectory` of ``crane``) after
+    :func:`check_joint_units` on its positions: where a trajectory file is read."""
+    check_joint_units(crane.spec.joints, traj.joint_names, traj.q, source)
+    return traj

@@ -12,6 +12,7 @@ argument parsing, a call into the package and the printing: :mod:`~planner.cli.p
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from planner.cli import discrepancy, library, plan, problems, simulate, studies
@@ -19,7 +20,7 @@ from planner.cli.common import CLIError
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
 
-__all__ = ["CLIError", "build_parser", "main"]
+__all__ = ["CLIError", "build_parser", "join_negative_values", "main"]
 
 # the order of the sub-commands in --help
 COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, studies)
@@ -36,8 +37,37 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+# a value that starts with "-" and is a number (or a comma list starting with one): -50,1,0
+# -0.5 -.5 -1e4,0,30deg -inf (argparse alone takes "-50,1,0" for an option and fails with
+# "expected one argument")
+NEGATIVE_VALUE = re.compile(r"-(\d|\.\d|inf\b|nan\b)", re.IGNORECASE)
+
+
+def join_negative_values(argv: list[str]) -> list[str]:
+    """``--opt -50,1,0`` -> ``--opt=-50,1,0`` for every long option followed by a value that
+    starts with a minus sign and a digit (or ``.5``, ``inf``, ``nan``), so negative numbers and
+    points need no ``=``. Tokens after ``--`` and options already written ``--opt=value`` are
+    left alone; no option of this CLI is a negative number, so nothing else can match."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            return out + argv[i:]
+        nxt = argv[i + 1] if i + 1 < len(argv) else None
+        if tok.startswith("--") and "=" not in tok and nxt is not None and \
+                NEGATIVE_VALUE.match(nxt):
+            out.append(f"{tok}={nxt}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser().parse_args(join_negative_values(argv))
     try:
         rc = args.func(args)
     except (SpecError, UnreachableError, CLIError, ValueError, OSError) as e:

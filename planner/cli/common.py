@@ -7,7 +7,7 @@ import argparse
 from planner.io import write_json
 from planner.methods import available
 from planner.trajectory import Trajectory
-from planner.units import parse_point
+from planner.units import checked_trajectory, parse_point
 
 
 class CLIError(Exception):
@@ -57,6 +57,6 @@ def read_trajectory(crane, ref: str) -> Trajectory:
                 entry = ids[0]
             return db.trajectory(entry)
     try:
-        return Trajectory.from_csv(path, joint_names=crane.names)
+        return checked_trajectory(crane, Trajectory.from_csv(path, joint_names=crane.names), path)
     except OSError as e:
         raise CLIError(f"cannot read trajectory {path}: {e.strerror}") from None

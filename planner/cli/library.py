@@ -4,11 +4,13 @@ The store and the export need h5py; they are imported inside the commands so tha
 ``crane-planner --help`` does not load it."""
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
 from planner.library.build import build
-from planner.library.query import JoinError, join_from, library_crane
+from planner.library.query import JoinError, far_warning, join_from, library_crane
 from planner.units import parse_angle
 
 
@@ -51,6 +53,10 @@ def cmd_library_query(args):
         traj = db.trajectory(eid)
         spec_toml = db.spec_toml
     result = dict(status="ok", id=eid, distance_m=dist, entry=row)
+    warning = far_warning(dist, args.start, args.goal)
+    if warning:
+        result["warning"] = warning
+        print(f"warning: {warning}", file=sys.stderr)
     if args.q_from:
         crane = library_crane(spec_toml)
         try:

@@ -42,7 +42,7 @@ def check_method(method: str, moves, objectives, obstacles) -> None:
     p = get(method)
     if moves:
         for o in objectives:
-            p.check(_request(moves[0], o, 40, obstacles, duration=1.0))
+            p.check(_request(moves[0], o, 40, obstacles, 1.0 if o == "energy" else None))
 
 
 def _request(move: Move, objective: str, N: int, obstacles, duration=None, time_result=None):
@@ -125,6 +125,8 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     meta, moves = load_suite(suite)
     obstacles = meta["obstacles"]
     if limit is not None:
+        if limit < 1:
+            raise ValueError(f"limit: {limit}: must be a whole number of moves >= 1")
         moves = moves[:limit]
     check_method(method, moves, objectives, obstacles)
     out = Path(out)

@@ -22,6 +22,9 @@ from planner.model.spec import parse_spec
 from planner.trajectory import Trajectory
 
 JOIN_RATE_HZ = 50.0  # control rate of the joined move's valve feed-forward
+# the nearest entry is "far" from a request beyond max(FAR_MIN_M, FAR_FRACTION · move length)
+FAR_MIN_M = 1.0
+FAR_FRACTION = 0.5
 
 
 class JoinError(ValueError):
@@ -54,6 +57,21 @@ def nearest_entry(index: dict, start, goal, objective: str | None = None,
          + np.linalg.norm(cartesian(np.asarray(index["goal"])[mask]) - g, axis=1))
     k = int(np.argmin(d))
     return str(np.asarray(index["id"])[mask][k]), float(d[k])
+
+
+def far_warning(distance: float, start, goal) -> str | None:
+    """A warning when the nearest entry, ``distance`` [m] (start + goal, as
+    :func:`nearest_entry`) from the move ``start`` -> ``goal``, is too far to stand for it:
+    beyond max(:data:`FAR_MIN_M`, :data:`FAR_FRACTION` × the move's own length). None when
+    it is near enough."""
+    move = float(np.linalg.norm(cartesian(goal) - cartesian(start)))
+    limit = max(FAR_MIN_M, FAR_FRACTION * move)
+    if not distance > limit:
+        return None
+    return (f"the nearest entry is {distance:.3g} m from the request (start + goal distance), "
+            f"more than {limit:.3g} m (the larger of {FAR_MIN_M:g} m and {FAR_FRACTION:g} × "
+            f"the move's {move:.3g} m): the library does not cover this move; plan it with "
+            "`crane-planner plan`")
 
 
 def index_summary(rows: list[dict]) -> dict:

@@ -16,7 +16,12 @@ the DP's joint path, the laws' β statistics, …) live in ``stats`` and read as
 (``res.iterations`` is ``res.stats["iterations"]``).
 
 A request the method cannot plan at all (an objective or path kind it does not support, a
-missing option) raises :class:`UnsupportedRequest` — a usage error, not an infeasible plan.
+missing option, an option it would ignore, a value outside what is allowed) raises
+:class:`UnsupportedRequest` — a usage error, not an infeasible plan. Field values are checked
+where the request is made (:class:`PlanRequest`: finite tips with the slew in ±π, positive
+finite duration and tip speed, the common options in :data:`OPTION_RULES`), the method's own
+conditions in :meth:`Planner.check`; the CLI, ``library build`` and the bench all go through
+both.
 Registering a planner once (:func:`planner.methods.registry.register`) makes it available to
 ``crane-planner plan --method``, the benchmark and ``library build``.
 """
@@ -28,14 +33,60 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
 
-__all__ = ["OBJECTIVES", "PATHS", "PlanRequest", "PlanResult", "Planner", "UnsupportedRequest"]
+from planner.units import check_tip
+
+__all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "Planner",
+           "UnsupportedRequest"]
 
 OBJECTIVES = ("time", "energy")
 PATHS = ("free", "line")
 
+# The options several methods read, checked when a request is made (None means "not given"):
+# name -> (integer?, smallest allowed, largest allowed, what it is). The bounds keep every
+# method's work finite: the NLP's size grows with ``intervals``, a law's step count with
+# ``rate``; the DP's grid (``step``, ``tele_step``, ``window``) is sized by DPPlanner.check.
+OPTION_RULES = {
+    "intervals": (True, 2, 2000, "NLP intervals N"),
+    "rate": (False, 1.0, 10000.0, "control rate [Hz]"),
+    "step": (False, 1e-4, 100.0, "DP stage spacing [m]"),
+    "tele_step": (False, 1e-4, 100.0, "DP telescope grid [m]"),
+    "window": (True, 1, 1000, "DP telescope steps per stage"),
+    "tele0": (False, -100.0, 100.0, "start telescope [m]"),
+}
+
 
 class UnsupportedRequest(ValueError):
-    """The method does not plan this kind of request (objective, path kind, missing option)."""
+    """The method does not plan this request (objective, path kind, missing option, an option
+    it would ignore), or a field of the request is outside what is allowed."""
+
+
+def _positive(name: str, flag: str, unit: str, value):
+    """``value`` as a finite float > 0, or None when not given; UnsupportedRequest otherwise."""
+    if value is None:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise UnsupportedRequest(f"{name} = {value!r} {unit} ({flag}): allowed a finite number "
+                                 f"> 0")
+    return v
+
+
+def _option(name: str, value):
+    """Check one option against :data:`OPTION_RULES` (unknown names pass unchanged)."""
+    if value is None or name not in OPTION_RULES:
+        return value
+    integer, lo, hi, what = OPTION_RULES[name]
+    flag = "--" + name.replace("_", "-")
+    kind = "an integer" if integer else "a number"
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
+        math.isfinite(value) and lo <= value <= hi and (not integer or value == int(value))
+    if not ok:
+        raise UnsupportedRequest(f"{name} = {value!r} ({flag}, {what}): allowed {kind} in "
+                                 f"[{lo:g}, {hi:g}]")
+    return int(value) if integer else float(value)
 
 
 @dataclass(frozen=True)
@@ -57,10 +108,19 @@ class PlanRequest:
     options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
-        object.__setattr__(self, "start", tuple(float(v) for v in self.start))
-        object.__setattr__(self, "goal", tuple(float(v) for v in self.goal))
+        for name in ("start", "goal"):
+            try:
+                tip = check_tip(getattr(self, name), name)
+            except ValueError as e:
+                raise UnsupportedRequest(str(e)) from None
+            object.__setattr__(self, name, tip)
+        object.__setattr__(self, "duration",
+                           _positive("duration", "--duration", "s", self.duration))
+        object.__setattr__(self, "tip_speed",
+                           _positive("tip_speed", "--tip-speed", "m/s", self.tip_speed))
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
-        object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+        object.__setattr__(self, "options", MappingProxyType(
+            {k: _option(k, v) for k, v in dict(self.options).items()}))
         if self.objective not in OBJECTIVES:
             raise UnsupportedRequest(f"objective {self.objective!r}: allowed "
                                      f"{', '.join(OBJECTIVES)}")
@@ -115,18 +175,26 @@ class Planner(ABC):
     """A planning method. Subclasses set ``name`` (the registry key, e.g. ``"dp"`` or
     ``"law:jla"``), ``objectives`` and ``paths`` (the first is the default path kind),
     ``obstacles`` (True when it honours :attr:`PlanRequest.obstacles`), ``uses_duration`` /
-    ``uses_tip_speed`` (whether it reads those fields), and implement :meth:`plan`."""
+    ``uses_tip_speed`` (whether it reads those fields: True for every objective, or the tuple
+    of objectives it reads them for; :meth:`check` refuses a field it would ignore), and
+    implement :meth:`plan`."""
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     objectives: ClassVar[tuple] = ("time",)
     paths: ClassVar[tuple] = ("line",)
     obstacles: ClassVar[bool] = False
-    uses_duration: ClassVar[bool] = False
-    uses_tip_speed: ClassVar[bool] = False
+    uses_duration: ClassVar[bool | tuple] = False
+    uses_tip_speed: ClassVar[bool | tuple] = False
 
     @property
     def default_path(self) -> str:
         return self.paths[0]
+
+    def reads(self, field_name: str, objective: str) -> bool:
+        """Whether this method reads the request field ``field_name`` ("duration" or
+        "tip_speed") when planning ``objective``."""
+        uses = getattr(self, f"uses_{field_name}")
+        return uses if isinstance(uses, bool) else objective in uses
 
     def check(self, request: PlanRequest) -> None:
         """Raise :class:`UnsupportedRequest` when this method cannot plan ``request``."""
@@ -139,6 +207,14 @@ class Planner(ABC):
         if request.obstacles and not self.obstacles:
             raise UnsupportedRequest(f"{self.name} does not keep clear of obstacles; "
                                      "use --method nlp")
+        for fld, flag in (("duration", "--duration"), ("tip_speed", "--tip-speed")):
+            if getattr(request, fld) is not None and not self.reads(fld, request.objective):
+                uses = getattr(self, f"uses_{fld}")
+                where = (f" (it reads it for --objective {' or '.join(uses)})"
+                         if isinstance(uses, tuple) and uses else "")
+                raise UnsupportedRequest(f"{flag} {getattr(request, fld):g}: {self.name} "
+                                         f"--objective {request.objective} does not read it"
+                                         f"{where}; leave it out rather than have it ignored")
 
     def clear(self) -> None:
         """Forget anything built and kept between calls (built solvers); default: nothing."""

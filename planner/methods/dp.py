@@ -13,6 +13,10 @@ Edge costs (all edges at once, numpy):
   the edge midpoint: power · Δt); edges that cannot be traversed that fast are infeasible;
 * ``blend``:  time + λ·energy, the energy taken at the edge's minimum time.
 Recursion J[n, m] = min_j J[n−1, m+j] + c(n−1, m+j → n, m); the loop runs over stages only.
+
+The edge arrays hold (stages × telescope nodes × (2·window + 1)) entries per joint; the grid's
+peak memory is estimated before anything is allocated (:func:`grid_bytes`) and a grid above
+:data:`MAX_BYTES` is refused with the sizes and the limit.
 """
 from __future__ import annotations
 
@@ -22,10 +26,29 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from planner.geometry.paths import Line, Path
-from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
 from planner.methods.registry import register
 from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory
+
+
+MAX_BYTES = 2 * 2 ** 30   # [B] largest DP grid planned (peak estimate of grid_bytes)
+# peak bytes per edge-array entry (stage × node × window slot) per joint, measured with
+# tracemalloc (benchmarks/dp_memory.py -> benchmarks/results/dp_memory.md: 56 B for time,
+# 96–111 B for energy) and rounded up; plus per stage and joint (what dominates without a
+# telescope: one node per stage) and a fixed allowance
+BYTES_PER_EDGE = {"time": 80.0, "energy": 130.0, "blend": 130.0}
+BYTES_PER_STAGE = 500.0
+BYTES_FIXED = 16 * 2 ** 20
+
+
+def grid_bytes(stages: int, tele_nodes: int, window: int, joints: int,
+               objective: str = "time") -> float:
+    """Estimated peak memory [B] of :func:`dp` on a grid of ``stages`` × ``tele_nodes`` with
+    ``window`` telescope steps per stage for a crane with ``joints`` joints."""
+    edges = float(stages) * tele_nodes * (2 * window + 1)
+    return (BYTES_PER_EDGE[objective] * edges + BYTES_PER_STAGE * stages) * joints \
+        + BYTES_FIXED
 
 
 _STATS = dict(objective="time", path_q=None, s=None, times=None, tele_index=None,
@@ -89,6 +112,27 @@ def edge_energy(crane, Q, dq, dt, w, payload=None):
     return E
 
 
+def _too_fast(T, start, w, dt, tip_speed, length) -> str:
+    """Why a fixed-clock (energy) DP found no path, when the clock is simply too fast: the
+    smallest possible largest edge time of any path through the grid (a min-max recursion on
+    the edge times ``T``) exceeds the stage time ``dt``. Returns the reason naming the fastest
+    constant tip speed and the shortest duration on this grid ("" when the clock is not what
+    cuts the path: then the telescope window or the limits do)."""
+    J = np.where(start, 0.0, np.inf)
+    rows = np.arange(T.shape[1])
+    for n in range(T.shape[0]):
+        tot = np.maximum(_windows(J[None, :], w, np.inf)[0], T[n])
+        J = tot[rows, np.argmin(tot, axis=1)]
+    worst = float(J.min())
+    if not np.isfinite(worst) or worst <= dt * (1 + 1e-9):
+        return ""
+    v = tip_speed * dt / worst
+    return (f"tip speed {tip_speed:.4g} m/s (duration {length / tip_speed:.4g} s) is too fast "
+            f"for the limits along this line: on this grid the fastest constant tip speed is "
+            f"{v:.4g} m/s; allowed: --tip-speed <= {v:.4g} m/s or --duration >= "
+            f"{length / v:.4g} s")
+
+
 def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
        stages: int | None = None, tele_step: float = 0.01, window: int = 5,
        tip_speed: float | None = None, duration: float | None = None, lam: float = 0.0,
@@ -105,27 +149,53 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
     t0 = _time.perf_counter()
     if objective not in ("time", "energy", "blend"):
         raise ValueError(f"objective must be 'time', 'energy' or 'blend', not {objective!r}")
+    for name, v in (("tip_speed", tip_speed), ("duration", duration)):
+        if v is not None and not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} = {v!r}: allowed a finite number > 0")
     if objective == "energy":
         if (tip_speed is None) == (duration is None):
             raise ValueError("objective 'energy' needs exactly one of tip_speed [m/s] or "
                              "duration [s]")
         tip_speed = tip_speed if tip_speed is not None else path.length / duration
-        if tip_speed <= 0:
-            raise ValueError(f"tip_speed must be > 0, got {tip_speed}")
     if window < 1:
         raise ValueError(f"window must be >= 1 grid step, got {window}")
-    s = path.stations(step=step, n=stages)
-    N = len(s) - 1
-    tips = path.tip(s)
+    if (step is None or not step > 0) and stages is None:
+        raise ValueError(f"step = {step!r} m: allowed a number > 0")
+    N = int(stages) if stages is not None else max(1, int(np.ceil(path.length / step - 1e-9)))
     tr = crane.tele_range
     if tr is None:
-        teles = np.zeros(1)
-        window = 0
+        window, M1 = 0, 1
     else:
         if tele_step <= 0:
             raise ValueError(f"tele_step must be > 0, got {tele_step}")
-        teles = np.linspace(tr[0], tr[1], int(round((tr[1] - tr[0]) / tele_step)) + 1)
-    M1 = len(teles)
+        M1 = int(round((tr[1] - tr[0]) / tele_step)) + 1
+    grid = dict(stages=N, step_m=path.length / N, tele_nodes=M1, window=window,
+                tele_step_m=(tr[1] - tr[0]) / (M1 - 1) if M1 > 1 else 0.0)
+
+    def unreachable(tip, where):
+        msg = crane.ik_batch(tip[None, :], teles[M1 // 2])[1][0]
+        return _result("unreachable", f"the path leaves the workspace at {where}: tip "
+                       f"(r={tip[0]:.3f} m, z={tip[1]:.3f} m, slew={tip[2]:.3f} rad): {msg}",
+                       objective=objective, grid=grid, solve_time_s=_time.perf_counter() - t0)
+    need = grid_bytes(N + 1, M1, window, crane.n, objective)
+    if need > MAX_BYTES:
+        if grid_bytes(2, M1, window, crane.n, objective) <= MAX_BYTES:
+            # an unreachable end is the better answer than "too big" (e.g. r = 1e4 m)
+            teles = np.zeros(1) if tr is None else np.linspace(tr[0], tr[1], M1)
+            ends = path.tip(np.array([0.0, path.length]))
+            ok = (crane.ik_batch(np.repeat(ends, M1, axis=0), np.tile(teles, 2),
+                                 explain=False)[1] == "").reshape(2, M1).any(axis=1)
+            if not ok.all():
+                k = int(np.argmin(ok))
+                return unreachable(ends[k], ("the start", "the goal")[k])
+        raise UnsupportedRequest(
+            f"dp grid {N} stages × {M1} telescope nodes × {2 * window + 1} window steps "
+            f"(path {path.length:.3g} m, step {path.length / N:.3g} m) needs ~{need / 2 ** 30:.1f}"
+            f" GiB; allowed up to {MAX_BYTES / 2 ** 30:.1f} GiB: use a larger --step or "
+            "--tele-step, a smaller --window, or a shorter move")
+    s = path.stations(n=N)
+    tips = path.tip(s)
+    teles = np.zeros(1) if tr is None else np.linspace(tr[0], tr[1], M1)
     warn: list[str] = []
     grid = dict(stages=N, step_m=float(s[1] - s[0]), tele_nodes=M1, window=window,
                 tele_step_m=float(teles[1] - teles[0]) if M1 > 1 else 0.0)
@@ -137,13 +207,8 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
     empty = np.flatnonzero(~feas.any(axis=1))
     if empty.size:
         k = int(empty[0])
-        r, z, sl = tips[k]
-        where = "the start" if k == 0 else "the goal" if k == N else f"s = {s[k]:.3f} m"
-        msg = crane.ik_batch(tips[k][None, :], teles[M1 // 2])[1][0]
-        return _result("unreachable", f"the path leaves the workspace at {where}: tip "
-                        f"(r={r:.3f} m, z={z:.3f} m, slew={sl:.3f} rad): {msg}",
-                        objective=objective, grid=grid,
-                        solve_time_s=_time.perf_counter() - t0)
+        return unreachable(tips[k], "the start" if k == 0 else "the goal" if k == N
+                           else f"s = {s[k]:.3f} m")
     _, dXdq = crane.stroke(np.where(np.isnan(Q), 0.0, Q).reshape(-1, crane.n))
     dXdq = np.where(np.isnan(Q), np.nan, dXdq.reshape(Q.shape))
     # --- edge costs
@@ -170,6 +235,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
     J = np.where(feas[0], 0.0, np.inf)
     if tele_start is not None and tr is not None:
         J = np.where(np.abs(teles - tele_start) <= 0.5 * grid["tele_step_m"] + 1e-12, J, np.inf)
+    J0 = J
     arg = np.empty((N, M1), dtype=np.int64)
     rows = np.arange(M1)
     for n in range(1, N + 1):
@@ -178,10 +244,13 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         arg[n - 1] = a
         J = tot[rows, a]
         if not np.isfinite(J).any():
-            return _result("infeasible", f"no feasible transition into stage {n} "
-                            f"(s = {s[n]:.3f} m): the telescope window ±{w} steps or the limits "
-                            "cut the path", objective=objective, grid=grid,
-                            solve_time_s=_time.perf_counter() - t0)
+            why = (f"no feasible transition into stage {n} (s = {s[n]:.3f} m): the telescope "
+                   f"window ±{w} steps or the limits cut the path")
+            if objective == "energy":
+                why = _too_fast(T, feas[0] & np.isfinite(J0), w, dt, tip_speed, path.length) \
+                    or why
+            return _result("infeasible", why, objective=objective, grid=grid,
+                           solve_time_s=_time.perf_counter() - t0)
     if tele_goal is not None and tr is not None:
         J = np.where(np.abs(teles - tele_goal) <= 0.5 * grid["tele_step_m"] + 1e-12, J, np.inf)
     if not np.isfinite(J).any():
@@ -254,8 +323,16 @@ class DPPlanner(Planner):
     description = "Bellman dynamic programming along the tip line (time or energy)"
     objectives = ("time", "energy")
     paths = ("line",)
-    uses_tip_speed = True
-    uses_duration = True
+    uses_tip_speed = ("energy",)
+    uses_duration = ("energy",)
+
+    def check(self, request: PlanRequest) -> None:
+        super().check(request)
+        if request.objective == "energy" and \
+                (request.tip_speed is None) == (request.duration is None):
+            raise UnsupportedRequest("--method dp --objective energy needs exactly one of "
+                                     "--tip-speed V [m/s] or --duration T [s] (the clock it "
+                                     "saves energy on)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:
         return dp(crane, Line(request.start, request.goal), objective=request.objective,

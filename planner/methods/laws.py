@@ -23,9 +23,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.geometry.paths import Line, Path
-from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
+
+DEFAULT_TIP_SPEED = 1.0   # [m/s] a law's tip speed when the request gives none
+MAX_STEPS = 100_000       # nominal control steps of one law move (1000 s at 100 Hz)
 
 
 @dataclass
@@ -278,8 +281,10 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
     ``gain`` [1/s] corrects drift from the reference point. Stops at the end of the path (last
     step shortened to land on it)."""
     t_start = _time.perf_counter()
-    if tip_speed <= 0:
-        raise ValueError(f"tip_speed must be > 0 m/s, got {tip_speed}")
+    if not (math.isfinite(tip_speed) and tip_speed > 0):
+        raise ValueError(f"tip_speed = {tip_speed!r} m/s: allowed a finite number > 0")
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate = {rate!r} Hz: allowed a finite number > 0")
     start = path.tip(np.array([0.0]))[0]
     if q0 is None:
         tele = crane._tele_default(tele0 if tele0 is not None else law.start_tele(crane, start))
@@ -391,7 +396,8 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
 
 class LawPlanner(Planner):
     """``law:NAME``: a local control law driving the tip along the straight line at the
-    request's ``tip_speed`` (default 1 m/s). Options: ``rate`` [Hz] (control rate, 100),
+    request's ``tip_speed`` (default 1 m/s; at most :data:`MAX_STEPS` control steps per move).
+    Options: ``rate`` [Hz] (control rate, 100),
     ``tele0`` [m] (start telescope; default: the law's choice)."""
     objectives = ("time",)
     paths = ("line",)
@@ -402,10 +408,27 @@ class LawPlanner(Planner):
         self.name = f"law:{law_cls.name}"
         self.description = f"local law {law_cls.name} along the tip line at --tip-speed"
 
+    def check(self, request: PlanRequest) -> None:
+        """Also refuses a move whose nominal control-step count (line length / tip speed ·
+        rate) exceeds :data:`MAX_STEPS`: the law integrates step by step, so a near-zero tip
+        speed would otherwise run for hours."""
+        super().check(request)
+        if request.start == request.goal:
+            return
+        speed = request.tip_speed if request.tip_speed is not None else DEFAULT_TIP_SPEED
+        rate = request.option("rate", 100.0)
+        length = Line(request.start, request.goal).length
+        steps = length / speed * rate
+        if steps > MAX_STEPS:
+            raise UnsupportedRequest(
+                f"--tip-speed {speed:g} m/s: {self.name} would take {steps:.3g} control steps "
+                f"for the {length:.3g} m line at {rate:g} Hz; allowed at most {MAX_STEPS} "
+                f"(--tip-speed >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
+
     def plan(self, crane, request: PlanRequest) -> PlanResult:
-        return follow(crane, Line(request.start, request.goal), self.law_cls(),
-                      request.tip_speed or 1.0, rate=request.option("rate", 100.0),
-                      tele0=request.option("tele0"))
+        speed = request.tip_speed if request.tip_speed is not None else DEFAULT_TIP_SPEED
+        return follow(crane, Line(request.start, request.goal), self.law_cls(), speed,
+                      rate=request.option("rate", 100.0), tele0=request.option("tele0"))
 
 
 for _law in LAWS.values():

@@ -194,6 +194,19 @@ _ACT_KEYS = {"kind", "area_a", "area_b", "acting", "stroke", "closed_length", "b
              "lever_pivot", "lever_link", "lever_lengths", "lever_branch", "ratio", "q_ref",
              "radius", "flow_gain", "deadband", "max_speed", "mass", "source"}
 _ACT_KINDS = ("triangle", "lever", "telescope", "rotary", "rack")
+# [m³/s] the largest plausible flow of one pump or valve (3000 L/min; crane pumps deliver
+# 20–600 L/min): a larger number is almost surely L/min written where m³/s is expected
+MAX_FLOW = 0.05
+
+
+def _flow(R: TableReader, tbl: dict, key: str, where: str) -> float:
+    """A flow [m³/s] > 0, refused as "looks like L/min" above :data:`MAX_FLOW`."""
+    v = R.num(tbl, key, where, lo=0, lo_open=True)
+    if v > MAX_FLOW:
+        R.fail(f"{where}{key}", tbl[key], f"implausible for m³/s (allowed up to {MAX_FLOW} "
+                                          f"m³/s = {MAX_FLOW * 6e4:.0f} L/min): looks like L/min; "
+                                          f"{v:g} L/min is {v / 6e4:.4g} m³/s")
+    return v
 
 
 def _parse_actuator(R: TableReader, tbl: dict, where: str, jtype: str) -> Actuator:
@@ -238,7 +251,7 @@ def _parse_actuator(R: TableReader, tbl: dict, where: str, jtype: str) -> Actuat
     if acting == "single" and kind not in ("triangle", "lever"):
         R.fail(f"{where}acting", acting, "single-acting is only allowed for cylinders "
                                           "(kind triangle or lever)")
-    kw["flow_gain"] = R.num(tbl, "flow_gain", where, lo=0, lo_open=True)
+    kw["flow_gain"] = _flow(R, tbl, "flow_gain", where)
     kw["deadband"] = R.num(tbl, "deadband", where, default=0.0, lo=0.0, hi=0.5)
     kw["max_speed"] = (R.num(tbl, "max_speed", where, lo=0, lo_open=True)
                        if "max_speed" in tbl else None)
@@ -339,7 +352,7 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
                 "max_pressure", "tank_pressure", "source"}, pw)
     kind = R.text(pu, "kind", pw, choices=("load_sensing", "constant_pressure"))
     pump = Pump(kind=kind,
-                max_flow=R.num(pu, "max_flow", pw, lo=0, lo_open=True),
+                max_flow=_flow(R, pu, "max_flow", pw),
                 efficiency=R.num(pu, "efficiency", pw, lo=0, lo_open=True, hi=1.0),
                 margin=R.num(pu, "margin", pw, default=None if kind == "load_sensing" else 0.0,
                              lo=0.0),

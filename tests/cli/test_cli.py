@@ -326,3 +326,29 @@ def test_library_query_joins_from_the_current_state(tmp_path, capsys):
     # a 50 Hz control-rate record: judge positions and rates (interpolating it between control
     # samples is not the plan, whose own verdict is Ruckig's)
     assert evaluate(crane, j, kinds=("position", "velocity")).ok()
+
+
+def test_library_query_far_from_every_entry_warns(tmp_path, capsys):
+    """Issue 16: a query far from every entry still answers with the nearest one, but warns
+    (stderr and JSON ``warning``) and gives the distance; a near query has no warning."""
+    import json
+
+    from planner import Crane
+    from planner.library.store import LibraryStore
+    from planner.methods.ruckig import rest_to_rest
+    crane = Crane.from_id("umea-lab")
+    lib = tmp_path / "lib.h5"
+    a, b = (3.0, 1.8, 0.0), (2.5, 3.0, -0.5)
+    with LibraryStore.create(lib, crane.spec) as db:
+        tr = rest_to_rest(crane, crane.ik(a, 0.5), crane.ik(b, 0.5)).trajectory
+        db.add("m0", tr, start=a, goal=b, objective="time", method="ruckig", status="ok")
+    assert main(["library", "query", str(lib), "--start", "3.0,1.8,0", "--goal",
+                 "2.5,3.0,-0.5", "--json", "-"]) == 0
+    out, err = capsys.readouterr()
+    assert "warning" not in json.loads(out) and "warning" not in err
+    assert main(["library", "query", str(lib), "--start", "-30,1.8,0",
+                 "--goal", "2.5,3.0,-0.5", "--json", "-"]) == 0     # a negative value, no '='
+    out, err = capsys.readouterr()
+    q = json.loads(out)
+    assert q["distance_m"] == pytest.approx(33.0, abs=1e-9)
+    assert "does not cover this move" in q["warning"] and q["warning"] in err

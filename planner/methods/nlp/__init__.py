@@ -40,7 +40,7 @@ class NLPPlanner(Planner):
     objectives = ("time", "energy")
     paths = ("free", "line")
     obstacles = True
-    uses_duration = True
+    uses_duration = ("energy",)   # the time objective has no duration to honour
 
     def __init__(self):
         self._built: dict = {}

@@ -343,14 +343,32 @@ def make(name: str, joint: str | None = None, **values) -> Effect:
     return CATALOGUE[name](joint, **values)
 
 
+def _given(name, values: dict) -> None:
+    """Refuse user input that names an effect but none of its parameters: it would silently
+    be the neutral (no) effect, e.g. ``coulomb_friction:joint=boom`` meaning zero friction."""
+    cls = CATALOGUE.get(name)
+    if cls is None or not cls.parameters or values:   # unknown names: make() says which
+        return
+    ps = cls.parameters
+    what = (f"its parameter {ps[0].name} [{ps[0].unit}] (plausible range [{ps[0].low:g}, "
+            f"{ps[0].high:g}])" if len(ps) == 1
+            else f"at least one of {', '.join(p.name for p in ps)}")
+    raise ValueError(f"effect {name}: give {what}; without it the effect is neutral "
+                     f"({', '.join(f'{p.name} = {p.neutral:g}' for p in ps)})")
+
+
 def effect_from_dict(d: dict) -> Effect:
+    """An effect from a table (``name``, ``joint``, parameter values), e.g. a spec's
+    ``[[effects]]``; at least one parameter value must be given."""
     d = dict(d)
-    return make(d.pop("name", None), d.pop("joint", None), **d)
+    name, joint = d.pop("name", None), d.pop("joint", None)
+    _given(name, d)
+    return make(name, joint, **d)
 
 
 def parse_effect(text: str, crane=None) -> Effect:
     """``NAME:key=value,…`` -> an effect (angles may be written ``1.5deg``). With a crane,
-    the joint name is checked against it."""
+    the joint name is checked against it. At least one parameter value must be given."""
     name, _, rest = text.partition(":")
     name = name.strip()
     kw: dict = {}
@@ -366,7 +384,9 @@ def parse_effect(text: str, crane=None) -> Effect:
             kw[k] = parse_angle(v) if v.endswith("deg") else float(v)
         except (TypeError, ValueError):
             raise ValueError(f"effect {text!r}: {k} = {v!r} is not a number") from None
-    e = make(name, kw.pop("joint", None), **kw)
+    joint = kw.pop("joint", None)
+    _given(name, kw)
+    e = make(name, joint, **kw)
     if crane is not None and e.joint is not None:
         e.index(crane)
     return e

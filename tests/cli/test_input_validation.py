@@ -367,3 +367,17 @@ def test_library_query_far_from_every_entry_warns():
     assert d == pytest.approx(190.0, abs=1e-9)
     w = far_warning(d, *far)
     assert w and "190 m" in w and "does not cover" in w
+
+
+def test_nlp_time_refuses_a_duration_it_would_ignore(capsys):
+    rc, out, err = _cli(capsys, "plan", "s100f", "--start", "6,-1,0", "--goal", "3,2.5,1.5",
+                        "--method", "nlp", "--duration", "0.5")
+    assert rc == 2 and "duration" in err and "Traceback" not in err
+
+
+def test_library_build_refuses_a_negative_limit_before_writing(capsys, tmp_path):
+    lib = tmp_path / "lib.h5"
+    rc, out, err = _cli(capsys, "library", "build", "s100f", "--tasks", "forwarder-cycle",
+                        "--limit", "-2", "--out", str(lib))
+    assert rc == 2 and "limit" in err and "-2" in err
+    assert not lib.exists()

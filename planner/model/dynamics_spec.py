@@ -10,9 +10,8 @@ spool_time_constant = 0.04      # s, first-order spool lag of every valve
 pump_time_constant = 0.05       # s, load-sensing regulator lag (pressure build-up)
 pump_line_volume = 2.0e-3       # m³, oil between pump and valve block
 compensator_dp = 1.6e6          # Pa, pressure drop each valve's compensator holds
-meter_out_dp = 0.5e6            # Pa, meter-out drop at full flow
-holding_pressure = 1.0e6        # Pa, meter-in pressure at which a load-holding valve opens
-holding_band = 1.0e6            # Pa, from cracked to fully open
+meter_out_dp = 0.5e6            # Pa, drop at which the return-flow compensator reaches its cap
+meter_out_margin = 0.01         # the return cap over the outflow that matches the inflow
 source = "…"
 [dynamics.joint.boom]           # one table per joint
 hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
@@ -29,7 +28,7 @@ from planner.model.reader import TableReader
 __all__ = ["JointDynamics", "DynamicsSpec", "parse_dynamics", "DYNAMICS_KEYS"]
 
 DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
-                 "compensator_dp", "meter_out_dp", "holding_pressure", "holding_band", "source",
+                 "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
                  "joint"}
 _JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "source"}
 
@@ -53,8 +52,7 @@ class DynamicsSpec:
     pump_line_volume: float
     compensator_dp: float
     meter_out_dp: float
-    holding_pressure: float
-    holding_band: float
+    meter_out_margin: float
     joints: dict = field(default_factory=dict)      # joint name -> JointDynamics
     source: str = ""
 
@@ -74,8 +72,7 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
         pump_line_volume=R.num(tbl, "pump_line_volume", w, lo=0, lo_open=True),
         compensator_dp=R.num(tbl, "compensator_dp", w, lo=0, lo_open=True),
         meter_out_dp=R.num(tbl, "meter_out_dp", w, lo=0, lo_open=True),
-        holding_pressure=R.num(tbl, "holding_pressure", w, lo=0.0),
-        holding_band=R.num(tbl, "holding_band", w, lo=0, lo_open=True),
+        meter_out_margin=R.num(tbl, "meter_out_margin", w, lo=0.0, hi=0.5),
         source=R.text(tbl, "source", w))
     if kw["bulk_modulus"] > 5e9:
         R.fail(w + "bulk_modulus", tbl["bulk_modulus"],

@@ -10,11 +10,12 @@ Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
 * **proportional valve** (spool opening ``o`` in [−1, 1] after its first-order lag and dead
   band): the meter-in edge passes G·|o|·√(min(Δp, Δp_c)/Δp_c) from the pump line (an
   individual pressure compensator holds at most Δp_c across it; below that the flow falls
-  with √Δp — pump saturation; a check valve stops reverse flow); the meter-out edge is an
-  orifice sized to pass the outflow of full speed at ``meter_out_dp``, behind a load-holding
-  (over-centre) valve that the meter-in pressure opens between ``holding_pressure`` and
-  ``holding_pressure + holding_band`` — so an overrunning load cannot run ahead of the oil fed
-  to its other side;
+  with √Δp — pump saturation; a check valve stops reverse flow); the meter-out edge has its
+  own compensator (return-flow control, the steady-state action of a load-holding valve): it
+  passes at most (1 + ``meter_out_margin``) times the outflow that matches the meter-in flow,
+  reached at ``meter_out_dp`` — so a passive load is metered in (a back pressure a little
+  under ``meter_out_dp`` on the outlet) and an overrunning load is metered out, running at
+  most ``meter_out_margin`` faster than commanded while the inlet fills by anti-cavitation;
 * **single-acting cylinder**: the rod side is vented (tank pressure); lowering meters the oil
   leaving the piston side through the compensated edge (gravity driven, from no pump flow);
 * anti-cavitation valves feed a chamber from tank below tank pressure;
@@ -49,11 +50,6 @@ def root(dp):
     return dp / np.sqrt(np.sqrt(dp * dp + _DP_REG ** 2))
 
 
-def _smoothstep(z):
-    z = np.clip(z, 0.0, 1.0)
-    return z * z * (3.0 - 2.0 * z)
-
-
 @dataclass
 class Circuit:
     """Constants of one machine's circuit (arrays (n,)); see the module doc. Build with
@@ -77,8 +73,7 @@ class Circuit:
     leak: np.ndarray           # [m³/(s·Pa)] leakage of the loaded chamber to tank
     beta: float
     dp_c: float
-    p_hold: float
-    hold_band: float
+    dp_out: float
     pump_kind: str
     q_max: float
     margin: float
@@ -109,7 +104,7 @@ class Circuit:
         x_hi = np.where(cyl, [a.stroke for a in acts], hi)
         gain = vp.flow_gain * np.broadcast_to(np.asarray(gain_scale, float), (n,))
         pump = spec.pump
-        root_out = np.sqrt(dyn.meter_out_dp)
+        c_out = 1.0 + dyn.meter_out_margin
         return cls(
             n=n, area_a=area_a, area_b=area_b, single=vp.single.copy(),
             motor=np.array([a.kind == "rotary" for a in acts]), x_lo=x_lo, x_hi=x_hi,
@@ -117,13 +112,13 @@ class Circuit:
             hose_b=np.array([d.hose_volume[1] for d in jd]),
             gain=gain, deadband=vp.deadband.copy() if deadband is None else
             np.broadcast_to(np.asarray(deadband, float), (n,)).copy(),
-            k_out_a=gain * (area_a / area_b) / root_out,
-            k_out_b=gain * (area_b / area_a) / root_out,
+            k_out_a=c_out * gain * (area_a / area_b),
+            k_out_b=c_out * gain * (area_b / area_a),
             coulomb=np.array([d.coulomb for d in jd]), viscous=np.array([d.viscous for d in jd]),
             v_smooth=0.01 * vp.flow_gain / np.minimum(area_a, area_b),
             leak=np.zeros(n) if leak is None else np.asarray(leak, float),
-            beta=dyn.bulk_modulus, dp_c=dyn.compensator_dp, p_hold=dyn.holding_pressure,
-            hold_band=dyn.holding_band, pump_kind=pump.kind, q_max=pump.max_flow * pump_scale,
+            beta=dyn.bulk_modulus, dp_c=dyn.compensator_dp, dp_out=dyn.meter_out_dp,
+            pump_kind=pump.kind, q_max=pump.max_flow * pump_scale,
             margin=pump.margin, standby=pump.standby, p_set_const=pump.pressure,
             p_relief=min(pump.max_pressure, 1e9), p_tank=pump.tank_pressure,
             tau_pump=dyn.pump_time_constant, v_pump=dyn.pump_line_volume,
@@ -172,10 +167,9 @@ class Circuit:
         dp_in = p_s - p_in
         comp = root(np.clip(dp_in, 0.0, self.dp_c)) / np.sqrt(self.dp_c)
         q_in = self.gain * mag * comp
-        hold = _smoothstep((p_in - pt - self.p_hold) / self.hold_band)
         k_out = np.where(ext, self.k_out_b, self.k_out_a)
         dp_out = p_out - pt
-        q_out = k_out * mag * hold * root(dp_out)
+        q_out = k_out * mag * root(np.minimum(dp_out, self.dp_out)) / np.sqrt(self.dp_out)
         # single-acting: raising draws from the pump; lowering meters the piston-side
         # outflow through the compensated edge, the rod side is vented
         lower = self.single & ~ext
@@ -250,7 +244,8 @@ class Circuit:
         pt, dpc, beta = self.p_tank, self.dp_c, self.beta
         sdpc = math.sqrt(dpc)
         reg2 = _DP_REG ** 2
-        p_hold, band = self.p_hold, self.hold_band
+        dpo = self.dp_out
+        sdpo = math.sqrt(dpo)
         ls = self.pump_kind == "load_sensing"
         qmax, vpump, taup = self.q_max, self.v_pump, self.tau_pump
 
@@ -283,10 +278,8 @@ class Circuit:
                     q_out = L["gain"][i] * mag * rt(min(max(pa[i] - pt, 0.0), dpc)) / sdpc
                 else:
                     q_in = L["gain"][i] * mag * rt(min(max(ps - p_in, 0.0), dpc)) / sdpc
-                    z = min(max((p_in - pt - p_hold) / band, 0.0), 1.0)
                     k_out = L["k_out_b"][i] if ext else L["k_out_a"][i]
-                    q_out = 0.0 if single[i] else k_out * mag * z * z * (3 - 2 * z) * rt(
-                        p_out - pt)
+                    q_out = 0.0 if single[i] else k_out * mag * rt(min(p_out - pt, dpo)) / sdpo
                     if mag > 1e-6 and p_in > pl_max:
                         pl_max = p_in
                 qa, qb = (q_in, -q_out) if ext else (-q_out, q_in)

@@ -201,8 +201,11 @@ class Circuit:
         return la, lb
 
     def makeup(self, p):
-        """Anti-cavitation flow from tank into a chamber below tank pressure [m³/s]."""
-        return self.gain / 1e5 * np.maximum(self.p_tank - p, 0.0)
+        """Anti-cavitation flow from tank into a chamber below tank pressure [m³/s] (full valve
+        flow at 10 bar under tank; zero at and above tank, with a continuous slope: d²/(d + 0.2
+        bar) for d = tank − p > 0)."""
+        d = np.maximum(self.p_tank - np.asarray(p, float), 0.0)
+        return self.gain / 1e6 * d * d / (d + _DP_REG)
 
     # ------------------------------------------------------------------ the ODE
     def rhs(self, p_a, p_b, p_s, o, x, xd):
@@ -294,10 +297,13 @@ class Circuit:
                         la = L["leak"][i] * max(pa[i] - pt, 0.0)
                     elif not single[i]:
                         lb = L["leak"][i] * max(pb[i] - pt, 0.0)
-                mk = L["gain"][i] / 1e5
-                dpa[i] = beta / va * (qa - Aa[i] * xd[i] - la + mk * max(pt - pa[i], 0.0))
+                mk = L["gain"][i] / 1e6
+                da = max(pt - pa[i], 0.0)
+                dpa[i] = beta / va * (qa - Aa[i] * xd[i] - la + mk * da * da / (da + _DP_REG))
                 if not single[i]:
-                    dpb[i] = beta / vb * (qb + Ab[i] * xd[i] - lb + mk * max(pt - pb[i], 0.0))
+                    db = max(pt - pb[i], 0.0)
+                    dpb[i] = beta / vb * (qb + Ab[i] * xd[i] - lb
+                                          + mk * db * db / (db + _DP_REG))
                 qsum += q_in
             if ls:
                 pset = min(max(self.standby, pl_max + self.margin if pl_max > 0 else 0.0),

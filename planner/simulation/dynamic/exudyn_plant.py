@@ -28,6 +28,7 @@ import math
 import time as _time
 from dataclasses import dataclass, field, replace
 
+import casadi as ca
 import numpy as np
 
 from planner.model import Crane
@@ -97,7 +98,6 @@ def tree_parameters(spec, payload: float, bodies=None) -> dict:
     transformation from each parent link frame to the joint frame (4×4), link masses, COMs
     and inertias (about the COM) in the link frames, and the tip point in the last link frame;
     the payload [kg] is merged into the last link as a point mass at the tip."""
-    import casadi as ca
     n = spec.n
     C = [np.array(ca.DM(A)) for A in joint_transforms(spec, ca.DM.zeros(n))]
     bodies = lumped_links(spec) if bodies is None else bodies
@@ -170,7 +170,7 @@ class ExudynPlant:
     on the output (:meth:`sense`). ``dynamics`` overrides the spec's ``[dynamics]``; ``step``
     is the fixed integration step [s]."""
 
-    def __init__(self, crane, effects=(), dynamics=None, step: float = 1e-3):
+    def __init__(self, crane, effects=(), dynamics=None, step: float = 2e-3):
         spec = crane.spec
         dyn = dynamics if dynamics is not None else spec.dynamics
         if dyn is None:
@@ -333,9 +333,12 @@ class ExudynPlant:
 
         def pre_step(mbs_, t):
             nonlocal spool
-            k = int(round((t - t0) / h))
-            if k > K:
+            # the engine passes the time at the end of the coming step; the state is the
+            # state at its start
+            k = int(round((t - t0) / h)) - 1
+            if k < 0 or k > K:
                 return True
+            t = t0 + k * h
             q, qd, p = record(k)
             j = max(int(np.searchsorted(t_u, t + 1e-9 * h, side="right")) - 1, 0)
             rec["u"][k] = u[j]
@@ -368,14 +371,12 @@ class ExudynPlant:
         ti.verboseMode = 0
         ti.adaptiveStep = False
         ti.newton.useModifiedNewton = True
+        ti.newton.maxIterations = 40
         ti.newton.relativeTolerance = 1e-8
         ti.newton.absoluteTolerance = 1e-6
         ti.newton.numericalDifferentiation.minimumCoordinateSize = 1
         ti.generalizedAlpha.spectralRadius = spectral_radius
-        s.solutionSettings.writeSolutionToFile = False
-        s.solutionSettings.sensorsWritePeriod = 1e9
-        s.displayComputationTime = False
-        s.displayStatistics = False
+        s.solution.file.write = False
         try:
             ok = mbs.SolveDynamic(s, showHints=False)
         except Exception as e:          # the engine's own failure (Newton, singular matrix)

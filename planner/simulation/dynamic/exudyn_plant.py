@@ -377,12 +377,15 @@ class ExudynPlant:
         ti.newton.numericalDifferentiation.minimumCoordinateSize = 1
         ti.generalizedAlpha.spectralRadius = spectral_radius
         s.solution.file.write = False
+        exu.SetWriteToConsole(False)    # the engine's banners would corrupt --json -
         try:
             ok = mbs.SolveDynamic(s, showHints=False)
         except Exception as e:          # the engine's own failure (Newton, singular matrix)
             last = np.flatnonzero(np.isfinite(rec["p_s"]))
             ok, fail = False, fail or dict(status="diverged", t=float(rec["t"][last[-1]])
                                            if last.size else t0, reason=str(e)[:200])
+        finally:
+            exu.SetWriteToConsole(True)
         if not fail and ok is False:
             last = np.flatnonzero(np.isfinite(rec["p_s"]))
             fail = dict(status="diverged", t=float(rec["t"][last[-1]]) if last.size else t0,

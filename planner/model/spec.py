@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from planner.model.dynamics_spec import DynamicsSpec, parse_dynamics
 from planner.model.effects import effect_from_dict
 from planner.model.reader import SpecError, TableReader
 from planner.units import parse_angle
@@ -165,6 +166,7 @@ class CraneSpec:
     transformer: Transformer | None
     laws: LawParams = field(default_factory=LawParams)
     effects: tuple = ()            # calibrated effects (dicts, planner.model.effects), see plant.py
+    dynamics: DynamicsSpec | None = None  # [dynamics] (planner.model.dynamics_spec), dynamic plant
     gravity: float = 9.81
     path: str = "<memory>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -316,7 +318,8 @@ def _parse_joint(R: TableReader, tbl: dict, i: int) -> Joint:
 def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
     """Validate a parsed TOML dict and build a :class:`CraneSpec`."""
     R = TableReader(file)
-    R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws", "effects"}, "")
+    R.keys(data, {"crane", "joint", "payload", "pump", "transformer", "laws", "effects",
+                  "dynamics"}, "")
     ct = R.table(data, "crane", "")
     R.keys(ct, {"id", "name", "description", "source", "elbow", "redundancy", "gravity"}, "crane.")
     cid = R.text(ct, "id", "crane.")
@@ -425,7 +428,7 @@ def parse_spec(data: dict, file: str = "<memory>", text: str = "") -> CraneSpec:
         source=R.text(ct, "source", "crane."),
         elbow=R.text(ct, "elbow", "crane.", choices=("up", "down")),
         redundancy=red, joints=joints, payload=payload, pump=pump, transformer=transformer,
-        laws=laws, effects=tuple(effects),
+        laws=laws, effects=tuple(effects), dynamics=parse_dynamics(R, data, names),
         gravity=R.num(ct, "gravity", "crane.", default=9.81, lo=0.0),
         path=file, raw=data, text=text)
     return spec

@@ -84,7 +84,7 @@ CASES = [
      _set(["joint", 1, "actuator", "bore"], 0.04), False,
      "joint[1](boom).actuator.bore", ["unknown key; allowed:", "area_a", "lever_lengths"]),
     ("top-unknown-table", "unknown-table", _set(["pumps"], {"max_flow": 1e-3}), False,
-     "pumps", ["unknown key; allowed: crane, effects, joint, laws, payload, pump, transformer"]),
+     "pumps", ["unknown key; allowed: crane, dynamics, effects, joint, laws, payload, pump, transformer"]),
     ("missing-max-flow", "missing-number", _pop(["pump", "max_flow"]), False,
      "pump.max_flow", ["missing (required number)"]),
     ("missing-source", "missing-string", _pop(["joint", 1, "actuator", "source"]), False,

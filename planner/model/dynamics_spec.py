@@ -1,0 +1,97 @@
+"""The ``[dynamics]`` section of a machine spec: the physical parameters only a dynamic plant
+needs (oil compressibility, hose volumes, spool and pump dynamics, valve pressure drops,
+actuator friction), parsed and validated like the rest of the spec (errors name the file, the
+field, the value and what is allowed).
+
+```toml
+[dynamics]
+bulk_modulus = 1.4e9            # Pa, effective (oil + hoses + entrained air)
+spool_time_constant = 0.04      # s, first-order spool lag of every valve
+pump_time_constant = 0.05       # s, load-sensing regulator lag (pressure build-up)
+pump_line_volume = 2.0e-3       # m³, oil between pump and valve block
+compensator_dp = 1.6e6          # Pa, pressure drop each valve's compensator holds
+meter_out_dp = 0.5e6            # Pa, drop at which the return-flow compensator reaches its cap
+meter_out_margin = 0.01         # the return cap over the outflow that matches the inflow
+source = "…"
+[dynamics.joint.boom]           # one table per joint
+hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
+coulomb = 1500.0                # N (N·m for rotary drives), seal friction at the actuator
+viscous = 2.0e4                 # N·s/m (N·m·s/rad)
+```
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from planner.model.reader import TableReader
+
+__all__ = ["JointDynamics", "DynamicsSpec", "parse_dynamics", "DYNAMICS_KEYS"]
+
+DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
+                 "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
+                 "joint"}
+_JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "source"}
+
+
+@dataclass(frozen=True)
+class JointDynamics:
+    """Per-actuator dynamic data: hose volumes [m³] (piston side, rod side), Coulomb friction
+    [N | N·m] and viscous friction [N·s/m | N·m·s/rad] at the actuator."""
+    hose_volume: tuple[float, float]
+    coulomb: float = 0.0
+    viscous: float = 0.0
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class DynamicsSpec:
+    """The ``[dynamics]`` section (see the module doc): SI units, every value validated."""
+    bulk_modulus: float
+    spool_time_constant: float
+    pump_time_constant: float
+    pump_line_volume: float
+    compensator_dp: float
+    meter_out_dp: float
+    meter_out_margin: float
+    joints: dict = field(default_factory=dict)      # joint name -> JointDynamics
+    source: str = ""
+
+
+def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | None:
+    """Validate the ``[dynamics]`` table of a parsed spec (``data`` is the whole TOML dict);
+    None when the section is absent. Every joint needs its ``[dynamics.joint.<name>]`` table."""
+    tbl = R.table(data, "dynamics", "", required=False)
+    if tbl is None:
+        return None
+    w = "dynamics."
+    R.keys(tbl, DYNAMICS_KEYS, w)
+    kw = dict(
+        bulk_modulus=R.num(tbl, "bulk_modulus", w, lo=0, lo_open=True),
+        spool_time_constant=R.num(tbl, "spool_time_constant", w, lo=0, lo_open=True, hi=1.0),
+        pump_time_constant=R.num(tbl, "pump_time_constant", w, lo=0, lo_open=True, hi=5.0),
+        pump_line_volume=R.num(tbl, "pump_line_volume", w, lo=0, lo_open=True),
+        compensator_dp=R.num(tbl, "compensator_dp", w, lo=0, lo_open=True),
+        meter_out_dp=R.num(tbl, "meter_out_dp", w, lo=0, lo_open=True),
+        meter_out_margin=R.num(tbl, "meter_out_margin", w, lo=0.0, hi=0.5),
+        source=R.text(tbl, "source", w))
+    if kw["bulk_modulus"] > 5e9:
+        R.fail(w + "bulk_modulus", tbl["bulk_modulus"],
+               "must be <= 5e9 Pa (oil is about 1.0–1.8e9 Pa)")
+    jt = R.table(tbl, "joint", w)
+    for k in jt:
+        if k not in joint_names:
+            R.fail(f"{w}joint.{k}", jt[k], f"must name a joint: {', '.join(joint_names)}")
+    joints = {}
+    for name in joint_names:
+        jw = f"{w}joint.{name}."
+        t = R.table(jt, name, f"{w}joint.")
+        R.keys(t, _JOINT_KEYS, jw)
+        hv = R.vec(t, "hose_volume", jw, 2)
+        if min(hv) <= 0:
+            R.fail(jw + "hose_volume", t["hose_volume"],
+                   "both hose volumes must be > 0 m³ (a chamber without oil has no stiffness)")
+        joints[name] = JointDynamics(hose_volume=tuple(hv),
+                                     coulomb=R.num(t, "coulomb", jw, default=0.0, lo=0.0),
+                                     viscous=R.num(t, "viscous", jw, default=0.0, lo=0.0),
+                                     source=R.text(t, "source", jw, default=""))
+    return DynamicsSpec(joints=joints, **kw)

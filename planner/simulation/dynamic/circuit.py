@@ -1,0 +1,316 @@
+"""The hydraulic circuit of the dynamic plant (numpy, batched over leading axes; last axis =
+actuators in spec order): chamber pressure build-up, valves, load-holding valves, the
+load-sensing pump, friction, and the power flows for the energy balance.
+
+Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
+
+* chamber volumes V_a = V_hose,a + A_a·(x − x_lo), V_b = V_hose,b + A_b·(x_hi − x) (cylinders
+  and rack cylinders; a motor keeps its hose volumes); pressure build-up
+  ṗ = β/V · (Q_into − A·(±ẋ) − Q_leak + Q_makeup);
+* **proportional valve** (spool opening ``o`` in [−1, 1] after its first-order lag and dead
+  band): the meter-in edge passes G·|o|·√(min(Δp, Δp_c)/Δp_c) from the pump line (an
+  individual pressure compensator holds at most Δp_c across it; below that the flow falls
+  with √Δp — pump saturation; a check valve stops reverse flow); the meter-out edge has its
+  own compensator (return-flow control, the steady-state action of a load-holding valve): it
+  passes at most (1 + ``meter_out_margin``) times the outflow that matches the meter-in flow,
+  reached at ``meter_out_dp`` — so a passive load is metered in (a back pressure a little
+  under ``meter_out_dp`` on the outlet) and an overrunning load is metered out, running at
+  most ``meter_out_margin`` faster than commanded while the inlet fills by anti-cavitation;
+* **single-acting cylinder**: the rod side is vented (tank pressure); lowering meters the oil
+  leaving the piston side through the compensated edge (gravity driven, from no pump flow);
+* anti-cavitation valves feed a chamber from tank below tank pressure;
+* **pump** (state p_s): load sensing towards max(standby, highest meter-in pressure of the
+  drawing functions + margin), capped at ``max_pressure`` (relief), with the regulator lag
+  ``pump_time_constant``; when the valves draw more than Q_max the pump line (volume V_p) loses
+  pressure at β/V_p per unit excess flow. Constant-pressure pumps hold their set pressure.
+* actuator force F = p_a·A_a − p_b·A_b − F_c·tanh(ẋ/v_s) − d·ẋ (Coulomb smoothed over 1 % of
+  the full-command speed), plus stiff end stops at the strokes of the joint limits.
+
+Orifice roots are regularised below 0.2 bar (linear through zero) so that Newton's method of
+the implicit integrator sees finite slopes.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.model.valves import valve_params
+
+__all__ = ["Circuit", "root"]
+
+_DP_REG = 2.0e4          # [Pa] orifice laminar region
+_STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)
+
+
+def root(dp):
+    """Signed, regularised square root √|Δp|·sign(Δp) [√Pa] (linear within ±0.2 bar)."""
+    dp = np.asarray(dp, float)
+    return dp / np.sqrt(np.sqrt(dp * dp + _DP_REG ** 2))
+
+
+@dataclass
+class Circuit:
+    """Constants of one machine's circuit (arrays (n,)); see the module doc. Build with
+    :meth:`from_crane`."""
+    n: int
+    area_a: np.ndarray
+    area_b: np.ndarray
+    single: np.ndarray
+    motor: np.ndarray          # rotary drive: no chamber volume change
+    x_lo: np.ndarray
+    x_hi: np.ndarray
+    hose_a: np.ndarray
+    hose_b: np.ndarray
+    gain: np.ndarray           # [m³/s] meter-in flow at full opening (compensated)
+    deadband: np.ndarray
+    k_out_a: np.ndarray        # [m³/(s·√Pa)] meter-out orifice of side a at full opening
+    k_out_b: np.ndarray
+    coulomb: np.ndarray
+    viscous: np.ndarray
+    v_smooth: np.ndarray       # [m/s] Coulomb smoothing speed
+    leak: np.ndarray           # [m³/(s·Pa)] leakage of the loaded chamber to tank
+    beta: float
+    dp_c: float
+    dp_out: float
+    pump_kind: str
+    q_max: float
+    margin: float
+    standby: float
+    p_set_const: float
+    p_relief: float
+    p_tank: float
+    tau_pump: float
+    v_pump: float
+    efficiency: float
+
+    @classmethod
+    def from_crane(cls, crane, dyn, stops, gain_scale=1.0, deadband=None, pump_scale=1.0,
+                   leak=None) -> "Circuit":
+        """The circuit of ``crane`` with dynamics ``dyn`` (:class:`DynamicsSpec`), stroke end
+        stops ``stops`` = (lo, hi) (n,) and the valves-stage deviations of a plant: per-valve
+        gain factors, dead bands, the pump-flow factor; ``leak`` per-actuator leakage."""
+        spec = crane.spec
+        n = spec.n
+        vp = valve_params(crane)
+        acts = [j.actuator for j in spec.joints]
+        area_a = np.array([a.area_a for a in acts])
+        area_b = np.array([a.area_b for a in acts])
+        jd = [dyn.joints[j.name] for j in spec.joints]
+        lo, hi = (np.asarray(s, float) for s in stops)
+        cyl = np.array([a.kind in ("triangle", "lever", "telescope") for a in acts])
+        x_lo = np.where(cyl, 0.0, lo)
+        x_hi = np.where(cyl, [a.stroke for a in acts], hi)
+        gain = vp.flow_gain * np.broadcast_to(np.asarray(gain_scale, float), (n,))
+        pump = spec.pump
+        c_out = 1.0 + dyn.meter_out_margin
+        return cls(
+            n=n, area_a=area_a, area_b=area_b, single=vp.single.copy(),
+            motor=np.array([a.kind == "rotary" for a in acts]), x_lo=x_lo, x_hi=x_hi,
+            hose_a=np.array([d.hose_volume[0] for d in jd]),
+            hose_b=np.array([d.hose_volume[1] for d in jd]),
+            gain=gain, deadband=vp.deadband.copy() if deadband is None else
+            np.broadcast_to(np.asarray(deadband, float), (n,)).copy(),
+            k_out_a=c_out * gain * (area_a / area_b),
+            k_out_b=c_out * gain * (area_b / area_a),
+            coulomb=np.array([d.coulomb for d in jd]), viscous=np.array([d.viscous for d in jd]),
+            v_smooth=0.01 * vp.flow_gain / np.minimum(area_a, area_b),
+            leak=np.zeros(n) if leak is None else np.asarray(leak, float),
+            beta=dyn.bulk_modulus, dp_c=dyn.compensator_dp, dp_out=dyn.meter_out_dp,
+            pump_kind=pump.kind, q_max=pump.max_flow * pump_scale,
+            margin=pump.margin, standby=pump.standby, p_set_const=pump.pressure,
+            p_relief=min(pump.max_pressure, 1e9), p_tank=pump.tank_pressure,
+            tau_pump=dyn.pump_time_constant, v_pump=dyn.pump_line_volume,
+            efficiency=pump.efficiency)
+
+    # ------------------------------------------------------------------ pieces
+    def opening(self, spool):
+        """Effective valve opening (..., n) from spool positions: dead band removed."""
+        s = np.clip(spool, -1.0, 1.0)
+        return np.sign(s) * np.maximum(np.abs(s) - self.deadband, 0.0) / (1.0 - self.deadband)
+
+    def volumes(self, x):
+        """Chamber volumes (V_a, V_b) [m³] at strokes x (..., n)."""
+        x = np.clip(x, self.x_lo, self.x_hi)
+        va = self.hose_a + np.where(self.motor, 0.0, self.area_a * (x - self.x_lo))
+        vb = self.hose_b + np.where(self.motor, 0.0, self.area_b * (self.x_hi - x))
+        return va, vb
+
+    def friction(self, xd):
+        """Friction force [N | N·m] opposing the stroke rate (..., n)."""
+        return self.coulomb * np.tanh(xd / self.v_smooth) + self.viscous * xd
+
+    def stop_force(self, x, xd):
+        """End-stop force (..., n) pushing back into [x_lo, x_hi] (cylinders and racks)."""
+        over = np.maximum(x - self.x_hi, 0.0) - np.maximum(self.x_lo - x, 0.0)
+        k = _STOP_STIFFNESS * np.where(self.motor, 0.0, 1.0)
+        return -k * over - np.where(over != 0, 0.05 * k * xd, 0.0)
+
+    def force(self, p_a, p_b, x, xd):
+        """Net actuator force [N | N·m] along +x."""
+        p_b = np.where(self.single, self.p_tank, p_b)
+        return (p_a * self.area_a - p_b * self.area_b - self.friction(xd)
+                + self.stop_force(x, xd))
+
+    def flows(self, p_a, p_b, p_s, o):
+        """Valve flows for pressures p_a, p_b (..., n), pump pressure p_s (...) and openings
+        o (..., n): dict q_a, q_b (net into each chamber through the valve), q_in (drawn
+        from the pump, ≥ 0), q_out (to tank, ≥ 0 mostly), dp_in, dp_out (drops across the
+        edges), p_load (meter-in chamber pressure of drawing functions, else 0)."""
+        pt = self.p_tank
+        p_s = np.asarray(p_s, float)[..., None]
+        ext = o > 0
+        mag = np.abs(o)
+        p_in = np.where(ext, p_a, p_b)
+        p_out = np.where(ext, p_b, p_a)
+        dp_in = p_s - p_in
+        comp = root(np.clip(dp_in, 0.0, self.dp_c)) / np.sqrt(self.dp_c)
+        q_in = self.gain * mag * comp
+        k_out = np.where(ext, self.k_out_b, self.k_out_a)
+        dp_out = p_out - pt
+        q_out = k_out * mag * root(np.minimum(dp_out, self.dp_out)) / np.sqrt(self.dp_out)
+        # single-acting: raising draws from the pump; lowering meters the piston-side
+        # outflow through the compensated edge, the rod side is vented
+        lower = self.single & ~ext
+        q_low = self.gain * mag * root(np.clip(p_a - pt, 0.0, self.dp_c)) / np.sqrt(self.dp_c)
+        q_in = np.where(lower, 0.0, q_in)
+        q_out = np.where(lower, q_low, np.where(self.single, 0.0, q_out))
+        dp_out = np.where(lower, p_a - pt, dp_out)
+        q_a = np.where(ext, q_in, -q_out)
+        q_b = np.where(ext, -q_out, q_in)
+        q_b = np.where(self.single, 0.0, q_b)
+        draws = (mag > 1e-6) & ~lower
+        return dict(q_a=q_a, q_b=q_b, q_in=q_in, q_out=q_out, dp_in=dp_in, dp_out=dp_out,
+                    p_load=np.where(draws, p_in, 0.0))
+
+    def pump_setpoint(self, p_load):
+        """LS set pressure (...) from the load pressures (..., n)."""
+        if self.pump_kind != "load_sensing":
+            return np.full(np.shape(p_load)[:-1], float(self.p_set_const))
+        pl = np.max(p_load, axis=-1)
+        return np.minimum(np.maximum(self.standby, np.where(pl > 0, pl + self.margin, 0.0)),
+                          self.p_relief)
+
+    def leak_flows(self, p_a, p_b):
+        """Leakage out of the loaded chamber to tank (l_a, l_b) ≥ 0 [m³/s]."""
+        pt = self.p_tank
+        loaded_a = p_a * self.area_a >= p_b * self.area_b
+        la = np.where(loaded_a, self.leak * np.maximum(p_a - pt, 0.0), 0.0)
+        lb = np.where(loaded_a | self.single, 0.0, self.leak * np.maximum(p_b - pt, 0.0))
+        return la, lb
+
+    def makeup(self, p):
+        """Anti-cavitation flow from tank into a chamber below tank pressure [m³/s] (full valve
+        flow at 10 bar under tank; zero at and above tank, with a continuous slope: d²/(d + 0.2
+        bar) for d = tank − p > 0)."""
+        d = np.maximum(self.p_tank - np.asarray(p, float), 0.0)
+        return self.gain / 1e6 * d * d / (d + _DP_REG)
+
+    # ------------------------------------------------------------------ the ODE
+    def rhs(self, p_a, p_b, p_s, o, x, xd):
+        """Time derivatives (ṗ_a, ṗ_b, ṗ_s) of the pressure states."""
+        f = self.flows(p_a, p_b, p_s, o)
+        va, vb = self.volumes(x)
+        la, lb = self.leak_flows(p_a, p_b)
+        dpa = self.beta / va * (f["q_a"] - self.area_a * xd - la + self.makeup(p_a))
+        dpb = self.beta / vb * (f["q_b"] + self.area_b * xd - lb + self.makeup(p_b))
+        dpb = np.where(self.single, 0.0, dpb)
+        excess = np.maximum(np.sum(f["q_in"], axis=-1) - self.q_max, 0.0)
+        dps = ((self.pump_setpoint(f["p_load"]) - p_s) / self.tau_pump
+               - self.beta / self.v_pump * excess)
+        return dpa, dpb, dps
+
+    def initial_pressures(self, force):
+        """Load-holding pressures (p_a, p_b) for actuator forces (n,) (the loaded side
+        carries the force, the other sits at tank; a motor/cylinder with F < 0 on side b)."""
+        pt = self.p_tank
+        F = np.asarray(force, float)
+        p_a = np.where(F >= 0, (F + self.area_b * pt) / self.area_a, pt)
+        p_b = np.where(F >= 0, pt, (self.area_a * pt - F) / self.area_b)
+        p_a = np.where(self.single, pt + np.maximum(F, 0) / self.area_a, p_a)
+        return p_a, np.where(self.single, pt, p_b)
+
+    # ------------------------------------------------------------------ scalar fast path
+    def scalar_functions(self):
+        """(force, rhs): plain-Python versions of :meth:`force` and :meth:`rhs` for one state
+        (lists of n floats; the pump pressure a float) — the integrator calls them thousands of
+        times per simulated second, where numpy's per-call overhead on 4-vectors dominates.
+        tests/test_exudyn.py checks them against the batched numpy definitions."""
+        n = self.n
+        L = {k: [float(v) for v in getattr(self, k)] for k in (
+            "area_a", "area_b", "x_lo", "x_hi", "hose_a", "hose_b", "gain", "k_out_a",
+            "k_out_b", "coulomb", "viscous", "v_smooth", "leak")}
+        single = [bool(v) for v in self.single]
+        motor = [bool(v) for v in self.motor]
+        Aa, Ab, lo, hi = L["area_a"], L["area_b"], L["x_lo"], L["x_hi"]
+        pt, dpc, beta = self.p_tank, self.dp_c, self.beta
+        sdpc = math.sqrt(dpc)
+        reg2 = _DP_REG ** 2
+        dpo = self.dp_out
+        sdpo = math.sqrt(dpo)
+        ls = self.pump_kind == "load_sensing"
+        qmax, vpump, taup = self.q_max, self.v_pump, self.tau_pump
+
+        def rt(dp):
+            return dp / math.sqrt(math.sqrt(dp * dp + reg2))
+
+        def force(pa, pb, x, xd):
+            out = []
+            for i in range(n):
+                pbi = pt if single[i] else pb[i]
+                F = (pa[i] * Aa[i] - pbi * Ab[i] - L["coulomb"][i] * math.tanh(
+                    xd[i] / L["v_smooth"][i]) - L["viscous"][i] * xd[i])
+                if not motor[i]:
+                    over = max(x[i] - hi[i], 0.0) - max(lo[i] - x[i], 0.0)
+                    if over != 0.0:
+                        F -= _STOP_STIFFNESS * (over + 0.05 * xd[i])
+                out.append(F)
+            return out
+
+        def rhs(pa, pb, ps, o, x, xd):
+            dpa, dpb = [0.0] * n, [0.0] * n
+            qsum, pl_max = 0.0, 0.0
+            for i in range(n):
+                oi = o[i]
+                ext = oi > 0
+                mag = abs(oi)
+                p_in, p_out = (pa[i], pb[i]) if ext else (pb[i], pa[i])
+                if single[i] and not ext:
+                    q_in = 0.0
+                    q_out = L["gain"][i] * mag * rt(min(max(pa[i] - pt, 0.0), dpc)) / sdpc
+                else:
+                    q_in = L["gain"][i] * mag * rt(min(max(ps - p_in, 0.0), dpc)) / sdpc
+                    k_out = L["k_out_b"][i] if ext else L["k_out_a"][i]
+                    q_out = 0.0 if single[i] else k_out * mag * rt(min(p_out - pt, dpo)) / sdpo
+                    if mag > 1e-6 and p_in > pl_max:
+                        pl_max = p_in
+                qa, qb = (q_in, -q_out) if ext else (-q_out, q_in)
+                if single[i]:
+                    qb = 0.0
+                xc = min(max(x[i], lo[i]), hi[i])
+                va = L["hose_a"][i] + (0.0 if motor[i] else Aa[i] * (xc - lo[i]))
+                vb = L["hose_b"][i] + (0.0 if motor[i] else Ab[i] * (hi[i] - xc))
+                la = lb = 0.0
+                if L["leak"][i]:
+                    if pa[i] * Aa[i] >= pb[i] * Ab[i]:
+                        la = L["leak"][i] * max(pa[i] - pt, 0.0)
+                    elif not single[i]:
+                        lb = L["leak"][i] * max(pb[i] - pt, 0.0)
+                mk = L["gain"][i] / 1e6
+                da = max(pt - pa[i], 0.0)
+                dpa[i] = beta / va * (qa - Aa[i] * xd[i] - la + mk * da * da / (da + _DP_REG))
+                if not single[i]:
+                    db = max(pt - pb[i], 0.0)
+                    dpb[i] = beta / vb * (qb + Ab[i] * xd[i] - lb
+                                          + mk * db * db / (db + _DP_REG))
+                qsum += q_in
+            if ls:
+                pset = min(max(self.standby, pl_max + self.margin if pl_max > 0 else 0.0),
+                           self.p_relief)
+            else:
+                pset = self.p_set_const
+            dps = (pset - ps) / taup - beta / vpump * max(qsum - qmax, 0.0)
+            return dpa, dpb, dps
+
+        return force, rhs

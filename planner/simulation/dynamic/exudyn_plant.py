@@ -1,0 +1,413 @@
+"""The independent dynamic plant: each machine as an Exudyn multibody system with hydraulic
+pressure dynamics, driven open loop by valve commands.
+
+* **Multibody**: an Exudyn ``ObjectKinematicTree`` (minimal coordinates, Exudyn's own
+  recursive dynamics) built from the spec's DH chain: joint i turns about (slides along) its
+  local z, then the constant part of its DH row follows; link masses, centres of mass and
+  inertias are the model's (:func:`planner.model.dynamics.lumped_links`, actuator masses
+  lumped as the model lumps them) and the payload is a point mass at the tip; gravity acts in
+  −z of frame 0. Nothing of the project's inverse dynamics is used to move the plant.
+* **Actuators**: each actuator acts on its joint with the generalised force F·dx/dq (virtual
+  work), F from the chamber pressures (:class:`~planner.simulation.dynamic.circuit.Circuit`),
+  dx/dq from the spec's mounting geometry (the stroke map of :mod:`planner.model.actuators`:
+  cylinder pins, deflection levers, the telescope's chain ratio, a motor's gear, a rack's
+  pinion radius). The chamber pressures and the pump pressure are Exudyn ``NodeGenericODE1``
+  coordinates of an ``ObjectGenericODE1`` whose right-hand side is the circuit, integrated
+  implicitly together with the multibody (generalised-α, Newton).
+* **Valves**: the commands (after the commands-stage effects: delay, spool lag) drive the
+  spools through a first-order lag (``spool_time_constant``), updated exactly once per step.
+
+Bounded: the step count is fixed by the span and the step, the wall time is checked every step
+(``max_wall_s``), and non-finite or absurd states (pressure above 10× relief, a joint 20 % of
+its range beyond a limit) stop the run; the result then says ``status`` "diverged" or
+"timeout" and ``t_fail`` (never a hang, never "ok" on a blown-up state).
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field, replace
+
+import casadi as ca
+import numpy as np
+
+from planner.model import Crane
+from planner.model.dynamics import lumped_links
+from planner.model.kinematics import joint_transforms
+from planner.model.effects import as_effects, effect_from_dict
+from planner.simulation.dynamic.circuit import Circuit
+from planner.simulation.replay import stroke_stops, valve_set
+
+__all__ = ["StrokeTable", "tree_parameters", "DynamicRun", "ExudynPlant", "PlantDiverged"]
+
+
+class PlantDiverged(RuntimeError):
+    """A dynamic simulation that stopped early: ``status`` ("diverged" | "timeout"),
+    ``t_fail`` [s] and the reason."""
+
+    def __init__(self, status: str, t_fail: float, reason: str):
+        super().__init__(f"dynamic plant {status} at t = {t_fail:.4f} s: {reason}")
+        self.status, self.t_fail, self.reason = status, t_fail, reason
+
+
+def _aslist(a) -> list:
+    return a.tolist() if hasattr(a, "tolist") else list(a)
+
+
+class StrokeTable:
+    """Stroke map x(q) and dx/dq of every actuator as dense tables (4001 points per joint
+    range, linear interpolation, linear extrapolation beyond the limits) from the model's
+    exact map — cheap enough to call inside the integrator's Newton iterations."""
+
+    def __init__(self, crane, points: int = 4001):
+        L = crane.limit_arrays()
+        self.Q = np.linspace(L["q_min"], L["q_max"], points)
+        self.X, self.D = crane.stroke(self.Q)
+        self.n = crane.n
+        self._h = (self.Q[1] - self.Q[0]).tolist()
+        self._q0 = self.Q[0].tolist()
+        self._last = points - 1
+        self._x = [self.X[:, i].tolist() for i in range(self.n)]
+        self._d = [self.D[:, i].tolist() for i in range(self.n)]
+
+    def __call__(self, q):
+        """(x, dx/dq) at one configuration q (n floats) as lists (the grid is uniform per
+        joint; plain Python: called inside the integrator's Newton iterations)."""
+        xs, ds = [], []
+        for i in range(self.n):
+            z = (q[i] - self._q0[i]) / self._h[i]
+            k = min(max(int(z), 0), self._last - 1)
+            w = z - k
+            X, D = self._x[i], self._d[i]
+            xs.append(X[k] + w * (X[k + 1] - X[k]))
+            ds.append(D[k] + min(max(w, 0.0), 1.0) * (D[k + 1] - D[k]))
+        return xs, ds
+
+    def batch(self, q):
+        """(x, dx/dq) for configurations (N, n) (inside the limits: clamped tables)."""
+        q = np.atleast_2d(q)
+        x = np.column_stack([np.interp(q[:, i], self.Q[:, i], self.X[:, i])
+                             for i in range(self.n)])
+        d = np.column_stack([np.interp(q[:, i], self.Q[:, i], self.D[:, i])
+                             for i in range(self.n)])
+        return x, d
+
+
+def tree_parameters(spec, payload: float, bodies=None) -> dict:
+    """Kinematic-tree data of a spec: joint types ('revolute' | 'prismatic'), the constant
+    transformation from each parent link frame to the joint frame (4×4), link masses, COMs
+    and inertias (about the COM) in the link frames, and the tip point in the last link frame;
+    the payload [kg] is merged into the last link as a point mass at the tip."""
+    n = spec.n
+    C = [np.array(ca.DM(A)) for A in joint_transforms(spec, ca.DM.zeros(n))]
+    bodies = lumped_links(spec) if bodies is None else bodies
+    hts, masses, coms, inertias = [], [], [], []
+    for i in range(n):
+        hts.append(np.eye(4) if i == 0 else C[i - 1])
+        m, c, inertia = bodies[i]
+        R, t = C[i][:3, :3], C[i][:3, 3]
+        cc = R @ np.asarray(c) + t
+        II = R @ np.asarray(inertia) @ R.T
+        if i == n - 1 and payload > 0:
+            M = m + payload
+            cn = (m * cc + payload * t) / M
+            d1, d2 = cc - cn, t - cn
+            II = (II + m * (d1 @ d1 * np.eye(3) - np.outer(d1, d1))
+                  + payload * (d2 @ d2 * np.eye(3) - np.outer(d2, d2)))
+            m, cc = M, cn
+        masses.append(float(m))
+        coms.append(cc)
+        inertias.append(II)
+    return dict(types=["revolute" if j.revolute else "prismatic" for j in spec.joints],
+                hts=hts, masses=masses, coms=coms, inertias=inertias, tip=C[-1][:3, 3].copy())
+
+
+@dataclass
+class DynamicRun:
+    """What the dynamic plant did, at every integration step: t (K,), q, qd (K, n), strokes
+    x, xd, pressures p_a, p_b (K, n) [Pa], pump pressure p_s (K,), spool positions (K, n),
+    commands u (K, n) as commanded; ``status`` "ok" | "diverged" | "timeout", ``t_fail``
+    (None when ok), ``reason``; ``wall_s`` the wall time; ``circuit``; ``payload`` [kg]."""
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    x: np.ndarray
+    xd: np.ndarray
+    p_a: np.ndarray
+    p_b: np.ndarray
+    p_s: np.ndarray
+    spool: np.ndarray
+    u: np.ndarray
+    circuit: Circuit
+    payload: float
+    status: str = "ok"
+    t_fail: float | None = None
+    reason: str = ""
+    wall_s: float = 0.0
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def sample(self, t):
+        """(q, p_a, p_b, u) interpolated linearly at times t (M,) (u: the command in effect)."""
+        t = np.asarray(t, float)
+
+        def lin(a):
+            return np.column_stack([np.interp(t, self.t, a[:, i]) for i in range(a.shape[1])])
+        k = np.clip(np.searchsorted(self.t, t + 1e-9, side="right") - 1, 0, len(self.t) - 1)
+        return lin(self.q), lin(self.p_a), lin(self.p_b), self.u[k]
+
+
+class ExudynPlant:
+    """One machine as an Exudyn model (see the module doc), with the physical counterparts of
+    ``effects`` (a sequence of :class:`planner.model.effects.Effect`, after the spec's own
+    calibrated ones): payload and grapple load (tip mass), actuator mass (lumped links),
+    Coulomb and viscous friction (added to the ``[dynamics]`` friction), leakage (a flow out of
+    the loaded chamber), flow gain, dead band and pump limit (the valves stage), delay and spool
+    lag (the commands stage, before the plant's own spool), start offsets; sensor offsets act
+    on the output (:meth:`sense`). ``dynamics`` overrides the spec's ``[dynamics]``; ``step``
+    is the fixed integration step [s]."""
+
+    def __init__(self, crane, effects=(), dynamics=None, step: float = 2e-3):
+        spec = crane.spec
+        dyn = dynamics if dynamics is not None else spec.dynamics
+        if dyn is None:
+            raise ValueError(f"crane '{spec.id}' ({spec.path}): field 'dynamics': missing "
+                             "section; the Exudyn plant needs [dynamics] (bulk_modulus, hose "
+                             "volumes, …; see planner/model/dynamics_spec.py)")
+        if not (step > 0 and math.isfinite(step) and step <= 0.01):
+            raise ValueError(f"ExudynPlant: step = {step!r} s; allowed: 0 < step <= 0.01")
+        if spec.transformer is not None and spec.transformer.enabled:
+            raise ValueError(f"crane '{spec.id}': field 'transformer.enabled': true; the "
+                             "dynamic plant does not model the hydraulic transformer")
+        self.crane, self.dyn, self.step = crane, dyn, float(step)
+        given = tuple(effect_from_dict(d) for d in spec.effects) + as_effects(crane, effects)
+        self.effects = given
+        n = spec.n
+        payload = spec.payload.total
+        extra_mass = np.zeros(n)
+        coulomb = np.array([dyn.joints[j.name].coulomb for j in spec.joints])
+        viscous = np.array([dyn.joints[j.name].viscous for j in spec.joints])
+        leak = np.zeros(n)
+        for e in given:
+            if e.stage == "forces":
+                payload = e.payload(crane, payload)
+                if e.name == "actuator_mass":
+                    extra_mass[e.index(crane)] += e.mass
+                elif e.name == "coulomb_friction":
+                    coulomb[e.index(crane)] += e.force_value
+                elif e.name == "viscous_friction":
+                    viscous[e.index(crane)] += e.coefficient
+            elif e.stage == "strokes" and e.name == "leakage":
+                leak[e.index(crane)] += e.coefficient
+        self.payload = payload
+        true_spec = spec
+        if np.any(extra_mass != 0):
+            joints = tuple(replace(j, actuator=replace(j.actuator, mass=j.actuator.mass + m))
+                           for j, m in zip(spec.joints, extra_mass))
+            true_spec = replace(spec, joints=joints)
+        #: the rigid-body truth's own model (for initial pressures and energies only)
+        self.true_crane = crane if true_spec is spec else Crane(true_spec)
+        vs = valve_set(crane, given)
+        self.stops = stroke_stops(crane)
+        self.circuit = replace(Circuit.from_crane(crane, dyn, self.stops, vs.flow_gain_scale,
+                                                  vs.deadband, vs.pump_flow_scale, leak),
+                               coulomb=coulomb, viscous=viscous)
+        self.tree = tree_parameters(true_spec, payload)
+        self.strokes = StrokeTable(crane)
+
+    # ------------------------------------------------------------------ the model
+    def _build(self, q0, p0):
+        import exudyn as exu
+        from exudyn.itemInterface import (NodeGenericODE1, NodeGenericODE2, ObjectGenericODE1,
+                                          ObjectKinematicTree)
+        n = self.crane.n
+        T = self.tree
+        jt = {"revolute": exu.JointType.RevoluteZ, "prismatic": exu.JointType.PrismaticZ}
+        SC = exu.SystemContainer()
+        mbs = SC.AddSystem()
+        node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
+                                           initialCoordinates=list(map(float, q0)),
+                                           initialCoordinates_t=[0.0] * n,
+                                           numberOfODE2Coordinates=n))
+        hnode = mbs.AddNode(NodeGenericODE1(referenceCoordinates=[0.0] * (2 * n + 1),
+                                            initialCoordinates=list(map(float, p0)),
+                                            numberOfODE1Coordinates=2 * n + 1))
+        C, S = self.circuit, self.strokes
+        coords = exu.OutputVariableType.Coordinates
+        coords_t = exu.OutputVariableType.Coordinates_t
+        state = self._state
+
+        f_force, f_rhs = C.scalar_functions()
+        n2 = 2 * n
+
+        def force(mbs_, t, item, q, q_t):
+            p = mbs_.GetNodeOutput(hnode, coords).tolist()
+            x, d = S(_aslist(q))
+            q_t = _aslist(q_t)
+            xd = [d[i] * q_t[i] for i in range(n)]
+            F = f_force(p[:n], p[n:n2], x, xd)
+            return [d[i] * F[i] for i in range(n)]
+
+        def rhs(mbs_, t, item, p):
+            q = mbs_.GetNodeOutput(node, coords).tolist()
+            qd = mbs_.GetNodeOutput(node, coords_t).tolist()
+            x, d = S(q)
+            p = _aslist(p)
+            dpa, dpb, dps = f_rhs(p[:n], p[n:n2], p[n2], state["o"], x,
+                                  [d[i] * qd[i] for i in range(n)])
+            return dpa + dpb + [dps]
+
+        tree = mbs.AddObject(ObjectKinematicTree(
+            nodeNumber=node, jointTypes=[jt[k] for k in T["types"]],
+            linkParents=list(range(-1, n - 1)),
+            jointTransformations=exu.Matrix3DList([h[:3, :3] for h in T["hts"]]),
+            jointOffsets=exu.Vector3DList([h[:3, 3] for h in T["hts"]]),
+            linkInertiasCOM=exu.Matrix3DList(T["inertias"]),
+            linkCOMs=exu.Vector3DList(T["coms"]), linkMasses=T["masses"],
+            gravity=[0.0, 0.0, -self.crane.spec.gravity], forceUserFunction=force))
+        mbs.AddObject(ObjectGenericODE1(nodeNumbers=[hnode], rhsUserFunction=rhs))
+        return exu, SC, mbs, node, hnode, tree
+
+    def initial_pressures(self, q0):
+        """Load-holding chamber pressures at rest in q0 (the model's inverse dynamics of the
+        true masses and payload): the state the plant starts from."""
+        tau = self.true_crane.inverse_dynamics(q0, np.zeros(self.crane.n),
+                                               np.zeros(self.crane.n), self.payload)
+        return self.circuit.initial_pressures(tau / np.array(self.strokes(q0)[1]))
+
+    # ------------------------------------------------------------------ running
+    def run(self, t_u, u, q0, t_end: float | None = None, max_wall_s: float = 600.0,
+            spectral_radius: float = 0.9) -> DynamicRun:
+        """Replay commands ``u`` (M, n), each held from ``t_u[k]`` (zero-order hold), from
+        rest at ``q0`` (start effects applied) until ``t_end`` (default t_u[-1]). Returns a
+        :class:`DynamicRun` (its status says whether it finished)."""
+        crane, n, h = self.crane, self.crane.n, self.step
+        t_u = np.asarray(t_u, float).ravel()
+        u = np.atleast_2d(np.asarray(u, float))
+        q0 = np.asarray(q0, float).ravel()
+        if u.shape != (t_u.size, n) or q0.shape != (n,) or not np.all(np.isfinite(u)):
+            raise ValueError(f"ExudynPlant.run: expected finite t_u (M,), u (M, {n}), "
+                             f"q0 ({n},); got {t_u.shape}, {u.shape}, {q0.shape}")
+        if t_u.size > 1 and np.any(np.diff(t_u) <= 0):
+            raise ValueError("ExudynPlant.run: t_u must increase strictly")
+        t0 = float(t_u[0])
+        t_end = float(t_u[-1]) if t_end is None else float(t_end)
+        K = int(math.ceil((t_end - t0) / h - 1e-9))
+        if K < 1:
+            raise ValueError(f"ExudynPlant.run: span {t_end - t0:g} s shorter than one step")
+        u_valves = u
+        for e in self.effects:
+            if e.stage == "commands":
+                u_valves = e.commands(crane, t_u, u_valves)
+        L = crane.limit_arrays()
+        for e in self.effects:
+            if e.stage == "start":
+                q0 = e.start(crane, q0)
+        q0 = np.clip(q0, L["q_min"], L["q_max"])
+        pa0, pb0 = self.initial_pressures(q0)
+        C = self.circuit
+        ps0 = float(C.pump_setpoint(np.zeros(n)))
+        self._state = state = {"o": [0.0] * n}
+        exu, SC, mbs, node, hnode, _ = self._build(q0, np.concatenate([pa0, pb0, [ps0]]))
+        rec = {k: np.full((K + 1, n), np.nan) for k in ("q", "qd", "p_a", "p_b", "spool", "u")}
+        rec["t"] = t0 + h * np.arange(K + 1)
+        rec["p_s"] = np.full(K + 1, np.nan)
+        spool = np.zeros(n)
+        decay = math.exp(-h / self.dyn.spool_time_constant)
+        span = L["q_max"] - L["q_min"]
+        p_cap = 10.0 * min(C.p_relief, 1e8)
+        wall0 = _time.perf_counter()
+        fail = {}
+        coords = exu.OutputVariableType.Coordinates
+
+        def record(k):
+            q = mbs.GetNodeOutput(node, coords)
+            qd = mbs.GetNodeOutput(node, exu.OutputVariableType.Coordinates_t)
+            p = mbs.GetNodeOutput(hnode, coords)
+            rec["q"][k], rec["qd"][k] = q, qd
+            rec["p_a"][k], rec["p_b"][k], rec["p_s"][k] = p[:n], p[n:2 * n], p[2 * n]
+            return q, qd, p
+
+        def pre_step(mbs_, t):
+            nonlocal spool
+            # the engine passes the time at the end of the coming step; the state is the
+            # state at its start
+            k = int(round((t - t0) / h)) - 1
+            if k < 0 or k > K:
+                return True
+            t = t0 + k * h
+            q, qd, p = record(k)
+            j = max(int(np.searchsorted(t_u, t + 1e-9 * h, side="right")) - 1, 0)
+            rec["u"][k] = u[j]
+            rec["spool"][k] = spool
+            bad = None
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+                    and np.all(np.isfinite(p))):
+                bad = "non-finite state"
+            elif np.max(np.abs(p)) > p_cap:
+                bad = f"pressure {np.max(np.abs(p)):.3g} Pa above 10× relief"
+            elif np.any(q < L["q_min"] - 0.2 * span) or np.any(q > L["q_max"] + 0.2 * span):
+                bad = "a joint left its range by more than 20 %"
+            elif _time.perf_counter() - wall0 > max_wall_s:
+                fail.update(status="timeout", t=t, reason=f"wall time above {max_wall_s:g} s")
+                return False
+            if bad:
+                fail.update(status="diverged", t=t, reason=bad)
+                return False
+            # spool: first-order lag towards the held (delayed, lagged) command, exact step
+            target = np.clip(u_valves[j], -1.0, 1.0)
+            spool = target + (spool - target) * decay
+            state["o"] = C.opening(spool).tolist()
+            return True
+
+        mbs.SetPreStepUserFunction(pre_step)
+        mbs.Assemble()
+        s = exu.SimulationSettings()
+        ti = s.timeIntegration
+        ti.numberOfSteps, ti.startTime, ti.endTime = K, t0, t0 + K * h
+        ti.verboseMode = 0
+        ti.adaptiveStep = False
+        ti.newton.useModifiedNewton = True
+        ti.newton.maxIterations = 40
+        ti.newton.relativeTolerance = 1e-8
+        ti.newton.absoluteTolerance = 1e-6
+        ti.newton.numericalDifferentiation.minimumCoordinateSize = 1
+        ti.generalizedAlpha.spectralRadius = spectral_radius
+        s.solution.file.write = False
+        exu.SetWriteToConsole(False)    # the engine's banners would corrupt --json -
+        try:
+            ok = mbs.SolveDynamic(s, showHints=False)
+        except Exception as e:          # the engine's own failure (Newton, singular matrix)
+            last = np.flatnonzero(np.isfinite(rec["p_s"]))
+            ok, fail = False, fail or dict(status="diverged", t=float(rec["t"][last[-1]])
+                                           if last.size else t0, reason=str(e)[:200])
+        finally:
+            exu.SetWriteToConsole(True)
+        if not fail and ok is False:
+            last = np.flatnonzero(np.isfinite(rec["p_s"]))
+            fail = dict(status="diverged", t=float(rec["t"][last[-1]]) if last.size else t0,
+                        reason="the integrator did not converge")
+        if not fail:
+            record(K)
+            rec["u"][K] = rec["u"][K - 1]
+            rec["spool"][K] = spool
+        good = np.isfinite(rec["p_s"])
+        rec = {k: v[good] for k, v in rec.items()}
+        x, d = self.strokes.batch(rec["q"])
+        return DynamicRun(t=rec["t"], q=rec["q"], qd=rec["qd"], x=x, xd=d * rec["qd"],
+                          p_a=rec["p_a"], p_b=rec["p_b"], p_s=rec["p_s"], spool=rec["spool"],
+                          u=rec["u"], circuit=C, payload=self.payload,
+                          status=fail.get("status", "ok"), t_fail=fail.get("t"),
+                          reason=fail.get("reason", ""), wall_s=_time.perf_counter() - wall0,
+                          meta=dict(step=h, steps=K))
+
+    def sense(self, q, p_a, p_b):
+        """What the transducers report (the sensors-stage effects: offsets)."""
+        for e in self.effects:
+            if e.stage == "sensors":
+                q = e.sense_q(self.crane, q)
+                p_a, p_b = e.sense_p(self.crane, p_a, p_b)
+        return q, p_a, p_b

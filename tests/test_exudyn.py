@@ -1,0 +1,155 @@
+"""The independent dynamic plant (Exudyn): its [dynamics] spec section, the circuit's fast path
+against its numpy definition, rest against the model's load-holding pressures, slow moves
+against the fast replay plant, the energy balance, bounded failure, the measured-CSV contract.
+Long studies live in benchmarks/bench_exudyn.py (marked slow here)."""
+import copy
+import tomllib
+
+import numpy as np
+import pytest
+
+from planner import Crane
+from planner.methods.ruckig import rest_to_rest
+from planner.model.effects import make
+from planner.model.spec import SpecError, parse_spec
+from planner.simulation.dynamic.circuit import Circuit
+from planner.simulation.dynamic.energy import energy_balance
+from planner.simulation.dynamic.exudyn_plant import ExudynPlant, PlantDiverged
+from planner.simulation.dynamic.simulate import exudyn_to_csv, simulate_trajectory, slowed
+from planner.simulation.plant import respond
+from planner.simulation.recording import read_measured_csv
+from planner.simulation.replay import stroke_stops
+from problems import crane_path
+
+from .conftest import random_configs
+
+
+@pytest.fixture(scope="module")
+def s100f():
+    return Crane.from_id("s100f")
+
+
+def _raw(cid):
+    with open(crane_path(cid), "rb") as fh:
+        return tomllib.load(fh)
+
+
+# ----------------------------------------------------------------------------- spec
+@pytest.mark.parametrize("path,value,field", [
+    (("bulk_modulus",), 0.0, "dynamics.bulk_modulus"),
+    (("joint", "boom", "hose_volume"), [-1e-3, 1e-3], "dynamics.joint.boom.hose_volume"),
+    (("spool_time_constant",), -0.02, "dynamics.spool_time_constant"),
+    (("joint", "nope"), {"hose_volume": [1e-3, 1e-3]}, "dynamics.joint.nope"),
+])
+def test_bad_dynamics_parameters_are_refused_naming_the_field(path, value, field):
+    data = copy.deepcopy(_raw("s100f"))
+    tbl = data["dynamics"]
+    for k in path[:-1]:
+        tbl = tbl[k]
+    tbl[path[-1]] = value
+    with pytest.raises(SpecError) as e:
+        parse_spec(data, "s100f.toml")
+    assert field in str(e.value)
+
+
+def test_missing_dynamics_section_is_refused_by_the_plant():
+    data = copy.deepcopy(_raw("umea-lab"))
+    del data["dynamics"]
+    crane = Crane(parse_spec(data, "umea-lab.toml"))
+    assert crane.spec.dynamics is None
+    with pytest.raises(ValueError, match="'dynamics': missing section"):
+        ExudynPlant(crane)
+
+
+@pytest.mark.parametrize("cid", ["s100f", "umea-lab", "cranab850", "cat215b"])
+def test_scalar_fast_path_equals_the_numpy_circuit(cid):
+    crane = Crane.from_id(cid)
+    C = Circuit.from_crane(crane, crane.spec.dynamics, stroke_stops(crane),
+                           leak=np.full(crane.n, 1e-12))
+    force, rhs = C.scalar_functions()
+    rng = np.random.default_rng(1)
+    lo, hi = stroke_stops(crane)
+    for _ in range(50):
+        pa, pb = rng.uniform(-2e5, 2.5e7, (2, crane.n))
+        ps = rng.uniform(2e6, 2.6e7)
+        o = rng.uniform(-1, 1, crane.n) * (rng.random(crane.n) > 0.2)
+        x = rng.uniform(lo - 0.01, hi + 0.01)
+        xd = rng.normal(0, 0.1, crane.n)
+        a, b, s = rhs(pa.tolist(), pb.tolist(), float(ps), o.tolist(), x.tolist(), xd.tolist())
+        A, B, S = C.rhs(pa, pb, ps, o, x, xd)
+        np.testing.assert_allclose(a, A, rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(b, B, rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(s, S, rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(force(pa.tolist(), pb.tolist(), x.tolist(), xd.tolist()),
+                                   C.force(pa, pb, x, xd), rtol=1e-9, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- physics
+@pytest.mark.parametrize("cid", ["s100f", "umea-lab"])
+def test_at_rest_pressures_hold_the_models_load_holding_pressures(cid):
+    """Exudyn's own multibody (kinematic tree) must hold still under the pressures the model's
+    inverse dynamics asks for: within 1 % after 1 s, with no drift of the joints."""
+    crane = Crane.from_id(cid)
+    plant = ExudynPlant(crane)
+    q0 = random_configs(crane, 1, seed=4)[0]
+    run = plant.run([0.0, 1.0], np.zeros((2, crane.n)), q0)
+    assert run.ok, run.reason
+    pa0, pb0 = plant.initial_pressures(q0)
+    scale = np.maximum(np.maximum(np.abs(pa0), np.abs(pb0)), 1e5)
+    assert np.all(np.abs(run.p_a[-1] - pa0) <= 0.01 * scale)
+    assert np.all(np.abs(run.p_b[-1] - pb0) <= 0.01 * scale)
+    assert np.abs(run.q[-1] - q0).max() < 1e-6
+
+
+def test_slow_move_follows_the_fast_plant_and_the_energy_balance_closes(s100f):
+    q0, q1 = random_configs(s100f, 2, seed=3)
+    traj = slowed(rest_to_rest(s100f, q0, q1, scale=0.5).trajectory, 4.0)
+    plant = ExudynPlant(s100f)
+    run, t_u, u, _ = simulate_trajectory(s100f, traj, 50.0, settle=0.5, plant=plant)
+    assert run.ok, run.reason
+    fast = respond(s100f, t_u, u, traj.q[0], t_end=run.t[-1], dt=0.02)
+    q = run.sample(fast.t)[0]
+    lo, hi = stroke_stops(s100f)
+    err = np.abs(s100f.stroke(q)[0] - s100f.stroke(fast.state.q)[0]).max(axis=0) / (hi - lo)
+    assert np.all(err < 0.01), err
+    eb = energy_balance(plant, run)
+    assert eb["pump_work_J"] > 0
+    assert abs(eb["residual_rel"]) < 0.02, eb
+
+
+def test_effects_act_on_the_dynamic_plant(s100f):
+    """A payload effect raises the holding pressure of the lift cylinder by the model's
+    amount; a joint offset moves only the reported position."""
+    q0 = random_configs(s100f, 1, seed=5)[0]
+    heavy = ExudynPlant(s100f, [make("payload_mass", mass=300.0)])
+    base = ExudynPlant(s100f)
+    assert heavy.payload == pytest.approx(base.payload + 300.0)
+    tau = s100f.inverse_dynamics(q0, np.zeros(4), np.zeros(4), base.payload + 300.0)
+    run = heavy.run([0.0, 0.3], np.zeros((2, 4)), q0)
+    F = tau[1] / s100f.stroke(q0)[1][1]
+    area = s100f.spec.joints[1].actuator.area_a
+    assert run.p_a[-1, 1] == pytest.approx(F / area, rel=0.01)
+    off = ExudynPlant(s100f, [make("joint_offset", joint="jib", offset=0.01)])
+    q, pa, pb = off.sense(np.array([q0]), run.p_a[-1:], run.p_b[-1:])
+    assert q[0, 2] - q0[2] == pytest.approx(0.01)
+
+
+def test_a_run_out_of_wall_time_stops_with_status_and_time(s100f):
+    q0 = random_configs(s100f, 1, seed=6)[0]
+    run = ExudynPlant(s100f).run([0.0, 5.0], np.zeros((2, 4)), q0, max_wall_s=0.0)
+    assert run.status == "timeout" and run.t_fail is not None and run.t_fail < 5.0
+    assert not run.ok
+
+
+def test_exudyn_csv_follows_the_measured_data_contract(s100f, tmp_path):
+    q0, q1 = random_configs(s100f, 2, seed=3)
+    traj = rest_to_rest(s100f, q0, q1, scale=0.5).trajectory
+    out = tmp_path / "m.csv"
+    summary = exudyn_to_csv(s100f, traj, out, rate=50.0)
+    d = read_measured_csv(out, tuple(s100f.names))
+    assert summary["status"] == "ok" and len(d["t"]) == summary["samples"]
+    assert d["p_a"] is not None and np.all(np.isfinite(d["p_a"]))
+    np.testing.assert_allclose(d["q"][0], traj.q[0], atol=1e-9)
+    with pytest.raises(PlantDiverged):
+        exudyn_to_csv(s100f, traj, tmp_path / "x.csv", max_wall_s=0.0)
+    assert not (tmp_path / "x.csv").exists()

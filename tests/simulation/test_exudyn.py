@@ -21,7 +21,7 @@ from planner.simulation.recording import read_measured_csv
 from planner.simulation.replay import stroke_stops
 from problems import crane_path
 
-from .conftest import random_configs
+from tests.conftest import random_configs
 
 
 @pytest.fixture(scope="module")

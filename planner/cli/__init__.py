@@ -15,7 +15,7 @@ import argparse
 import sys
 
 from planner.cli import discrepancy, library, plan, problems, simulate, studies
-from planner.cli.common import CLIError
+from planner.cli.common import CLIError, package_version
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
 
@@ -30,6 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crane-planner",
                                  description="Trajectory planning for hydraulic knuckle-boom "
                                              "cranes (SI units; angles may be written 30deg).")
+    ap.add_argument("--version", action="version", version=f"crane-planner {package_version()}")
     sub = ap.add_subparsers(dest="command", required=True)
     for group in COMMAND_GROUPS:
         group.add_parsers(sub)

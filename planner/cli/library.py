@@ -55,9 +55,10 @@ def cmd_library_info(args):
         info = db.info()
     emit(args, info)
     if not args.json:
-        d = info.get("duration_s") or {}
+        mean = (info.get("duration_s") or {}).get("mean")
         print(f"{args.library}: {info['entries']} entries ({info['ok']} ok), failures "
-              f"{info['failures'] or 'none'}; duration mean {d.get('mean', float('nan')):.3f} s")
+              f"{info['failures'] or 'none'}; duration mean "
+              + (f"{mean:.3f} s" if mean is not None else "- (no ok entry)"))
     return 0
 
 

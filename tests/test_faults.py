@@ -57,8 +57,9 @@ def _children(pid: int) -> list[int]:
 
 
 def _start(args, err: Path) -> subprocess.Popen:
+    """The command in its own process group (a terminal's Ctrl-C reaches the whole group)."""
     return subprocess.Popen([str(a) for a in args], stdout=subprocess.DEVNULL,
-                            stderr=open(err, "wb"))
+                            stderr=open(err, "wb"), start_new_session=True)
 
 
 def _wait_for(err: Path, text: str, p: subprocess.Popen, timeout=180.0):
@@ -103,7 +104,7 @@ def test_ctrl_c_stops_a_two_worker_build_promptly_and_the_file_resumes(tmp_path,
     _wait_for(err, "library s100f: 1/4", p)
     workers = _children(p.pid)
     assert len(workers) >= 2
-    p.send_signal(signal.SIGINT)
+    os.killpg(p.pid, signal.SIGINT)                      # Ctrl-C: driver and workers
     assert p.wait(timeout=WAIT_S) == 130                 # 128 + SIGINT, the shell convention
     text = err.read_text()
     assert "Traceback" not in text and "\r" not in text and "\x1b" not in text

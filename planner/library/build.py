@@ -13,6 +13,12 @@ skips the entries already in the file (a killed build resumes where it stopped).
 Executors: in-process (``workers=1``), local processes (``workers=N``), or a Dask cluster
 (``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N workers). Workers
 build each solver once per process and reuse it for every move (the method's own cache).
+
+Faults: one build per file (:mod:`planner.library.lock`: a second one is told the first one's
+pid); Ctrl-C or SIGTERM stops the build within seconds, ends the workers, completes the entry
+being written and leaves a resumable file; local workers die with a killed driver
+(:mod:`planner.library.workers`). Bad options (limit, objectives, a scheduler without Dask) are
+refused before any file is created.
 """
 from __future__ import annotations
 

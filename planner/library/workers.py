@@ -97,10 +97,15 @@ class WorkerPool:
                                        initargs=(os.getpid(), barrier))
         # one trivial task per worker: each submit starts one process (none can finish before
         # the barrier lets all of them through, so no worker is left to be forked later)
-        warm = [self._ex.submit(_pid) for _ in range(self.workers)]
-        for f in warm:
-            f.result(timeout=START_TIMEOUT_S)
-        self.processes = [p for p in mp.active_children() if p not in before]
+        try:
+            warm = [self._ex.submit(_pid) for _ in range(self.workers)]
+            self.processes = [p for p in mp.active_children() if p not in before]
+            for f in warm:
+                f.result(timeout=START_TIMEOUT_S)
+        except BaseException:  # an interrupt while starting: no worker is left behind
+            self.processes = [p for p in mp.active_children() if p not in before]
+            self.terminate()
+            raise
         return self
 
     def imap_unordered(self, fn, arglist):

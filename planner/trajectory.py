@@ -158,12 +158,22 @@ class Trajectory:
 
     @classmethod
     def from_csv(cls, path, joint_names=None) -> "Trajectory":
-        """Read a trajectory CSV; rejects missing columns with the column name."""
-        with open(path, encoding="utf-8") as fh:
-            header = fh.readline().strip().split(",")
+        """Read a trajectory CSV (CONTRACT: header row, ``t`` first, ``q_*``, ``qd_*``, ``qdd_*``,
+        optional ``u_*``; lines starting with '#' are comments). Rejects a bad file with a
+        ValueError that names the line and the column: a missing column, a cell that is not a
+        finite number, a row of the wrong length, fewer than two samples."""
+        header, rows, lines = read_csv_table(path)
         if not header or header[0] != "t":
             raise ValueError(f"{path}: line 1: first column must be 't', found {header[:1]}")
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        if len(rows) < 2:
+            raise ValueError(f"{path}: {len(rows)} data row(s) after the header; a trajectory "
+                             "needs at least 2 samples")
+        data = np.array(rows, dtype=float)
+        bad = np.argwhere(~np.isfinite(data))
+        if bad.size:
+            r, c = bad[0]
+            raise ValueError(f"{path}: line {lines[r]}, column {header[c]}: {data[r, c]} is not "
+                             "a finite number")
         if joint_names is None:
             joint_names = [c[2:] for c in header if c.startswith("q_")]
         col = {c: i for i, c in enumerate(header)}
@@ -177,6 +187,41 @@ class Trajectory:
             return data[:, [col[f"{prefix}_{j}"] for j in joint_names]]
         return cls(t=data[:, 0], q=block("q"), qd=block("qd"), qdd=block("qdd"),
                    u=block("u", required=False), joint_names=tuple(joint_names))
+
+
+def read_csv_table(path) -> tuple[list[str], list[list[float]], list[int]]:
+    """A numeric CSV: (header names, rows of floats, the file line number of each row).
+    Blank lines and lines starting with '#' are skipped; a row of the wrong length or a cell
+    that is not a number raises ValueError naming the line and the column."""
+    with open(path, encoding="utf-8") as fh:
+        text = fh.read().splitlines()
+    if not text:
+        raise ValueError(f"{path}: empty file (expected a header row starting with 't')")
+    header = [c.strip() for c in text[0].split(",")]
+    rows, where = [], []
+    for k, line in enumerate(text[1:], start=2):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        cells = line.split(",")
+        if len(cells) != len(header):
+            raise ValueError(f"{path}: line {k}: {len(cells)} values, the header has "
+                             f"{len(header)} columns")
+        try:
+            rows.append([float(c) for c in cells])
+        except ValueError:
+            j = next(i for i, c in enumerate(cells) if not _is_float(c))
+            raise ValueError(f"{path}: line {k}, column {header[j]}: {cells[j].strip()!r} is "
+                             "not a number") from None
+        where.append(k)
+    return header, rows, where
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
 
 
 @dataclass

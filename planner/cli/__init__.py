@@ -16,7 +16,7 @@ import re
 import sys
 
 from planner.cli import discrepancy, library, plan, problems, simulate, studies
-from planner.cli.common import CLIError
+from planner.cli.common import CLIError, package_version
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
 
@@ -31,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crane-planner",
                                  description="Trajectory planning for hydraulic knuckle-boom "
                                              "cranes (SI units; angles may be written 30deg).")
+    ap.add_argument("--version", action="version", version=f"crane-planner {package_version()}")
     sub = ap.add_subparsers(dest="command", required=True)
     for group in COMMAND_GROUPS:
         group.add_parsers(sub)

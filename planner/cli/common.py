@@ -3,8 +3,11 @@ argument types (tip points, method names) and reading a trajectory named on the 
 from __future__ import annotations
 
 import argparse
+import sys
+from importlib.metadata import PackageNotFoundError, version
 
-from planner.io import write_json
+from planner import __version__
+from planner.io import OutputError, check_output, missing_dirs, write_json
 from planner.methods import available
 from planner.trajectory import Trajectory
 from planner.units import checked_trajectory, parse_point
@@ -31,16 +34,45 @@ def method_arg(text: str) -> str:
     raise argparse.ArgumentTypeError(f"unknown method {text!r}; available: {', '.join(names)}")
 
 
+def package_version() -> str:
+    """The installed distribution's version (package metadata); the source tree's
+    ``planner.__version__`` when the package is not installed."""
+    try:
+        return version("crane-planner")
+    except PackageNotFoundError:
+        return __version__
+
+
+def output_arg(text: str) -> str:
+    """argparse type of an output FILE (``--json``, ``--out``): checked before any work is done
+    (:func:`planner.io.check_output`: not a directory, its folder writable); '-' is stdout."""
+    try:
+        check_output(text)
+    except OutputError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return text
+
+
+def note_created(dirs) -> None:
+    """Say on stderr which output folders a command created (they are never created silently)."""
+    for d in dirs:
+        print(f"crane-planner: note: created directory {d}", file=sys.stderr)
+
+
 def add_json_arg(p: argparse.ArgumentParser) -> None:
-    """``--json [FILE]`` on a sub-command."""
-    p.add_argument("--json", nargs="?", const="-", metavar="FILE",
+    """``--json [FILE]`` on a sub-command (the path is checked when the arguments are read)."""
+    p.add_argument("--json", nargs="?", const="-", metavar="FILE", type=output_arg,
                    help="write a JSON result to FILE ('-' or no value: stdout)")
 
 
 def emit(args, obj) -> None:
-    """Write ``obj`` as the command's JSON result when ``--json`` was given."""
-    if getattr(args, "json", None):
-        write_json(args.json, obj)
+    """Write ``obj`` as the command's JSON result when ``--json`` was given (and say which
+    folders that created)."""
+    target = getattr(args, "json", None)
+    if target:
+        created = [] if target == "-" else missing_dirs(target)
+        write_json(target, obj)
+        note_created(created)
 
 
 def read_trajectory(crane, ref: str) -> Trajectory:

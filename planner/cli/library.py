@@ -8,18 +8,39 @@ import sys
 
 import numpy as np
 
-from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
+from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
+                                output_arg, point_arg)
+from planner.io import check_output_dir, missing_dirs
 from planner.library.build import build
 from planner.library.query import JoinError, far_warning, join_from, library_crane
+from planner.library.workers import Interrupted
 from planner.units import parse_angle
 
 
 def cmd_library_build(args):
     objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
-    summary = build(args.crane, args.tasks, args.out, objectives=objectives,
-                    workers=args.workers, scheduler=args.scheduler, limit=args.limit,
-                    N=args.intervals, robustness=not args.no_robustness,
-                    progress=not (args.json == "-"), method=args.method)
+    created = missing_dirs(args.out)
+    try:
+        summary = build(args.crane, args.tasks, args.out, objectives=objectives,
+                        workers=args.workers, scheduler=args.scheduler, limit=args.limit,
+                        N=args.intervals, robustness=not args.no_robustness,
+                        progress=not (args.json == "-"), method=args.method)
+    except Interrupted as e:  # Ctrl-C / SIGTERM: one line, the shell's 128 + signal code
+        s = e.summary
+        if s:
+            emit(args, s)
+            left = s["planned"] - s["written"]
+            print(f"crane-planner: interrupted ({s['signal']}): {s['written']} entries written "
+                  f"to {s['library']}, {left} left; rerun the same command to resume",
+                  file=sys.stderr)
+        else:
+            print(f"crane-planner: interrupted ({e}) before the build started", file=sys.stderr)
+        note_created(d for d in created if d.exists())
+        return e.exit_code
+    except KeyboardInterrupt:  # before the build installed its own handling
+        print("crane-planner: interrupted (SIGINT) before the build started", file=sys.stderr)
+        return 130
+    note_created(created)
     # the unified keys beside the old ones (docs/json-keys.md)
     summary.update(crane_id=summary["crane"], solve_time_s=summary["seconds"])
     emit(args, summary)
@@ -36,9 +57,10 @@ def cmd_library_info(args):
         info = db.info()
     emit(args, info)
     if not args.json:
-        d = info.get("duration_s") or {}
+        mean = (info.get("duration_s") or {}).get("mean")
         print(f"{args.library}: {info['entries']} entries ({info['ok']} ok), failures "
-              f"{info['failures'] or 'none'}; duration mean {d.get('mean', float('nan')):.3f} s")
+              f"{info['failures'] or 'none'}; duration mean "
+              + (f"{mean:.3f} s" if mean is not None else "- (no ok entry)"))
     return 0
 
 
@@ -65,7 +87,9 @@ def cmd_library_query(args):
         except JoinError as e:
             raise CLIError(f"--from: {e}") from None
     if args.out:
+        created = missing_dirs(args.out)
         traj.to_csv(args.out)
+        note_created(created)
     emit(args, result)
     if not args.json:
         print(f"nearest entry {eid} ({row['objective']}, {row['method']}): "
@@ -85,13 +109,18 @@ def joint_state(crane, text: str) -> np.ndarray:
     if q.shape != (crane.n,):
         raise CLIError(f"--from needs {crane.n} joint values ({', '.join(crane.names)}), "
                        f"got {q.size}")
+    bad = [f"{n} = {v}" for n, v in zip(crane.names, q) if not np.isfinite(v)]
+    if bad:
+        raise CLIError(f"--from {text!r}: joint values must be finite numbers ({', '.join(bad)})")
     return q
 
 
 def cmd_library_export(args):
     from planner.library.export import export
+    created = check_output_dir(args.out)
     files = export(args.library, args.out, args.format, rate=args.out_rate,
                    units_row=args.units_row)
+    note_created(created)
     emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
         print(f"{len(files)} file(s) written to {args.out}")
@@ -106,7 +135,7 @@ def add_parsers(sub) -> None:
                                       "(resumes an interrupted build)")
     p.add_argument("crane")
     p.add_argument("--tasks", required=True, help="task suite id or path (forwarder-cycle)")
-    p.add_argument("--out", required=True, metavar="LIB.h5")
+    p.add_argument("--out", required=True, metavar="LIB.h5", type=output_arg)
     p.add_argument("--objectives", default="time", help="comma list of time, energy (time)")
     p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -130,7 +159,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--from", dest="q_from", metavar="q1,q2,...",
                    help="current joint configuration: prepend a Ruckig rest-to-rest join to "
                         "the entry's start (angles may be written 30deg)")
-    p.add_argument("--out", metavar="FILE.csv", help="write the entry's trajectory CSV")
+    p.add_argument("--out", metavar="FILE.csv", type=output_arg,
+                   help="write the entry's trajectory CSV")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_query)
     p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, or ROS "

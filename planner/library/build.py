@@ -13,13 +13,23 @@ skips the entries already in the file (a killed build resumes where it stopped).
 Executors: in-process (``workers=1``), local processes (``workers=N``), or a Dask cluster
 (``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N workers). Workers
 build each solver once per process and reuse it for every move (the method's own cache).
+
+Faults: one build per file (:mod:`planner.library.lock`: a second one is told the first one's
+pid); Ctrl-C or SIGTERM stops the build within seconds, ends the workers, completes the entry
+being written and leaves a resumable file; local workers die with a killed driver
+(:mod:`planner.library.workers`). Bad options (limit, objectives, a scheduler without Dask) are
+refused before any file is created.
 """
 from __future__ import annotations
 
+import signal
 import time as _time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import nullcontext
 from pathlib import Path
 
+from planner.io import progress
+from planner.library.lock import BuildLock
+from planner.library.workers import Interrupted, SignalGuard, WorkerPool
 from planner.methods import PlanRequest, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
@@ -107,79 +117,130 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
 
 
 # ------------------------------------------------------------------------------ driver side
+class BuildError(ValueError):
+    """A build request that cannot run (bad option, missing Dask): refused before any file is
+    created."""
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Refuse, before anything is written, a scheduler that cannot work: ``local:N`` with N not a
+    positive integer, or any scheduler when Dask (the 'cluster' extra) is not installed."""
+    if scheduler.startswith("local:"):
+        n = scheduler.split(":", 1)[1]
+        if not n.isdigit() or int(n) < 1:
+            raise BuildError(f"--scheduler {scheduler!r}: local:N needs N >= 1 workers")
+    try:
+        import dask.distributed  # noqa: F401  (only checked here; used by _run_dask)
+    except ImportError:
+        raise BuildError(f"--scheduler {scheduler}: Dask is not installed; install the "
+                         "'cluster' extra: pip install 'crane-planner[cluster]'") from None
+
+
 def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int = 1,
           scheduler: str | None = None, limit: int | None = None, N: int = 40,
           robustness: bool = True, progress: bool = True, method: str = "nlp") -> dict:
     """Build (or resume) the library ``out`` (HDF5) with the registered planning ``method``
-    (default: the NLP). Returns a summary dict."""
-    from tqdm import tqdm
+    (default: the NLP). Returns a summary dict.
 
+    One build per file: another build on ``out`` is refused with the holder's pid
+    (:class:`~planner.library.lock.LibraryBusy`). SIGINT / SIGTERM stop the build promptly
+    (workers ended, the entry being written completed, the file closed and resumable) and
+    raise :class:`~planner.library.workers.Interrupted` with the summary so far."""
     from planner.model import Crane
     from planner.library.store import LibraryStore
     bad = [o for o in objectives if o not in OBJECTIVES]
     if bad:
-        raise ValueError(f"objectives: unknown {bad}; allowed: {', '.join(OBJECTIVES)}")
+        raise BuildError(f"objectives: unknown {bad}; allowed: {', '.join(OBJECTIVES)}")
+    if not objectives:
+        raise BuildError(f"objectives: none given; allowed: {', '.join(OBJECTIVES)}")
     if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+        raise BuildError(f"workers must be >= 1, got {workers}")
+    if limit is not None and limit < 1:
+        raise BuildError(f"limit must be >= 1 (the first N moves of the suite), got {limit}")
+    if scheduler:
+        check_scheduler(scheduler)
     crane = Crane.from_id(crane_id)
     meta, moves = load_suite(suite)
     obstacles = meta["obstacles"]
     if limit is not None:
-        if limit < 1:
-            raise ValueError(f"limit: {limit}: must be a whole number of moves >= 1")
         moves = moves[:limit]
     check_method(method, moves, objectives, obstacles)
     out = Path(out)
-    db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
-          else LibraryStore.create(out, crane.spec))
+    if out.exists() and not out.is_file():
+        raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
+    out.parent.mkdir(parents=True, exist_ok=True)  # the lock file lives next to it
     t0 = _time.perf_counter()
-    with db:
-        done = set(db.ids())
-        todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
-        # the slow energy entries first (longest-first packing: less idle tail on the workers)
-        todo.sort(key=lambda mo: mo[1] != "energy")
-        skipped = len(moves) * len(objectives) - len(todo)
-        bar = tqdm(total=len(todo), desc=f"library {crane.spec.id}", unit="entry",
-                   disable=not progress)
-        counts: dict = {}
+    state = dict(todo=[], counts={}, written=0, skipped=0)
+    with SignalGuard() as guard:
+        pool = WorkerPool(workers) if workers > 1 and not scheduler else None
+        try:
+            # workers first: a forked worker must not inherit the lock or the open file
+            with (pool or nullcontext()), BuildLock(out):
+                db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
+                      else LibraryStore.create(out, crane.spec))
+                with db:
+                    _fill(db, crane, suite, moves, objectives, obstacles, N, robustness,
+                          method, scheduler, pool, progress, guard, state)
+                    info = db.info()
+        except Interrupted as e:
+            e.summary = _summary(out, crane, suite, moves, objectives, state, t0,
+                                 status="interrupted", signal=signal.Signals(e.signum).name)
+            raise
+    return _summary(out, crane, suite, moves, objectives, state, t0, status="ok", info=info)
 
-        def write(r):
-            traj = r.pop("trajectory", None)
-            ev = r.pop("evaluation", None)
+
+def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:
+    status = kw.pop("status")
+    return dict(status=status, library=str(out), crane=crane.spec.id, suite=suite,
+                moves=len(moves), objectives=list(objectives), planned=len(state["todo"]),
+                skipped_existing=state["skipped"], written=state["written"],
+                statuses=state["counts"], seconds=_time.perf_counter() - t0, **kw)
+
+
+def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method, scheduler,
+          pool, show_progress, guard, state) -> None:
+    """Plan the entries ``db`` lacks and write each as it arrives (``state`` is kept current so
+    that an interrupted build can still say what it wrote)."""
+    done = set(db.ids())
+    todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
+    # the slow energy entries first (longest-first packing: less idle tail on the workers)
+    todo.sort(key=lambda mo: mo[1] != "energy")
+    state["todo"] = todo
+    state["skipped"] = len(moves) * len(objectives) - len(todo)
+    bar = progress(len(todo), f"library {crane.spec.id}", "entry", enabled=show_progress)
+    counts = state["counts"]
+    crane_id = crane.spec.id
+
+    def write(r):
+        traj = r.pop("trajectory", None)
+        ev = r.pop("evaluation", None)
+        with guard.critical():  # a signal waits until the entry is complete
             db.add(r["id"], traj, start=r["start"], goal=r["goal"], objective=r["objective"],
                    method=r["method"], status=r["status"], reason=r.get("reason", ""),
                    evaluation=ev, robustness=r.get("robustness", float("nan")),
                    attrs=dict(solve_s=r.get("solve_s"), suite=suite,
                               energy_winner=r.get("energy_winner"),
                               clearance_m=r.get("clearance_m")))
+            state["written"] += 1
             counts[r["status"]] = counts.get(r["status"], 0) + 1
             bar.update(1)
 
-        if scheduler:
-            _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, method, write)
-        elif workers == 1:
-            for m, o in todo:
-                write(plan_entry(crane_id, m, o, N, robustness, obstacles, method))
-        else:
-            with ProcessPoolExecutor(max_workers=workers) as ex:
-                futs = [ex.submit(plan_entry, crane_id, m, o, N, robustness, obstacles, method)
-                        for m, o in todo]
-                for f in as_completed(futs):
-                    write(f.result())
-        bar.close()
-        info = db.info()
-    return dict(status="ok", library=str(out), crane=crane.spec.id, suite=suite,
-                moves=len(moves), objectives=list(objectives), planned=len(todo),
-                skipped_existing=skipped, statuses=counts, seconds=_time.perf_counter() - t0,
-                info=info)
-
-
-def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, method, write):
+    args = [(crane_id, m, o, N, robustness, obstacles, method) for m, o in todo]
     try:
-        from dask.distributed import Client, LocalCluster, as_completed as dask_completed
-    except ImportError:
-        raise RuntimeError("a Dask scheduler needs the 'cluster' extra: "
-                           "pip install 'crane-planner[cluster]'") from None
+        if scheduler:
+            _run_dask(scheduler, args, write)
+        elif pool is None:
+            for a in args:
+                write(plan_entry(*a))
+        else:
+            for r in pool.imap_unordered(plan_entry, args):
+                write(r)
+    finally:
+        bar.close()
+
+
+def _run_dask(scheduler, args, write):
+    from dask.distributed import Client, LocalCluster, as_completed as dask_completed
     cluster = None
     if scheduler.startswith("local:"):
         cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1,
@@ -187,16 +248,17 @@ def _run_dask(scheduler, crane_id, todo, N, robustness, obstacles, method, write
         client = Client(cluster)
     else:
         client = Client(scheduler)
+    futs = []
     try:
-        futs = [client.submit(plan_entry, crane_id, m, o, N, robustness, obstacles, method,
-                              pure=False)
-                for m, o in todo]
+        futs = [client.submit(plan_entry, *a, pure=False) for a in args]
         for f in dask_completed(futs):
             write(f.result())
     finally:
+        client.cancel(futs)
         client.close()
         if cluster is not None:
             cluster.close()
 
 
-__all__ = ["plan_entry", "build", "check_method", "clear_planner_caches", "OBJECTIVES"]
+__all__ = ["plan_entry", "build", "check_method", "check_scheduler", "clear_planner_caches",
+           "BuildError", "OBJECTIVES"]

@@ -51,6 +51,7 @@ import h5py
 import numpy as np
 
 from planner.io import dumps
+from planner.library.lock import LibraryBusy, busy_message
 from planner.library.query import index_summary, nearest_entry
 from planner.trajectory import LIMIT_KINDS, Trajectory
 
@@ -197,8 +198,10 @@ class LibraryStore:
                              f"'{FORMAT}' library")
         try:
             f = h5py.File(path, mode)
-        except OSError as e:
-            raise StoreError(f"{path}: cannot open the HDF5 file ({e})") from e
+        except OSError as e:  # most often another process has it open for writing
+            busy = busy_message(path)
+            raise (LibraryBusy(busy) if busy else StoreError(f"{path}: cannot open the HDF5 "
+                                                             f"file ({e})")) from None
         try:
             cls._check_format(f, path)
             if spec is not None and as_str(f.attrs["crane_id"]) != spec.id:

@@ -27,7 +27,7 @@ def energy_balance(plant, run) -> dict:
     """The balance of ``run`` (a :class:`DynamicRun` of ``plant``) in J (see the module doc):
     pump_work_J, pump_shaft_J, the terms, residual_J and residual_rel."""
     C = run.circuit
-    t, n = run.t, C.n
+    t = run.t
     # the opening in force over [t_k, t_k+1] is the spool set at the start of that step
     spool = np.vstack([run.spool[1:], run.spool[-1:]])
     o = C.opening(spool)

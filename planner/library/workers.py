@@ -1,0 +1,195 @@
+"""Worker processes and signals of a library build: Ctrl-C stops promptly, no orphan survives.
+
+:class:`WorkerPool` wraps a ``ProcessPoolExecutor`` whose workers
+
+- ignore SIGINT (a terminal's Ctrl-C reaches the whole process group: the driver alone decides,
+  and the workers print no tracebacks),
+- die with the driver: Linux ``PR_SET_PDEATHSIG`` (SIGKILL) set through ctypes, elsewhere a
+  watchdog thread polling ``os.getppid()``; a worker whose driver is already gone exits at once,
+- are all started before the driver opens the database or takes its lock (a forked child
+  would share those file handles and keep the file locked after the driver died).
+
+:meth:`WorkerPool.terminate` ends them (SIGTERM, then SIGKILL after a grace period).
+:class:`SignalGuard` turns SIGINT / SIGTERM in the driver into :class:`Interrupted`, held back
+while an entry is being written so that the database is never left half-written.
+"""
+from __future__ import annotations
+
+import ctypes
+import multiprocessing as mp
+import os
+import signal
+import sys
+import threading
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+START_TIMEOUT_S = 120.0  # every worker must have started within this
+GRACE_S = 2.0  # SIGTERM -> SIGKILL
+
+
+class Interrupted(KeyboardInterrupt):
+    """A build stopped by a signal. ``signum`` is the signal; ``summary`` (set by the build) says
+    what was written. A KeyboardInterrupt, so ``except Exception`` never swallows it."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.summary: dict = {}
+
+    @property
+    def exit_code(self) -> int:
+        """The shell convention for a process ended by a signal: 128 + signal number."""
+        return 128 + self.signum
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Make this process end when the process ``parent_pid`` ends (call it in the child)."""
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent_pid:  # the parent died before the death signal was armed
+        os._exit(1)
+    if not armed:
+        def watch():
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(1)
+        threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+
+
+def worker_init(parent_pid: int, barrier) -> None:
+    """Initializer of every pool worker: ignore SIGINT, SIGTERM ends it (not the driver's
+    handler it inherited), die with the driver, then wait until all workers have started (so
+    that none is forked later, after the driver opened files)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    die_with_parent(parent_pid)
+    barrier.wait(START_TIMEOUT_S)
+
+
+def _pid() -> int:
+    return os.getpid()
+
+
+class WorkerPool:
+    """``workers`` local processes running one function over many argument tuples."""
+
+    def __init__(self, workers: int):
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.workers = workers
+        self._ex: ProcessPoolExecutor | None = None
+        self.processes: list = []
+
+    def start(self) -> "WorkerPool":
+        """Start all workers now (returns when every worker is running its initializer)."""
+        ctx = mp.get_context()
+        before = set(mp.active_children())
+        barrier = ctx.Barrier(self.workers)
+        self._ex = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=worker_init,
+                                       initargs=(os.getpid(), barrier))
+        # one trivial task per worker: each submit starts one process (none can finish before
+        # the barrier lets all of them through, so no worker is left to be forked later)
+        try:
+            warm = [self._ex.submit(_pid) for _ in range(self.workers)]
+            self.processes = [p for p in mp.active_children() if p not in before]
+            for f in warm:
+                f.result(timeout=START_TIMEOUT_S)
+        except BaseException:  # an interrupt while starting: no worker is left behind
+            self.processes = [p for p in mp.active_children() if p not in before]
+            self.terminate()
+            raise
+        return self
+
+    def imap_unordered(self, fn, arglist):
+        """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order."""
+        futs = [self._ex.submit(fn, *args) for args in arglist]
+        # no cancel() on the way out: after terminate() the executor fails the pending futures
+        # itself (cancelling them as well races with that: InvalidStateError on Python 3.11)
+        for f in as_completed(futs):
+            yield f.result()
+
+    def terminate(self) -> None:
+        """End the workers now: SIGTERM, SIGKILL after GRACE_S; then shut the executor down."""
+        for p in self.processes:
+            if p.is_alive():
+                p.terminate()
+        deadline = time.monotonic() + GRACE_S
+        for p in self.processes:
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(GRACE_S)
+        if self._ex is not None:
+            self._ex.shutdown(wait=False)
+            self._ex = None
+
+    def close(self, wait: bool = True) -> None:
+        """Shut the executor down (``wait``: let the workers finish their current task)."""
+        if self._ex is not None:
+            self._ex.shutdown(wait=wait, cancel_futures=True)
+            self._ex = None
+
+    def __enter__(self) -> "WorkerPool":
+        return self.start()
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            self.close()
+        else:  # an error or an interrupt: do not wait for the tasks in flight
+            self.terminate()
+        return False
+
+
+class SignalGuard:
+    """While active (in the main thread only; elsewhere it does nothing), SIGINT and SIGTERM
+    raise :class:`Interrupted` at once, except inside :meth:`critical` where the first one is
+    held until the block ends. After the first, further signals are ignored so that the cleanup
+    (ending workers, closing the file) runs to its end."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self._old: dict = {}
+        self._depth = 0
+        self.pending: int | None = None
+        self.fired = False
+
+    def _handler(self, signum, frame):
+        if self.fired:
+            return
+        if self._depth:
+            self.pending = self.pending or signum
+            return
+        self.fired = True
+        raise Interrupted(signum)
+
+    @contextmanager
+    def critical(self):
+        """A block that a signal must not cut in half (writing one entry)."""
+        self._depth += 1
+        try:
+            yield
+        finally:
+            self._depth -= 1
+            if self._depth == 0 and self.pending and not self.fired:
+                self.fired = True
+                raise Interrupted(self.pending)
+
+    def __enter__(self) -> "SignalGuard":
+        if threading.current_thread() is threading.main_thread():
+            self._old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+        self._old = {}
+        return False

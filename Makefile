@@ -31,8 +31,13 @@ bench: install
 	$(BIN)/python benchmarks/bench_library.py
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_scaling.py
+	$(BIN)/python benchmarks/bench_exudyn.py
+	$(BIN)/python benchmarks/bench_faults.py
+	$(BIN)/python benchmarks/dp_memory.py
+	$(BIN)/python benchmarks/urdf_round_trip.py
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
 	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
+	$(BIN)/python -m pytest -q -n 2 -m slow   # the long studies kept out of `make test`
 
 # the notebook studies: check each .ipynb is in step with its jupytext .py source, then run
 # them with their full settings into build/notebooks (not in place)

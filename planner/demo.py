@@ -17,12 +17,12 @@ DEFAULT_CRANE = "s100f"
 
 def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = True) -> dict:
     """Write the demo into ``out`` (created). Returns a JSON-ready summary."""
-    from tqdm import tqdm
 
     from problems import crane_ids
 
     from planner.bounds import lower_bound
     from planner.io import atomic_write_text
+    from planner.io import progress as progress_bar
     from planner.methods.dp import dp
     from planner.methods.laws import LAWS, follow
     from planner.model import Crane
@@ -32,7 +32,7 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    steps = tqdm(total=5, desc="demo", unit="step", disable=not progress)
+    steps = progress_bar(5, "demo", unit="step", enabled=progress)
     summary: dict = dict(machines=[])
     L = ["# crane-planner demo", "",
          "## The machines", "",

@@ -227,11 +227,16 @@ class LineProgress:
     CI console shows well, where a tqdm bar would write carriage returns and escape codes."""
 
     def __init__(self, total: int, desc: str):
-        self.total, self.desc, self.n = total, desc, 0
+        self.total, self.desc, self.n, self.note = total, desc, 0, ""
+
+    def set_postfix_str(self, note: str, refresh: bool = False) -> None:
+        """What the next line names (tqdm's postfix: the item being worked on)."""
+        self.note = note
 
     def update(self, k: int = 1) -> None:
         self.n += k
-        print(f"{self.desc}: {self.n}/{self.total}", file=sys.stderr, flush=True)
+        tail = f" ({self.note})" if self.note else ""
+        print(f"{self.desc}: {self.n}/{self.total}{tail}", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         """Nothing to finish (the lines are already written)."""

@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tqdm import tqdm
 
 from planner.bench.context import BASE_KINDS, Ctx, Outcome, Settings
 from planner.bench.methods import method_names
+from planner.io import progress as progress_bar
 from planner.bench.report import DEFAULT_RESULTS, global_vs_local, nlp_vs_laws, write_outputs
 from planner.bench.suites import SUITE_NAMES, build_suite
 from planner.bounds import lower_bound
@@ -236,8 +236,7 @@ def run_suite(name: str, settings: Settings, repeats: int, progress: bool = True
     ctx = Ctx(crane, settings, suite)
     rows, keep, cache = [], {}, {}
     t0 = _time.perf_counter()
-    bar = tqdm(total=len(suite.moves) * len(meths), desc=name, unit="run",
-               disable=not progress, leave=True)
+    bar = progress_bar(len(suite.moves) * len(meths), name, unit="run", enabled=progress)
     for move in suite.moves:
         for m in meths:
             runner = suite.methods[m]

@@ -71,6 +71,10 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(join_negative_values(argv))
     try:
         rc = args.func(args)
+    except KeyboardInterrupt:   # Ctrl-C: one line, the shell's 128 + SIGINT; outputs are atomic
+        print(f"crane-planner: interrupted (SIGINT) during {args.command}; nothing was written "
+              "that was not complete", file=sys.stderr)
+        return 130
     except (SpecError, UnreachableError, CLIError, ValueError, OSError) as e:
         print(f"crane-planner: error: {e}", file=sys.stderr)
         return 2

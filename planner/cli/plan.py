@@ -16,8 +16,10 @@ import sys
 import time
 
 from planner.bounds import lower_bound
-from planner.cli.common import CLIError, add_json_arg, emit, method_arg, point_arg
+from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
+                                output_arg, point_arg)
 from planner.feedforward import commands
+from planner.io import missing_dirs
 from planner.geometry.obstacles import Wall
 from planner.methods import PlanRequest, UnsupportedRequest, get, plan
 from planner.model import Crane, UnreachableError
@@ -121,6 +123,7 @@ def write_outputs(args, crane, res, ev, walls, out: dict) -> None:
     ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
     traj = res.trajectory
     path = str(args.out or "")
+    note_created(d for p in (args.out, args.plot) if p for d in missing_dirs(p))
     if path.lower().endswith(".csv"):
         if args.out_rate is None and not args.units_row:
             traj.to_csv(path)  # the method's own samples (CONTRACT: trajectory CSV)
@@ -194,7 +197,7 @@ def add_parsers(sub) -> None:
                    help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
                         "from the slew axis, kept clear by `clear` m (0.3); repeatable")
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
-    p.add_argument("--out", metavar="FILE.csv|FILE.h5",
+    p.add_argument("--out", metavar="FILE.csv|FILE.h5", type=output_arg,
                    help="write the trajectory CSV, or a one-entry database (.h5; read it back "
                         "as FILE.h5 or FILE.h5#plan:OBJECTIVE)")
     p.add_argument("--out-rate", type=float, metavar="HZ",
@@ -202,7 +205,7 @@ def add_parsers(sub) -> None:
                         "commands u_* and the hydraulic channels")
     p.add_argument("--units-row", action="store_true",
                    help="CSV --out: a second line '# s,rad,...' with every column's unit")
-    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg",
+    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg", type=output_arg,
                    help="draw joints, rates, tip path, pump (format from the suffix)")
     add_json_arg(p)
     p.epilog = ("JSON: max_limit_violation covers the limit kinds the method plans with "

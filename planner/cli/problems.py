@@ -9,7 +9,7 @@ import sys
 from problems import crane_ids, load_crane
 
 from planner.bounds import lower_bound
-from planner.cli.common import CLIError, add_json_arg, emit, point_arg
+from planner.cli.common import CLIError, add_json_arg, emit, output_arg, point_arg
 from planner.io import atomic_write_text
 from planner.model import Crane
 from planner.model.urdf import urdf_xml
@@ -102,13 +102,14 @@ def add_parsers(sub) -> None:
     p = psub.add_parser("show", help="show one machine (id or path to a TOML file)")
     p.add_argument("crane")
     add_json_arg(p)
-    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg",
+    p.add_argument("--plot", metavar="FILE.png|.pdf|.svg", type=output_arg,
                    help="draw the workspace figure (format from the suffix)")
     p.set_defaults(func=cmd_problems_show)
     p = psub.add_parser("urdf", help="a URDF of one machine (DH kinematics, limits, inertias) "
                                      "for ROS / MoveIt tools")
     p.add_argument("crane")
-    p.add_argument("--out", metavar="FILE.urdf", help="write it to FILE (default: stdout)")
+    p.add_argument("--out", metavar="FILE.urdf", type=output_arg,
+                   help="write it to FILE (default: stdout)")
     add_json_arg(p)
     p.set_defaults(func=cmd_problems_urdf)
     p = sub.add_parser("bound", help="analytic minimum-time lower bounds for a move")

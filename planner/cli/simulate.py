@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from planner.cli.common import CLIError, add_json_arg, emit, read_trajectory
+from planner.cli.common import CLIError, add_json_arg, emit, output_arg, read_trajectory
 from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
 from planner.simulation.dynamic.exudyn_plant import PlantDiverged
@@ -94,7 +94,7 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("simulate", help="replay a trajectory open loop; write measured data")
     p.add_argument("crane")
     p.add_argument("--trajectory", required=True, metavar="FILE.csv|FILE.h5#ID")
-    p.add_argument("--out", required=True, metavar="MEASURED.csv")
+    p.add_argument("--out", required=True, metavar="MEASURED.csv", type=output_arg)
     p.add_argument("--noise", nargs="?", const="default", metavar="angle=…,pressure=…",
                    help="sensor noise: seed 001's levels (0.1°, 2 mm, 0.17 MPa standard "
                         "deviations) or the given ones (e.g. angle=0.05deg,pressure=5e4)")

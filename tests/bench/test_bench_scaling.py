@@ -42,6 +42,7 @@ def test_slope_recovers_power_law():
     assert np.isnan(bs.slope([1.0], [2.0]))
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_dp_grid_grows_fourfold_and_times_converge(report):
     for name, rows in report["dp"]["resolution"].items():
         assert all(r["status"] == "ok" for r in rows), name
@@ -55,6 +56,7 @@ def test_dp_grid_grows_fourfold_and_times_converge(report):
         assert all(abs(r["gap_to_finest"]) < 0.02 for r in rows), name
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_dp_window_and_length_sweeps(report):
     w = report["dp"]["window"]
     assert [r["window"] for r in w] == list(TINY.dp_windows)
@@ -67,6 +69,7 @@ def test_dp_window_and_length_sweeps(report):
     assert g[1]["duration_s"] > g[0]["duration_s"]
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_nlp_larger_N_no_slower_move_and_linear_size(report):
     for label, c in report["nlp"].items():
         small, large = c["by_N"]
@@ -78,6 +81,7 @@ def test_nlp_larger_N_no_slower_move_and_linear_size(report):
         assert per_interval == int(per_interval) and per_interval > 0
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_frozen_telescope_is_a_3_dof_problem(report):
     free = next(c for k, c in report["nlp"].items() if "tele-mid" in k)
     frz = next(c for c in report["nlp"].values() if c["frozen"])
@@ -100,6 +104,7 @@ def test_freeze_joint_holds_the_telescope():
     assert np.allclose(r.trajectory.q[:, j], 0.8, atol=1e-8)
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_library_speedup_table(report):
     lib = report["library"]
     assert [r["workers"] for r in lib["by_workers"]] == [1, 2]
@@ -108,6 +113,7 @@ def test_library_speedup_table(report):
     assert one["speedup"] == 1.0 and one["efficiency"] == 1.0
 
 
+@pytest.mark.slow  # the scaling study's quick run (~40 s): make bench
 def test_outputs_written(report, tmp_path):
     paths = bs.write_outputs(report, tmp_path)
     names = {p.name for p in paths}

@@ -205,6 +205,7 @@ def test_parse_point():
 
 
 # ----------------------------------------------------------------------------- demo
+@pytest.mark.slow  # the main job end to end (~30 s): make demo / make bench
 def test_demo_writes_summary_and_figures(capsys, tmp_path):
     out_dir = tmp_path / "demo"
     rc, out, err = _run(capsys, "demo", "--out", str(out_dir), "--library-moves", "2",

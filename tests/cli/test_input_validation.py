@@ -381,3 +381,20 @@ def test_library_build_refuses_a_negative_limit_before_writing(capsys, tmp_path)
                         "--limit", "-2", "--out", str(lib))
     assert rc == 2 and "limit" in err and "-2" in err
     assert not lib.exists()
+
+
+def test_ctrl_c_in_any_command_is_one_line_and_exit_130(capsys, monkeypatch):
+    import planner.cli.problems as problems_cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(problems_cli, "cmd_bound", interrupted)
+    rc, out, err = _cli(capsys, "bound", "cranab850", "--start", "1.5,1,0", "--goal", "5.5,1,0")
+    assert rc == 130 and err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
+
+
+def test_plan_output_paths_are_checked_before_planning(capsys, tmp_path):
+    (tmp_path / "file").write_text("")
+    rc, out, err = _cli(capsys, "plan", "s100f", "--start", "6,-1,0", "--goal", "3,2.5,1.5",
+                        "--method", "ruckig", "--out", str(tmp_path / "file" / "x.csv"))
+    assert rc == 2 and "--out" in err and "Traceback" not in err

@@ -1,7 +1,10 @@
 """Fast numeric evaluation of the model's CasADi functions.
 
-* :func:`jit` compiles a function with the system C compiler (falls back to CasADi's
-  interpreter when no compiler is available, or when ``CRANE_PLANNER_JIT=0``).
+* :func:`jit` compiles a function with the system C compiler into the per-user cache
+  (:func:`cache_root`/jit/<hash>.so, keyed by the function's serialisation, the CasADi version
+  and the flags; written atomically, checked by its checksum before it is loaded), so every
+  later process loads it in a millisecond instead of compiling again; falls back to CasADi's
+  interpreter when no compiler is available, or when ``CRANE_PLANNER_JIT=0``.
 * :class:`Batched` evaluates a function over N samples through CasADi's buffer interface on a
   mapped copy: a C-ordered numpy array of shape (N, m) has exactly the memory layout of CasADi's
   column-major (m, N) matrix, so inputs and outputs are copied straight between numpy arrays
@@ -9,21 +12,78 @@
 """
 from __future__ import annotations
 
+import hashlib
 import os
+import shutil
+import subprocess
 import tempfile
 import warnings
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 
-def _jit_dir() -> str:
-    """Folder for the compiler's temporary files (never the working directory). CasADi deletes
-    its files itself when a compiled function is freed; names carry random suffixes, so
-    concurrent processes can share the folder."""
-    d = os.path.join(tempfile.gettempdir(), "crane-planner-jit")
-    os.makedirs(d, exist_ok=True)
-    return d
+JIT_FLAGS = ("-O2",)
+
+
+def cache_root() -> Path:
+    """The per-user cache: ``$CRANE_PLANNER_CACHE``, else ``$XDG_CACHE_HOME/crane-planner``,
+    else ``~/.cache/crane-planner``."""
+    if os.environ.get("CRANE_PLANNER_CACHE"):
+        return Path(os.environ["CRANE_PLANNER_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "crane-planner"
+
+
+def compiler() -> str | None:
+    """The C compiler to use (``$CC`` or cc/gcc/clang on the PATH), None when there is none."""
+    for c in filter(None, (os.environ.get("CC"), "cc", "gcc", "clang")):
+        if shutil.which(c):
+            return c
+    return None
+
+
+def file_digest(path: Path) -> str:
+    """sha256 of a file (a cached library is loaded only when it matches what was stored)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _compiled(f: ca.Function) -> ca.Function:
+    """The cached machine-code copy of ``f``: loaded when stored, else compiled and stored."""
+    key = hashlib.sha256(f.serialize().encode() + ca.__version__.encode()
+                         + " ".join(JIT_FLAGS).encode()).hexdigest()[:32]
+    d = cache_root() / "jit"
+    so, digest = d / f"{key}.so", d / f"{key}.sha256"
+    if so.exists() and digest.exists():
+        try:
+            if file_digest(so) == digest.read_text().strip():
+                return ca.external(f.name(), str(so))
+        except (OSError, RuntimeError):
+            pass   # unreadable or not loadable: compiled again below, never trusted
+    cc = compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler")
+    d.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{key}-", dir=d))
+    try:
+        cg = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+        cg.add(f)
+        cg.generate(str(tmp) + os.sep)
+        r = subprocess.run([cc, "-fPIC", "-shared", *JIT_FLAGS, f"{f.name()}.c", "-o", "f.so",
+                            "-lm"], cwd=tmp, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"{cc} failed: {r.stderr.strip()[-300:]}")
+        (tmp / f"{key}.sha256").write_text(file_digest(tmp / "f.so"))
+        os.replace(tmp / "f.so", so)               # the library first, then its checksum:
+        os.replace(tmp / f"{key}.sha256", digest)  # a reader never trusts a half-written pair
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return ca.external(f.name(), str(so))
 
 
 def jit(f: ca.Function) -> ca.Function:
@@ -32,11 +92,7 @@ def jit(f: ca.Function) -> ca.Function:
         return f
     try:
         ins = f.sx_in()
-        return ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out(),
-                           {"jit": True, "compiler": "shell", "jit_name": f"jit_{f.name()}",
-                            "jit_temp_suffix": True,
-                            "jit_options": {"flags": ["-O2"], "verbose": False,
-                                            "directory": _jit_dir()}})
+        return _compiled(ca.Function(f.name(), ins, f.call(ins), f.name_in(), f.name_out()))
     except Exception as e:  # no compiler: the interpreted function is exact, only slower
         warnings.warn(f"CasADi JIT unavailable ({type(e).__name__}: {e}); using the "
                       "interpreter", RuntimeWarning, stacklevel=3)

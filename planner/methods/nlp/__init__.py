@@ -33,8 +33,11 @@ class NLPPlanner(Planner):
     within ``duration`` (required for energy; free path: :func:`energy_optimal`, never above the
     time-optimal move's energy), free path or on the tip line, clear of the request's
     obstacles. Options: ``intervals`` (N, 40); ``time_result`` (energy: the time-optimal
-    result of the same move, reused instead of solved again). Each NLP is built once per
-    (machine, objective, path, N, obstacles) in this process and solved many times."""
+    result of the same move, reused instead of solved again); ``nlp_cache`` (off | use | build,
+    default ``$CRANE_PLANNER_NLP_CACHE`` or use: :mod:`planner.methods.nlp.cache`). Each NLP is
+    built once per (machine, objective, path, N, obstacles) in this process and solved many
+    times; across processes the compiled cache serves it. Stats ``build_time_s`` (the builds
+    this call paid, 0 when reused) and ``nlp_cache`` (hit, miss, stored, off, …)."""
     name = "nlp"
     description = "CasADi/IPOPT NLP: time or energy, free path or tip line, obstacles"
     objectives = ("time", "energy")
@@ -52,14 +55,18 @@ class NLPPlanner(Planner):
                                      "(e.g. 1.2 × the minimum time)")
 
     def built(self, crane, objective: str, path: str = "free", N: int = 40,
-              obstacles: tuple = ()) -> MoveNLP:
-        """The MoveNLP for this formulation, built on first use and kept for the process."""
+              obstacles: tuple = (), cache: str | None = None, paid: list | None = None
+              ) -> MoveNLP:
+        """The MoveNLP for this formulation, built (or loaded from the disk cache) on first use
+        and kept for the process; a new build appends itself to ``paid``."""
         # keyed by the crane object (kept alive with its NLP, so its id is never reused):
         # variants of one machine with other limits share the spec id but not the NLP
         key = (id(crane), objective, path, int(N), tuple(obstacles))
         if key not in self._built:
-            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles))
+            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles), cache=cache)
             self._built[key] = (crane, nlp)
+            if paid is not None:
+                paid.append(nlp)
         return self._built[key][1]
 
     def clear(self) -> None:
@@ -69,15 +76,21 @@ class NLPPlanner(Planner):
     def plan(self, crane, request: PlanRequest) -> PlanResult:
         N = request.option("intervals", 40)
         obs = request.obstacles
+        cache, paid = request.option("nlp_cache"), []
         if request.objective == "energy" and request.path == "free":
+            time_nlp = self.built(crane, "time", "free", N, obs, cache, paid)
+            energy_nlp = self.built(crane, "energy", "free", N, obs, cache, paid)
             res, info = energy_optimal(crane, request.start, request.goal, request.duration,
                                        time_result=request.option("time_result"),
-                                       time_nlp=self.built(crane, "time", "free", N, obs),
-                                       energy_nlp=self.built(crane, "energy", "free", N, obs))
+                                       time_nlp=time_nlp, energy_nlp=energy_nlp)
             res.stats["energy_winner"] = info.get("winner")
-            return res
-        nlp = self.built(crane, request.objective, request.path, N, obs)
-        return nlp.solve(request.start, request.goal, T_max=request.duration)
+            main = energy_nlp
+        else:
+            main = self.built(crane, request.objective, request.path, N, obs, cache, paid)
+            res = main.solve(request.start, request.goal, T_max=request.duration)
+        res.stats.update(build_time_s=sum(n.build_time_s for n in paid),
+                         nlp_cache=main.cache_status)
+        return res
 
 
 register(NLPPlanner())

@@ -44,6 +44,7 @@ import numpy as np
 
 from planner.bounds import lower_bound
 from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
+from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.model.flows import actuator_table
@@ -73,7 +74,8 @@ class MoveNLP:
 
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
-                 obstacles: tuple = (), ipopt_options: dict | None = None):
+                 obstacles: tuple = (), ipopt_options: dict | None = None,
+                 cache: str | None = None):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
         self.curve = None
@@ -87,10 +89,26 @@ class MoveNLP:
         self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
         self.obstacles = tuple(obstacles)
         n = crane.n
-        self.L = L = crane.limit_arrays()
+        self.L = crane.limit_arrays()
         acts = actuator_table(crane.spec)   # the model's hydraulic constants (planner.model.flows)
         self._Aa, self._Ab, self._dbl = acts.area_a, acts.area_b, ~acts.single
         self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
+        ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
+        t0 = _time.perf_counter()
+        formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
+                           pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt)
+        self.cache_status = build_or_load(
+            self, "off" if path == "curve" else cache, formulation,
+            lambda: self._build(reg, pump_margin, ipopt))
+        self.build_time_s = _time.perf_counter() - t0
+        self._last = None
+        self._plain = (None, None)   # (key, _plain_traj result) of the last move: built once
+
+    def _build(self, reg, pump_margin, ipopt):
+        """Write the NLP's expressions and let CasADi derive its functions (the in-memory
+        build; :mod:`planner.methods.nlp.cache` stores and reloads the result)."""
+        crane, N, path, objective = self.crane, self.N, self.path, self.objective
+        n, L = crane.n, self.L
         lay = self.layout = Layout()
         par = lay.parameters(start=3, goal=3, T_max=1, lam=1, payload=1, activity=self._n_act)
         # ---- variables: node states, jerk per interval, duration (exact integration inside)
@@ -137,15 +155,11 @@ class MoveNLP:
             lay.add_var("TH", TH, *self._th_bounds())  # last block: θ per node
         wv = lay.w
         self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
-        opts = {"expand": True, "print_time": False, "ipopt": dict(IPOPT_DEFAULTS)}
-        if ipopt_options:
-            opts["ipopt"].update(ipopt_options)
+        opts = {"expand": True, "print_time": False, "ipopt": ipopt}
         self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": lay.P, "f": f, "g": lay.g},
                                 opts)
         self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
         self.nw = lay.nw
-        self._last = None
-        self._plain = (None, None)   # (key, _plain_traj result) of the last move: built once
 
     @property
     def _nx(self) -> int:

@@ -63,6 +63,13 @@ class Layout:
         self.P = None
 
     # ------------------------------------------------------------------ variables
+    def __getstate__(self):
+        # the numeric bookkeeping only (offsets, bounds, parameter blocks): a layout loaded from
+        # the NLP cache serves unpack/pack/slice/rows/param_vector, not the symbols
+        state = dict(self.__dict__)
+        state.update(_w=None, _g=None, P=None)
+        return state
+
     def add_var(self, name: str, var, lo, hi) -> ca.SX:
         """Add a variable block: ``var`` a shape (int or (rows, cols): a new SX symbol named
         ``name``) or an existing SX symbol; ``lo``/``hi`` broadcast to its shape. Returns the

@@ -24,7 +24,8 @@ def cmd_library_build(args):
         summary = build(args.crane, args.tasks, args.out, objectives=objectives,
                         workers=args.workers, scheduler=args.scheduler, limit=args.limit,
                         N=args.intervals, robustness=not args.no_robustness,
-                        progress=not (args.json == "-"), method=args.method)
+                        progress=not (args.json == "-"), method=args.method,
+                        compile=args.compile)
     except Interrupted as e:  # Ctrl-C / SIGTERM: one line, the shell's 128 + signal code
         s = e.summary
         if s:
@@ -145,6 +146,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--method", type=method_arg, default="nlp",
                    help="registered planning method of every entry (nlp); see plan --help")
     p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
+    p.add_argument("--compile", action="store_true",
+                   help="build the method's solvers once in this process and store them compiled "
+                        "in the per-user cache before the workers start (they load them instead "
+                        "of building their own); see plan --compile")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_build)
     p = lsub.add_parser("info", help="entries, failures, time/energy statistics")

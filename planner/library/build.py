@@ -138,7 +138,8 @@ def check_scheduler(scheduler: str) -> None:
 
 def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int = 1,
           scheduler: str | None = None, limit: int | None = None, N: int = 40,
-          robustness: bool = True, progress: bool = True, method: str = "nlp") -> dict:
+          robustness: bool = True, progress: bool = True, method: str = "nlp",
+          compile: bool = False) -> dict:
     """Build (or resume) the library ``out`` (HDF5) with the registered planning ``method``
     (default: the NLP). Returns a summary dict.
 
@@ -165,6 +166,12 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     if limit is not None:
         moves = moves[:limit]
     check_method(method, moves, objectives, obstacles)
+    prepared_s = 0.0
+    if compile and moves:   # the solvers built (and stored) once, before any worker starts
+        for o in objectives:
+            prepared_s += get(method).prepare(crane, _request(moves[0], o, N, obstacles,
+                                                              1.0 if o == "energy" else None),
+                                              compile=True)
     out = Path(out)
     if out.exists() and not out.is_file():
         raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
@@ -186,7 +193,8 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
             e.summary = _summary(out, crane, suite, moves, objectives, state, t0,
                                  status="interrupted", signal=signal.Signals(e.signum).name)
             raise
-    return _summary(out, crane, suite, moves, objectives, state, t0, status="ok", info=info)
+    return _summary(out, crane, suite, moves, objectives, state, t0, status="ok", info=info,
+                    prepare_s=prepared_s)
 
 
 def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:

@@ -219,6 +219,12 @@ class Planner(ABC):
     def clear(self) -> None:
         """Forget anything built and kept between calls (built solvers); default: nothing."""
 
+    def prepare(self, crane, request: PlanRequest, compile: bool = False) -> float:
+        """Build (``compile``: and store for other processes) whatever planning ``request``
+        will need, before the first plan — e.g. a library build's driver before its workers
+        start. Returns the seconds it took; default: nothing to build."""
+        return 0.0
+
     @abstractmethod
     def plan(self, crane, request: PlanRequest) -> PlanResult:
         """Plan ``request`` on ``crane``; failures come back as a status, not an exception."""

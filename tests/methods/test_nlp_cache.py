@@ -92,3 +92,20 @@ def test_two_builders_at_once_leave_one_good_entry(cache_dir):
     r = subprocess.run(cmd[:-3] + ["--json", "-"], cwd=ROOT, env=env, capture_output=True,
                        text=True, timeout=600)
     assert json.loads(r.stdout)["nlp_cache"] == "hit"
+
+
+def test_library_build_compiles_once_and_its_workers_load_it(cache_dir, tmp_path):
+    from planner.library.build import build, clear_planner_caches
+    clear_planner_caches()
+    suite = tmp_path / "two.toml"
+    suite.write_text('[pickups]\nr = [2.6]\nslew = ["10deg"]\nz = 2.1\n'
+                     '[drops]\nr = [3.2]\nslew = ["-20deg"]\nz = 1.6\n')
+    s = build("umea-lab", str(suite), tmp_path / "lib.h5", N=4, robustness=False,
+              progress=False, compile=True)
+    assert s["statuses"] == {"ok": 2} and s["prepare_s"] > 0
+    assert len(list((cache_dir / "nlp").iterdir())) == 1
+    clear_planner_caches()   # a new process would now load the compiled solver
+    from planner.methods import get
+    from planner import Crane
+    assert get("nlp").built(Crane.from_id("umea-lab"), "time", "free", 4).cache_status == "hit"
+    clear_planner_caches()

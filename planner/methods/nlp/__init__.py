@@ -69,6 +69,17 @@ class NLPPlanner(Planner):
                 paid.append(nlp)
         return self._built[key][1]
 
+    def prepare(self, crane, request: PlanRequest, compile: bool = False) -> float:
+        """Build the NLPs ``request`` needs (``compile``: into the per-user cache, so worker
+        processes load them instead of building their own). Returns the seconds it took."""
+        N, obs, paid = request.option("intervals", 40), request.obstacles, []
+        cache = "build" if compile else request.option("nlp_cache")
+        objectives = ("time", "energy") if request.objective == "energy" else ("time",)
+        path = request.path if request.objective == "time" else "free"
+        for o in objectives:
+            self.built(crane, o, path, N, obs, cache, paid)
+        return sum(n.build_time_s for n in paid)
+
     def clear(self) -> None:
         """Forget the NLPs built in this process (a timed build then starts from scratch)."""
         self._built.clear()

@@ -22,6 +22,7 @@ from planner.library.build import build
 from planner.library.lock import BuildLock, LibraryBusy, holder, lock_path
 from planner.library.store import LibraryStore
 from planner.trajectory import Trajectory
+from tests.library.helpers import assert_same_entries
 
 ROOT = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "planner"]
@@ -71,14 +72,7 @@ def _wait_for(err: Path, text: str, p: subprocess.Popen, timeout=180.0):
 
 
 def _same_entries(a_path, b_path):
-    with LibraryStore.open(a_path, "r") as a, LibraryStore.open(b_path, "r") as b:
-        ra = {r["id"]: r for r in a.index_rows()}
-        rb = {r["id"]: r for r in b.index_rows()}
-        assert set(ra) == set(rb) and len(rb) == 4   # no duplicates, nothing missing
-        for k in ra:
-            assert rb[k]["status"] == ra[k]["status"]
-            assert rb[k]["duration_s"] == pytest.approx(ra[k]["duration_s"], rel=1e-9)
-            np.testing.assert_allclose(b.trajectory(k).q, a.trajectory(k).q, atol=1e-9)
+    assert_same_entries(a_path, b_path, 4)
 
 
 def _resume(lib):

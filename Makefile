@@ -31,6 +31,7 @@ bench: install
 	$(BIN)/python benchmarks/bench_library.py
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_scaling.py
+	$(BIN)/python benchmarks/bench_peers.py
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
 	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 

@@ -285,8 +285,8 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
     through ``path_q`` (K, n) at path parameters ``ss`` (K,) (a not-a-knot cubic spline, as
     toppra's ``SplineInterpolator``) under joint velocity limits ``vlim`` (n, 2: min ≤ 0 ≤
     max), acceleration limits ``alim`` (n,) and, with ``"pump_flow"`` in ``kinds``, the flow
-    ``flow(q, dq/ds)`` · ṡ ≤ ``qmax`` (:func:`pump_flow_per_speed`); ``gridpoints`` TOPP-RA intervals, discretisation ``scheme``
-    ("interpolation" | "collocation", toppra's).
+    ``flow(q, dq/ds)`` · ṡ ≤ ``qmax`` (:func:`pump_flow_per_speed`); ``gridpoints`` TOPP-RA
+    intervals, discretisation ``scheme`` ("interpolation" | "collocation", toppra's).
 
     With ``verify`` every interval is checked exactly (:func:`interval_peaks`); while a limit
     is exceeded by more than ``tol`` (relative) the limits at the grid points around each
@@ -346,6 +346,9 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
             return TimedPath("ok", "", path, timing, it)
         peaks = interval_peaks(spline, timing, vlim, alim, flow if pcap is not None else None,
                                qmax)
+        for k in ("velocity", "acceleration", "pump_flow"):
+            if k not in kinds:   # measured, but not a limit of this timing
+                setattr(peaks, k, np.minimum(getattr(peaks, k), -1.0))
         worst = peaks.worst(kinds)
         if worst <= tol:
             return TimedPath("ok", "", path, timing, it, peaks, worst)

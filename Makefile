@@ -35,6 +35,8 @@ bench: install
 	$(BIN)/python benchmarks/bench_faults.py
 	$(BIN)/python benchmarks/dp_memory.py
 	$(BIN)/python benchmarks/urdf_round_trip.py
+	$(BIN)/python benchmarks/bench_peers.py
+	$(BIN)/python benchmarks/bench_nlp_cache.py
 	$(BIN)/crane-planner bench --out benchmarks/results/bench
 	$(BIN)/python notebooks/run_notebooks.py --out build/notebooks
 	$(BIN)/python -m pytest -q -n 2 -m slow   # the long studies kept out of `make test`

@@ -5,6 +5,9 @@
   ``vmin``), acceleration and jerk limits; :func:`state_to_state_relaxed` raises the
   acceleration and jerk limits until such a move exists (a state may be unreachable within
   the given distance under the nominal limits).
+- :class:`JerkProfile`: a Ruckig trajectory as a table of cubic pieces (brake, seven phases,
+  constant-acceleration tail per DOF), sampled with numpy by Ruckig's own formula (no Python
+  loop over samples; equal to ``Trajectory.at_time``, tested to 1e-12).
 - :func:`switch_times`, :func:`sample_times`, :func:`sample`: where a Ruckig profile switches
   phase, and samples on a uniform grid plus every switching time, so the piecewise-cubic
   profile is reproduced exactly by the quintic interpolation of the common
@@ -17,6 +20,7 @@ default guess (:mod:`planner.methods.nlp.move`) use this module.
 """
 from __future__ import annotations
 
+import itertools
 import math
 import time as _time
 
@@ -28,8 +32,9 @@ from planner.methods.base import Planner, PlanRequest, PlanResult
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
-__all__ = ["NO_JERK", "MIN_GAP", "state_to_state", "state_to_state_relaxed", "switch_times",
-           "sample_times", "sample", "rest_to_rest", "RuckigPlanner"]
+__all__ = ["NO_JERK", "MIN_GAP", "state_to_state", "state_to_state_relaxed", "JerkProfile",
+           "switch_times", "sample_times", "states_at", "thin", "sample", "rest_to_rest",
+           "RuckigPlanner"]
 
 NO_JERK = 1e6   # stands for "no jerk limit" (Ruckig needs a finite value) [unit/s³]
 MIN_GAP = 1e-4  # [s] shortest interval :func:`sample` keeps between samples (jerk ∝ 1/h³)
@@ -40,16 +45,16 @@ def state_to_state(current, target, vmax, vmin, amax, jmax) -> ruckig.Trajectory
     triple (position, velocity, acceleration) of per-DOF sequences; ``vmax`` / ``vmin``
     (≤ 0), ``amax``, ``jmax`` per DOF. Returns the Ruckig trajectory; raises RuntimeError
     ("Ruckig: …") when the input is invalid or no profile exists."""
+    def vec(x):  # one C-level conversion per vector, no per-element Python
+        return np.asarray(x, float).tolist()
     n = len(current[0])
     inp = ruckig.InputParameter(n)
-    inp.current_position, inp.current_velocity, inp.current_acceleration = \
-        [[float(x) for x in v] for v in current]
-    inp.target_position, inp.target_velocity, inp.target_acceleration = \
-        [[float(x) for x in v] for v in target]
-    inp.max_velocity = [float(x) for x in vmax]
-    inp.min_velocity = [float(x) for x in vmin]
-    inp.max_acceleration = [float(x) for x in amax]
-    inp.max_jerk = [float(x) for x in jmax]
+    inp.current_position, inp.current_velocity, inp.current_acceleration = map(vec, current)
+    inp.target_position, inp.target_velocity, inp.target_acceleration = map(vec, target)
+    inp.max_velocity = vec(vmax)
+    inp.min_velocity = vec(vmin)
+    inp.max_acceleration = vec(amax)
+    inp.max_jerk = vec(jmax)
     tr = ruckig.Trajectory(n)
     try:
         res = ruckig.Ruckig(n).calculate(inp, tr)
@@ -77,15 +82,76 @@ def state_to_state_relaxed(current, target, vmax, vmin, amax, jmax, grow: float 
                        f"and jerk limits ({last})")
 
 
+class JerkProfile:
+    """The motion of a (single-section) Ruckig trajectory as a table of cubic pieces, for
+    sampling with numpy.
+
+    Per DOF the motion is: the optional two-phase brake pre-trajectory, the seven phases of
+    the profile, then constant acceleration from the profile's end state (what Ruckig's
+    ``at_time`` returns after a DOF has finished). Piece ``k`` of DOF ``d`` starts at
+    ``knots[d, k]`` [s] from the state ``p, v, a`` with constant jerk ``j`` (arrays (DOF, 10));
+    a DOF without a brake has two empty pieces at t = 0 instead, so every DOF has ten."""
+
+    PIECES = 10  # 2 brake + 7 profile phases + the constant-acceleration tail
+
+    def __init__(self, traj: ruckig.Trajectory):
+        self.duration = float(traj.duration)
+        rows = []
+        for prof in traj.profiles[0]:
+            brake = prof.brake
+            tb = brake.duration if brake is not None else 0.0
+            if tb > 0:
+                head = ([0.0, brake.t[0]], brake.p, brake.v, brake.a, brake.j)
+            else:
+                head = ([0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
+            # Ruckig's own running sum of the phase durations, in the same order
+            knots = [tb] + [tb + s for s in itertools.accumulate(prof.t)]
+            rows.append((head[0] + knots, head[1] + prof.p, head[2] + prof.v,
+                         head[3] + prof.a, head[4] + prof.j + [0.0]))  # the tail: no jerk
+        #: (5, DOF, PIECES): knots [s], then p, v, a, j at the start of each piece
+        self.table = np.array(rows).transpose(1, 0, 2)
+
+    @property
+    def dof(self) -> int:
+        return self.table.shape[1]
+
+    @property
+    def knots(self) -> np.ndarray:
+        """(DOF, PIECES) start time [s] of every piece."""
+        return self.table[0]
+
+    def switch_times(self, merge: float = 0.0) -> np.ndarray:
+        """Sorted times [s] where some DOF's jerk may switch (brake and profile phases), with
+        the start 0 and the end (the duration); the pieces between them are cubics in time.
+        A time within ``merge`` [s] (≥ 0) of the previous one kept is left out (0: exact
+        duplicates only)."""
+        t = np.sort(np.concatenate([[0.0, self.duration], self.table[0, :, 1:].ravel()]))
+        t = t[(t >= 0) & (t <= self.duration)]
+        return t[np.concatenate([[True], np.diff(t) > merge])]
+
+    def at(self, t) -> tuple:
+        """(q, q̇, q̈) arrays (len(t), DOF) at the times ``t`` [s] (t < 0 read as 0), each
+        sample on its piece by Ruckig's own formula: the same values as ``at_time``."""
+        t = np.maximum(np.asarray(t, float).ravel(), 0.0)
+        n, K = self.table.shape[1:]
+        # piece index = number of knots ≤ t, minus one (Ruckig's upper_bound), per DOF: one
+        # broadcast comparison while small, else a binary search per DOF
+        if t.size * n * K <= 1 << 16:
+            k = (t[:, None, None] >= self.table[0][None]).sum(axis=2)
+        else:
+            k = np.column_stack([np.searchsorted(r, t, side="right") for r in self.table[0]])
+        k += np.arange(-1, n * K - 1, K)
+        t0, p, v, a, j = np.take(self.table.reshape(5, -1), k, axis=1)
+        dt = t[:, None] - t0
+        return (p + dt * (v + dt * (a / 2 + dt * j / 6)),
+                v + dt * (a + dt * j / 2),
+                a + dt * j)
+
+
 def switch_times(traj: ruckig.Trajectory) -> np.ndarray:
-    """Sorted, distinct phase-switching times [s] of every DOF of a Ruckig trajectory, with
-    its start 0 and its end (the duration)."""
-    out = [0.0, traj.duration]
-    for prof in traj.profiles[0]:
-        t0 = prof.brake.duration if prof.brake is not None else 0.0
-        out.extend(t0 + np.cumsum(prof.t))
-    t = np.asarray(out)
-    return np.unique(t[(t >= 0) & (t <= traj.duration)])
+    """Sorted, distinct phase-switching times [s] of every DOF of a Ruckig trajectory (brake
+    and profile phases), with its start 0 and its end (the duration)."""
+    return JerkProfile(traj).switch_times()
 
 
 def sample_times(duration: float, switches, rate: float, min_samples: int) -> np.ndarray:
@@ -93,17 +159,33 @@ def sample_times(duration: float, switches, rate: float, min_samples: int) -> np
     without the points closer than a quarter step to a switching time, joined with
     ``switches``: a very short interval would amplify round-off in the interpolant's jerk
     (∝ 1/h³)."""
-    switches = np.asarray(switches, float)
+    switches = np.sort(np.asarray(switches, float))
     u = np.linspace(0.0, duration, max(min_samples, int(math.ceil(duration * rate)) + 1))
-    near = np.abs(u[:, None] - switches[None, :]).min(axis=1) < 0.25 / rate
-    return np.union1d(u[~near], switches)
+    if switches.size == 0:
+        return u
+    k = np.clip(np.searchsorted(switches, u), 1, max(switches.size - 1, 1))
+    near = np.minimum(np.abs(u - switches[k - 1]), np.abs(u - switches[k % switches.size]))
+    return np.union1d(u[near >= 0.25 / rate], switches)
 
 
 def states_at(traj: ruckig.Trajectory, t) -> tuple:
-    """(q, q̇, q̈) arrays (len(t), DOF) of a Ruckig trajectory at the times t."""
-    s = [traj.at_time(x) for x in t]
-    return (np.array([p[0] for p in s]), np.array([p[1] for p in s]),
-            np.array([p[2] for p in s]))
+    """(q, q̇, q̈) arrays (len(t), DOF) of a Ruckig trajectory at the times t (vectorised:
+    :class:`JerkProfile`)."""
+    return JerkProfile(traj).at(t)
+
+
+def thin(t, min_gap: float) -> np.ndarray:
+    """Mask of the sorted times ``t`` to keep so that kept neighbours are at least ``min_gap``
+    apart: greedily from the start, each sample kept when far enough from the last kept one
+    (only the samples closer than ``min_gap`` to their predecessor need a decision)."""
+    t = np.asarray(t, float)
+    keep = np.ones(len(t), bool)
+    for k in np.flatnonzero(np.diff(t) < min_gap) + 1:
+        last = k - 1
+        while not keep[last]:
+            last -= 1
+        keep[k] = t[k] - t[last] >= min_gap
+    return keep
 
 
 def sample(traj: ruckig.Trajectory, rate: float, min_samples: int = 60,
@@ -111,37 +193,40 @@ def sample(traj: ruckig.Trajectory, rate: float, min_samples: int = 60,
     """(t, q, q̇, q̈) of a Ruckig trajectory on :func:`sample_times` (uniform at ``rate`` plus
     every switching time), samples closer than ``min_gap`` [s] dropped (switch times may
     cluster), the end always kept."""
-    T = traj.duration
-    t = sample_times(T, switch_times(traj), rate, min_samples)
-    keep = [0]
-    for k in range(1, len(t)):
-        if t[k] - t[keep[-1]] >= min_gap:
-            keep.append(k)
-    t = t[keep]
+    prof = JerkProfile(traj)
+    T = prof.duration
+    t = sample_times(T, prof.switch_times(), rate, min_samples)
+    t = t[thin(t, min_gap)]
     if T - t[-1] < min_gap and len(t) > 1:
         t = t[:-1]
     t = np.append(t, T) if t[-1] < T else t
-    return (t,) + states_at(traj, t)
+    return (t,) + prof.at(t)
 
 
-def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
+def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
                  scale: float = 1.0) -> PlanResult:
     """Time-optimal synchronised jerk-limited move from q0 to q1 (both at rest).
 
     ``scale`` ≤ 1 plans with that fraction of every velocity/acceleration limit. The result's
     trajectory is sampled at ``sample_rate`` [Hz] plus every switching time (kept in
-    ``meta["switch_times"]``)."""
+    ``meta["switch_times"]``); with ``sample_rate=None`` at the switching times only, which
+    the quintic interpolation of :class:`~planner.trajectory.Trajectory` already reproduces
+    exactly (the motion is cubic between them)."""
     t0 = _time.perf_counter()
     q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
     L = crane.limit_arrays()
+    lo, hi = L["q_min"] - 1e-9, L["q_max"] + 1e-9
     for name, q in (("start", q0), ("goal", q1)):
-        bad = np.flatnonzero((q < L["q_min"] - 1e-9) | (q > L["q_max"] + 1e-9))
-        if q.shape != (crane.n,) or bad.size:
-            what = (f"needs {crane.n} joint values" if q.shape != (crane.n,) else
+        if q.shape != (crane.n,) or ((q < lo) | (q > hi)).any():
+            bad = np.flatnonzero((q < lo) | (q > hi)) if q.shape == (crane.n,) else None
+            what = (f"needs {crane.n} joint values" if bad is None else
                     f"{crane.names[bad[0]]} = {q[bad[0]]:.4f} is outside "
                     f"[{L['q_min'][bad[0]]:.4f}, {L['q_max'][bad[0]]:.4f}]")
             return PlanResult("invalid", f"{name} configuration: {what}",
                               solve_time_s=_time.perf_counter() - t0)
+    if sample_rate is not None and not sample_rate > 0:
+        raise ValueError(f"rest_to_rest: sample_rate = {sample_rate!r}; allowed: a rate > 0 "
+                         "[Hz], or None for the switching times only")
     z = np.zeros(crane.n)
     try:
         traj = state_to_state((q0, z, z), (q1, z, z), scale * L["qd_max"], scale * L["qd_min"],
@@ -149,15 +234,17 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float = 200.0,
                               np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK))
     except RuntimeError as e:
         return PlanResult("failed", str(e), solve_time_s=_time.perf_counter() - t0)
-    T = traj.duration
+    prof = JerkProfile(traj)
+    T = prof.duration
     sw = np.array([0.0, max(T, 1e-9)])
     if T <= 0:
         t = sw
     else:
-        sw = switch_times(traj)
-        sw = sw[np.concatenate([[True], np.diff(sw) > 1e-6])]  # near-duplicates: 1/h³ noise
-        t = sample_times(T, sw, sample_rate, 50)
-    q, qd, qdd = states_at(traj, t)
+        sw = prof.switch_times(merge=1e-6)  # near-duplicates would add 1/h³ noise
+        if sw[-1] < T:   # the end dropped as a near-duplicate: keep the end, not its neighbour
+            sw[-1] = T
+        t = sw if sample_rate is None else sample_times(T, sw, sample_rate, 50)
+    q, qd, qdd = prof.at(t)
     tr = Trajectory(t, q, qd, qdd, joint_names=tuple(crane.names), method="ruckig",
                     objective="time", limits=("position", "velocity", "acceleration", "jerk"),
                     meta=dict(independent_min_durations=list(traj.independent_min_durations),

@@ -74,3 +74,49 @@ def test_state_to_state_relaxed_raises_the_limits_until_a_move_exists():
     tr, scale = state_to_state_relaxed(cur, tgt, [1.0], [-1.0], [0.5], [5.0])
     assert scale == pytest.approx(1.25 ** 3) and tr.at_time(tr.duration)[2][0] == \
         pytest.approx(0.9)
+
+
+@pytest.mark.parametrize("cid", MACHINES)
+def test_vectorised_sampling_equals_ruckig_at_time(cid):
+    """The numpy sampling of the jerk profile (JerkProfile.at, used by rest_to_rest and
+    sample) against Ruckig's own ``at_time``, sample by sample, to 1e-12: random moves between
+    moving states (some starting above the velocity limit, so Ruckig brakes first), at random
+    times, at every switching time and past the end (Ruckig keeps constant acceleration)."""
+    from planner.methods.ruckig import JerkProfile, state_to_state
+    crane = Crane.from_id(cid)
+    L = crane.limit_arrays()
+    J = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 50.0)
+    rng = np.random.default_rng(5)
+    qs = random_configs(crane, 8, seed=7)
+    braked = 0
+    for q0, q1 in zip(qs[:4], qs[4:]):
+        v0 = rng.uniform(1.3 * L["qd_min"], 1.3 * L["qd_max"])   # some beyond the limits
+        a0 = rng.uniform(-0.5, 0.5, crane.n) * L["qdd_max"]
+        v1 = rng.uniform(0.3 * L["qd_min"], 0.3 * L["qd_max"])
+        tr = state_to_state((q0, v0, a0), (q1, v1, np.zeros(crane.n)), L["qd_max"],
+                            L["qd_min"], L["qdd_max"], J)
+        braked += any(p.brake is not None and p.brake.duration > 0 for p in tr.profiles[0])
+        prof = JerkProfile(tr)
+        t = np.concatenate([prof.switch_times(), rng.uniform(0, 1.1 * tr.duration, 300),
+                            [tr.duration * 1.05]])
+        got = prof.at(t)
+        want = [np.array([tr.at_time(x)[i] for x in t]) for i in range(3)]
+        for g, w in zip(got, want):
+            np.testing.assert_allclose(g, w, rtol=0, atol=1e-12)
+    assert braked > 0  # the brake pre-trajectory was exercised
+
+
+def test_rest_to_rest_at_the_switch_times_only_is_the_same_motion(umea_lab):
+    """sample_rate=None samples the switching times only; the motion is cubic between them, so
+    the trajectory's quintic interpolation equals the 200 Hz sampling (and Ruckig) everywhere."""
+    q0, q1 = random_configs(umea_lab, 2, seed=21)
+    coarse = rest_to_rest(umea_lab, q0, q1, sample_rate=None)
+    fine = rest_to_rest(umea_lab, q0, q1)
+    assert coarse.ok and fine.ok and coarse.duration_s == fine.duration_s
+    np.testing.assert_array_equal(coarse.trajectory.t, coarse.trajectory.meta["switch_times"])
+    assert len(coarse.trajectory.t) < len(fine.trajectory.t) / 4
+    t = np.linspace(0, fine.duration_s, 997)
+    for a, b in zip(coarse.trajectory.sample(t)[:3], fine.trajectory.sample(t)[:3]):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="sample_rate"):
+        rest_to_rest(umea_lab, q0, q1, sample_rate=0.0)

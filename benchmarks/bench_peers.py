@@ -1,0 +1,299 @@
+#!/usr/bin/env python3
+"""The project's methods against their raw peers, timed side by side in one run (issue 15).
+
+    python benchmarks/bench_peers.py [--out benchmarks/results] [--repeat 15] [--quick]
+
+Every comparison is interleaved (A, B, A, B, … with the order swapped every round) on the
+same inputs, and reported as medians and the ratio of medians per case; the summary gives the
+median and the largest ratio over the cases. The machine is shared (2 cores): read the ratios.
+
+1. TOPP-RA (random DP joint paths on every shipped machine, velocity + acceleration + pump):
+   raw toppra ``TOPPRA(...).compute_trajectory`` (ConstAccel) plus its own 500 Hz sampling
+   (``jt(t)``, ``jt(t, 1)``, ``jt(t, 2)``) against the verified
+   :func:`planner.methods.topp.retime` (default 200 grid points, 500 Hz, returned Trajectory).
+   Also: each result judged by ``evaluate()`` (raw toppra breaks the limits between its grid
+   points), and the verified duration at 100 against 400 grid points.       target ≤ 3×, ≤ 1 %
+2. Ruckig (random rest-to-rest joint moves on every machine): ``Ruckig.calculate`` on a
+   prepared input (the issue's peer), and the raw library as a user calls it (input filled from
+   arrays, calculate, ``at_time`` at the switching times), against
+   :func:`planner.methods.ruckig.rest_to_rest` sampled at its switching times
+   (``sample_rate=None``) and at its default 200 Hz.                         target ≤ 20×
+3. NLP rows: a marked placeholder (:func:`nlp_rows`) for the lead's plain-Opti baseline vs
+   MoveNLP comparison.
+
+Writes <out>/peers.json and <out>/peers.md (atomically) and prints the markdown.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+if str(ROOT) not in sys.path:  # run from a checkout without installing
+    sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+import ruckig  # noqa: E402
+import toppra  # noqa: E402
+import toppra.algorithm as algo  # noqa: E402
+import toppra.constraint as constraint  # noqa: E402
+
+from planner.geometry.paths import Line  # noqa: E402
+from planner.io import atomic_write_text, dumps  # noqa: E402
+from planner.methods.dp import dp  # noqa: E402
+from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: E402
+from planner.methods.topp import PumpFlowConstraint, retime  # noqa: E402
+from planner.model import Crane  # noqa: E402
+from planner.trajectory import Trajectory, evaluate  # noqa: E402
+from problems import crane_ids  # noqa: E402
+
+SEED = 15
+TOPP_MOVES, RUCKIG_MOVES = 4, 6     # per machine
+SAMPLE_RATE = 500.0                 # [Hz] both TOPP-RA sides
+KINDS = ("velocity", "acceleration", "pump_flow")
+
+
+def configs(crane, n, seed, margin=0.1):
+    """n random joint configurations inside the limits (a margin of the range at each end)."""
+    rng = np.random.default_rng(seed)
+    L = crane.limit_arrays()
+    lo = L["q_min"] + margin * (L["q_max"] - L["q_min"])
+    hi = L["q_max"] - margin * (L["q_max"] - L["q_min"])
+    return lo + rng.random((n, crane.n)) * (hi - lo)
+
+
+def interleaved(fa, fb, repeat):
+    """Median seconds of ``fa`` and ``fb``, timed alternately (order swapped every round)
+    after one warm-up call each."""
+    fa(), fb()
+    ta, tb = [], []
+    for k in range(repeat):
+        for f, out in ((fa, ta), (fb, tb)) if k % 2 == 0 else ((fb, tb), (fa, ta)):
+            t0 = time.perf_counter()
+            f()
+            out.append(time.perf_counter() - t0)
+    return statistics.median(ta), statistics.median(tb)
+
+
+# ---------------------------------------------------------------------------- TOPP-RA
+def raw_toppra(crane, path_q, gridpoints=200, rate=SAMPLE_RATE):
+    """Raw toppra as its documentation shows it, on the same path parameter, limits and grid
+    as :func:`retime`: ConstAccel, then its own sampling at ``rate``. Returns a Trajectory."""
+    seg = np.linalg.norm(np.diff(path_q, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-12])
+    ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
+    L = crane.limit_arrays()
+    cons = [constraint.JointVelocityConstraint(np.column_stack([L["qd_min"], L["qd_max"]])),
+            constraint.JointAccelerationConstraint(np.column_stack([-L["qdd_max"],
+                                                                    L["qdd_max"]])),
+            PumpFlowConstraint(crane)]
+    jt = algo.TOPPRA(cons, toppra.SplineInterpolator(ss, path_q[keep]),
+                     gridpoints=np.linspace(0, ss[-1], gridpoints + 1),
+                     parametrizer="ParametrizeConstAccel").compute_trajectory(0.0, 0.0)
+    t = np.linspace(0.0, jt.duration, max(200, int(np.ceil(jt.duration * rate)) + 1))
+    return Trajectory(t, jt(t), jt(t, 1), jt(t, 2), joint_names=tuple(crane.names),
+                      limits=("position",) + KINDS)
+
+
+def topp_cases(quick):
+    out = []
+    for cid in crane_ids():
+        crane = Crane.from_id(cid)
+        qs = configs(crane, 2 * TOPP_MOVES, SEED)
+        for k in range(TOPP_MOVES if not quick else 1):
+            a, b = crane.tip(qs[k]), crane.tip(qs[TOPP_MOVES + k])
+            d = dp(crane, Line(tuple(a), tuple(b)), step=0.05, tele_step=0.05, window=3)
+            if d.ok:
+                out.append((cid, crane, np.round(a, 3).tolist(), np.round(b, 3).tolist(),
+                            d.path_q))
+    return out
+
+
+def topp_rows(repeat, quick):
+    rows = []
+    for cid, crane, a, b, path_q in topp_cases(quick):
+        t_raw, t_ours = interleaved(lambda: raw_toppra(crane, path_q),
+                                    lambda: retime(crane, path_q), repeat)
+        raw = raw_toppra(crane, path_q)
+        ours = retime(crane, path_q)
+        r100, r400 = (retime(crane, path_q, gridpoints=g) for g in (100, 400))
+        viol = {}
+        for name, tr in (("raw", raw), ("ours", ours.trajectory)):
+            ev = evaluate(crane, tr, kinds=KINDS) if tr is not None else None
+            viol[name] = ev.max_limit_violation if ev is not None else float("nan")
+        rows.append(dict(machine=cid, start=a, goal=b, raw_ms=1e3 * t_raw,
+                         ours_ms=1e3 * t_ours, ratio=t_ours / t_raw,
+                         raw_s=raw.duration, ours_s=ours.duration_s, ours_status=ours.status,
+                         passes=ours.iterations, raw_violation=viol["raw"],
+                         ours_violation=viol["ours"], s100=r100.duration_s,
+                         s400=r400.duration_s, coarse_excess=r100.duration_s / r400.duration_s - 1))
+    return rows
+
+
+# ---------------------------------------------------------------------------- Ruckig
+def ruckig_rows(repeat, quick):
+    rows = []
+    for cid in crane_ids():
+        crane = Crane.from_id(cid)
+        L = crane.limit_arrays()
+        jerk = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK)
+        qs = configs(crane, 2 * RUCKIG_MOVES, SEED + 1)
+        n = crane.n
+        for k in range(RUCKIG_MOVES if not quick else 1):
+            q0, q1 = qs[k], qs[RUCKIG_MOVES + k]
+
+            def fill():
+                inp = ruckig.InputParameter(n)
+                inp.current_position, inp.target_position = q0.tolist(), q1.tolist()
+                inp.max_velocity, inp.min_velocity = L["qd_max"].tolist(), L["qd_min"].tolist()
+                inp.max_acceleration, inp.max_jerk = L["qdd_max"].tolist(), jerk.tolist()
+                return inp
+
+            inp, otg, tr = fill(), ruckig.Ruckig(n), ruckig.Trajectory(n)
+
+            def raw_user():   # what a user of the raw library writes for one sampled move
+                i, t = fill(), ruckig.Trajectory(n)
+                ruckig.Ruckig(n).calculate(i, t)
+                sw = switch_times(t)
+                return [t.at_time(x) for x in sw]
+
+            t_calc, t_sw = interleaved(lambda: otg.calculate(inp, tr),
+                                       lambda: rest_to_rest(crane, q0, q1, sample_rate=None),
+                                       repeat * 20)
+            t_user, t_sw2 = interleaved(raw_user,
+                                        lambda: rest_to_rest(crane, q0, q1, sample_rate=None),
+                                        repeat * 20)
+            t_user2, t_200 = interleaved(raw_user, lambda: rest_to_rest(crane, q0, q1),
+                                         repeat * 5)
+            r = rest_to_rest(crane, q0, q1, sample_rate=None)
+            rows.append(dict(machine=cid, duration_s=r.duration_s,
+                             samples=len(r.trajectory.t), calc_us=1e6 * t_calc,
+                             ours_switch_us=1e6 * t_sw, ratio_calc=t_sw / t_calc,
+                             raw_user_us=1e6 * t_user, ours_switch2_us=1e6 * t_sw2,
+                             ratio_user=t_sw2 / t_user, ours_200hz_us=1e6 * t_200,
+                             ratio_200hz_user=t_200 / t_user2))
+    return rows
+
+
+# ---------------------------------------------------------------------------- NLP (lead)
+def nlp_rows(repeat, quick):
+    """PLACEHOLDER for the lead (issue 15, NLP part): a plain ``casadi.Opti`` triple integrator
+    with MoveNLP's limits minus the pump (N = 40, the same start/goal joint configurations)
+    against MoveNLP's build and solve, with and without the pump. Return a list of dicts with
+    at least ``case``, ``project_s``, ``peer_s``, ``ratio``; :func:`report` prints them."""
+    return []
+
+
+# ---------------------------------------------------------------------------- report
+def summary(values):
+    v = [x for x in values if np.isfinite(x)]
+    return dict(median=float(np.median(v)), max=float(np.max(v)), min=float(np.min(v)),
+                n=len(v)) if v else dict(median=float("nan"), max=float("nan"), n=0)
+
+
+def report(res) -> str:
+    m, tp, rk, nl = res["machine"], res["topp"], res["ruckig"], res["nlp"]
+    s = res["summary"]
+    lines = [
+        "# Peers: the project's methods against their raw libraries (issue 15)", "",
+        f"{m['date']}, {m['platform']}, Python {m['python']}, {m['cpus']} CPUs, load "
+        f"{m['load']}, numpy {m['numpy']}, toppra {m['toppra']}, ruckig {m['ruckig']}. "
+        f"Interleaved A/B timings, {res['repeat']} rounds (Ruckig: ×20 / ×5), medians; the "
+        "machine is shared, so read the ratios. `python benchmarks/bench_peers.py`.", "",
+        "## Summary", "",
+        "| comparison | ratio median | ratio max | target |", "| --- | --- | --- | --- |",
+        f"| verified TOPP-RA retime / raw toppra + own 500 Hz sampling | "
+        f"{s['topp_ratio']['median']:.2f}× | {s['topp_ratio']['max']:.2f}× | ≤ 3× |",
+        f"| verified duration at 100 vs 400 grid points | "
+        f"{100 * s['topp_coarse']['median']:+.2f} % | {100 * s['topp_coarse']['max']:+.2f} % "
+        "| ≤ 1 % |",
+        f"| verified durations at 100 points within 1 % of 400 points | "
+        f"{sum(r['coarse_excess'] <= 0.01 for r in tp)} of {len(tp)} moves | | all |",
+        f"| raw toppra's evaluate() violation (velocity, acceleration, pump) | "
+        f"{100 * s['topp_raw_violation']['median']:.1f} % | "
+        f"{100 * s['topp_raw_violation']['max']:.1f} % | (ours ≤ 0.1 %) |",
+        f"| `rest_to_rest` at its switch times / `Ruckig.calculate` (prepared input) | "
+        f"{s['ruckig_calc']['median']:.1f}× | {s['ruckig_calc']['max']:.1f}× | ≤ 20× |",
+        f"| `rest_to_rest` at its switch times / raw Ruckig as a user calls it | "
+        f"{s['ruckig_user']['median']:.2f}× | {s['ruckig_user']['max']:.2f}× | |",
+        f"| `rest_to_rest` at 200 Hz / raw Ruckig as a user calls it | "
+        f"{s['ruckig_200hz']['median']:.2f}× | {s['ruckig_200hz']['max']:.2f}× | |", "",
+        "## TOPP-RA", "",
+        "Raw: `TOPPRA(velocity, acceleration, pump).compute_trajectory` with "
+        "`ParametrizeConstAccel` and toppra's own sampling at 500 Hz. Ours: "
+        "`retime(crane, path_q)` (200 grid points, verified on every interval, 500 Hz "
+        "Trajectory). Violation: `evaluate()` over velocity, acceleration, pump.", "",
+        "| machine | raw ms | ours ms | ratio | raw s | ours s | passes | raw violation | "
+        "ours violation | 100 pts s | 400 pts s | 100 vs 400 |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in tp:
+        lines.append(f"| {r['machine']} | {r['raw_ms']:.1f} | {r['ours_ms']:.1f} | "
+                     f"{r['ratio']:.2f}× | {r['raw_s']:.3f} | {r['ours_s']:.3f} | "
+                     f"{r['passes']} | {100 * r['raw_violation']:.1f} % | "
+                     f"{100 * r['ours_violation']:.2f} % | {r['s100']:.3f} | "
+                     f"{r['s400']:.3f} | {100 * r['coarse_excess']:+.2f} % |")
+    lines += ["", "## Ruckig", "",
+              "Peer 1: `Ruckig.calculate(inp, traj)` on a prepared input. Peer 2: the raw "
+              "library as a user calls it (InputParameter filled from arrays, calculate, "
+              "`at_time` at every switching time). Ours: `rest_to_rest(crane, q0, q1, "
+              "sample_rate=None)` (validated input, the planner Trajectory at the switching "
+              "times, a PlanResult), and at its default 200 Hz.", "",
+              "| machine | move s | samples | calculate µs | ours µs | ratio | raw user µs | "
+              "ours µs | ratio | ours 200 Hz µs | ratio |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rk:
+        lines.append(f"| {r['machine']} | {r['duration_s']:.3f} | {r['samples']} | "
+                     f"{r['calc_us']:.1f} | {r['ours_switch_us']:.1f} | "
+                     f"{r['ratio_calc']:.1f}× | {r['raw_user_us']:.1f} | "
+                     f"{r['ours_switch2_us']:.1f} | {r['ratio_user']:.2f}× | "
+                     f"{r['ours_200hz_us']:.1f} | {r['ratio_200hz_user']:.2f}× |")
+    lines += ["", "## NLP (min-time move: plain Opti baseline vs MoveNLP)", ""]
+    if nl:
+        lines += ["| case | project s | peer s | ratio |", "| --- | --- | --- | --- |"]
+        lines += [f"| {r['case']} | {r['project_s']:.3f} | {r['peer_s']:.3f} | "
+                  f"{r['ratio']:.2f}× |" for r in nl]
+    else:
+        lines.append("Not measured here: placeholder `nlp_rows()` for the NLP part of issue 15.")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--repeat", type=int, default=15, help="interleaved rounds per case")
+    ap.add_argument("--quick", action="store_true", help="one move per machine, 3 rounds")
+    a = ap.parse_args(argv)
+    repeat = 3 if a.quick else a.repeat
+    machine = dict(date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+                   platform=platform.platform(), python=platform.python_version(),
+                   cpus=os.cpu_count(), load=" ".join(f"{x:.1f}" for x in os.getloadavg()),
+                   numpy=np.__version__, toppra=metadata.version("toppra"),
+                   ruckig=metadata.version("ruckig"))
+    tp = topp_rows(repeat, a.quick)
+    rk = ruckig_rows(repeat, a.quick)
+    nl = nlp_rows(repeat, a.quick)
+    res = dict(machine=machine, repeat=repeat, topp=tp, ruckig=rk, nlp=nl,
+               summary=dict(topp_ratio=summary([r["ratio"] for r in tp]),
+                            topp_coarse=summary([r["coarse_excess"] for r in tp]),
+                            topp_raw_violation=summary([r["raw_violation"] for r in tp]),
+                            ruckig_calc=summary([r["ratio_calc"] for r in rk]),
+                            ruckig_user=summary([r["ratio_user"] for r in rk]),
+                            ruckig_200hz=summary([r["ratio_200hz_user"] for r in rk])))
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    md = report(res)
+    atomic_write_text(out / "peers.json", dumps(res))
+    atomic_write_text(out / "peers.md", md)
+    print(md)
+
+
+if __name__ == "__main__":
+    main()

@@ -109,3 +109,11 @@ def test_library_build_compiles_once_and_its_workers_load_it(cache_dir, tmp_path
     from planner import Crane
     assert get("nlp").built(Crane.from_id("umea-lab"), "time", "free", 4).cache_status == "hit"
     clear_planner_caches()
+
+
+def test_without_a_compiler_the_nlp_is_built_in_memory(umea_lab, cache_dir, monkeypatch):
+    monkeypatch.setattr(nlp_cache, "compiler", lambda: None)
+    nlp = MoveNLP(umea_lab, "time", "free", N=N, cache="build")
+    assert nlp.cache_status == "no-compiler" and "compiler" in nlp.cache_error
+    assert not (cache_dir / "nlp").exists() or not list((cache_dir / "nlp").iterdir())
+    assert _own_solution(nlp)[0].ok

@@ -59,6 +59,7 @@ def test_clean_data_give_none(machine, seed):
     assert res.message.startswith("none: the nominal model explains the data within noise")
 
 
+@pytest.mark.slow   # two effects, two searches (~20 s)
 def test_a_second_effect_is_found_on_top(cat215b):
     from planner.model.effects import make
     from planner.calibration.trials import record

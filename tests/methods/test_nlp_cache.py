@@ -76,6 +76,7 @@ def test_the_key_separates_machines_and_formulations(umea_lab, s100f, cache_dir)
     assert MoveNLP(umea_lab, "time", "free", N=N, cache="off").cache_status == "off"
 
 
+@pytest.mark.slow   # two compiles at once (~20 s); benchmarks/bench_nlp_cache.py runs it too
 def test_two_builders_at_once_leave_one_good_entry(cache_dir):
     env = dict(os.environ, CRANE_PLANNER_CACHE=str(cache_dir))
     cmd = [sys.executable, "-m", "planner", "plan", "umea-lab", "--start", "2.65,2.2,0.2",
@@ -94,6 +95,7 @@ def test_two_builders_at_once_leave_one_good_entry(cache_dir):
     assert json.loads(r.stdout)["nlp_cache"] == "hit"
 
 
+@pytest.mark.slow   # a compile and a library build (~10 s)
 def test_library_build_compiles_once_and_its_workers_load_it(cache_dir, tmp_path):
     from planner.library.build import build, clear_planner_caches
     clear_planner_caches()

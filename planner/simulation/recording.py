@@ -67,12 +67,14 @@ def add_noise(crane, q, p_a, p_b, noise=None, seed: int = 0):
 @dataclass
 class Recording:
     """A measured recording on the sample grid: t (N,), commands u (N, n) in effect at t,
-    positions q (N, n), pressures p_a, p_b (N, n) [Pa] or None (positions only)."""
+    positions q (N, n), pressures p_a, p_b (N, n) [Pa] or None (positions only); ``notes``:
+    what reading it changed (e.g. timestamp jitter resampled), one line each."""
     t: np.ndarray
     u: np.ndarray
     q: np.ndarray
     p_a: np.ndarray | None = None
     p_b: np.ndarray | None = None
+    notes: tuple = ()
 
     @classmethod
     def from_replay(cls, crane, sim: Trajectory, u_at_samples=None,

@@ -24,7 +24,7 @@ from planner.trajectory import Trajectory
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
            "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units"]
 
-MAX_STEP = 0.1        # [s] longest sample step read (10 Hz); loggers write 20-500 Hz
+MS_STEPS = (1.0, 100.0)   # [s] median steps refused as time in ms (a 10-1000 Hz log)
 JITTER = 0.1          # timestamp jitter (share of the mean step) resampled on reading
 P_MIN = -2e6          # [Pa] lowest pressure read: gauge readings with a transducer offset
 
@@ -155,9 +155,18 @@ class Recording:
 
 
 def check_units(crane, d: dict, path) -> None:
-    """Refuse positions that are far outside the crane's joint ranges but inside them once
-    converted (degrees for revolute joints, mm for prismatic ones), naming the conversion.
+    """Refuse pressures that are all below 1 bar (bar, MPa or kPa given) and positions that
+    are far outside the crane's joint ranges but inside them once converted (degrees for
+    revolute joints, mm for prismatic ones), naming the conversion.
     ``d``: :func:`read_measured_csv`'s result."""
+    if d["p_a"] is not None:
+        top = float(max(np.max(np.abs(d["p_a"])), np.max(np.abs(d["p_b"]))))
+        if top < 1e5:
+            guess = ("MPa (multiply by 1e6) or bar (multiply by 1e5)" if top <= 60 else
+                     "bar (multiply by 1e5)" if top <= 1000 else "kPa (multiply by 1e3)")
+            raise ValueError(f"{path}: the largest pressure in every p_ column is {top:.6g}, "
+                             f"below 1e5 Pa (1 bar), which no working crane shows: the "
+                             f"pressures look like {guess}; allowed: pressures in Pa")
     L = crane.limit_arrays()
     for i, (j, spec) in enumerate(zip(crane.names, crane.spec.joints)):
         q = d["q"][:, i]
@@ -213,11 +222,12 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
     columns of unknown joints; a missing ``q_<joint>``; command or pressure columns for some
     joints only, or one side of a cylinder only; a row with the wrong number of fields or a
     blank line inside the data; a used cell that is not a number, or NaN/inf; time not strictly
-    increasing; with ``uniform`` (the default): a median step above :data:`MAX_STEP` (time in
-    ms is named), and a time off the uniform grid of the mean step by more than :data:`JITTER`
-    of the step (jitter within it is resampled onto the mean rate — commands held, readings interpolated — and
-    said in ``notes``); |u| > 1 + 1e-9; a pressure below :data:`P_MIN` or above 1e9 Pa, or
-    every pressure below 1e5 Pa (bar, MPa or kPa given: the conversion is named). Blank lines at the end of the file and a UTF-8 BOM are ignored."""
+    increasing; with ``uniform`` (the default): a median step in :data:`MS_STEPS` (time in
+    ms: the conversion is named), a step off the median by more than 2·:data:`JITTER` (a
+    gap), a time off the uniform grid of the mean step by more than :data:`JITTER` of the
+    step (jitter within it is resampled onto the mean rate — commands held, readings
+    interpolated — and said in ``notes``); |u| > 1 + 1e-9; a pressure below :data:`P_MIN`
+    or above 1e9 Pa. Blank lines at the end of the file and a UTF-8 BOM are ignored."""
     names = tuple(joint_names)
     n = len(names)
     joints = ", ".join(names)
@@ -363,15 +373,21 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         raise fail(f"line {lines[k + 1]}, column 1 (t): time {float(t[k + 1])!r} is not after "
                    f"{float(t[k])!r} (line {lines[k]}); time must increase strictly")
     h = float(np.median(dt))
-    if uniform and h > MAX_STEP:
-        hint = (f"; it looks like milliseconds: divide t by 1000 (a {1000 / h:.0f} Hz log)"
-                if 1.0 <= h <= 1000 * MAX_STEP else "")
-        raise fail(f"line 1, column 1 (t): median time step {h:.6g} s ({1 / h:.3g} Hz) is "
-                   f"longer than {MAX_STEP:g} s; allowed: sample rates of {1 / MAX_STEP:g} Hz "
-                   f"and more (loggers: 20-500 Hz){hint}")
+    if uniform and MS_STEPS[0] <= h <= MS_STEPS[1]:
+        raise fail(f"line 1, column 1 (t): median time step {h:.6g} s ({1 / h:.3g} Hz); it "
+                   f"looks like milliseconds: divide t by 1000 (a {1000 / h:.0f} Hz log); "
+                   "allowed: time in s")
     notes = []
     k = np.flatnonzero(np.abs(dt - h) > 1e-6 * h + 1e-9 * np.abs(t[1:]))
     if k.size and uniform:
+        k = np.flatnonzero(np.abs(dt - h) > 2 * JITTER * h * (1 + 1e-6))
+        if k.size:      # a gap or a burst: two stamps jittered by ±JITTER differ by ≤ 2·JITTER
+            k = int(k[0])
+            raise fail(f"line {lines[k + 1]}, column 1 (t): time step {float(dt[k]):.9g} s "
+                       f"(from {float(t[k])!r} to {float(t[k + 1])!r}) differs from the median "
+                       f"step {h:.9g} s by more than {200 * JITTER:.0f} %: not timestamp "
+                       "jitter; a fixed sample rate is required (resample the recording "
+                       "first: crane-planner resample FILE --rate HZ --out FILE)")
         mean = (t[-1] - t[0]) / (len(t) - 1)
         off = np.abs(t - (t[0] + np.arange(len(t)) * mean)) / mean
         if float(off.max()) > JITTER * (1 + 1e-6):
@@ -401,19 +417,12 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         bad = (P < P_MIN) | (P > 1e9)
         if bad.any():
             line, c, v = first_bad(bad, a)
-            why = (f"below {P_MIN:g} Pa: not a pressure in Pa, even a gauge one with an "
-                   "offset (MPa or bar given?)" if v < 0
+            why = ("below -2e6 Pa: not an absolute pressure in Pa (MPa or bar given?) nor a "
+                   "gauge one with a transducer offset" if v < 0
                    else "above 1e9 Pa (10 000 bar): not a pressure in Pa (wrong unit or "
                    "scale factor?)")
             raise fail(f"line {line}, column {c + 1} ({header[c]}): pressure {v!r} Pa is "
-                       f"{why}; allowed: {P_MIN:g} ... 1e9 Pa")
-        top = float(np.max(np.abs(P)))
-        if top < 1e5:
-            guess = ("MPa (multiply by 1e6) or bar (multiply by 1e5)" if top <= 60 else
-                     "bar (multiply by 1e5)" if top <= 1000 else "kPa (multiply by 1e3)")
-            raise fail(f"line 1: the largest pressure in every p_ column is {top:.6g}, below "
-                       f"1e5 Pa (1 bar): the pressures look like {guess}, not Pa; allowed: "
-                       "pressures in Pa")
+                       f"{why}; allowed: -2e6 ... 1e9 Pa")
         p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
     if notes:
         t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean)

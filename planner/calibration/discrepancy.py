@@ -47,6 +47,7 @@ from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares, minimize_scalar
 
 from planner.calibration.noise import noise_floor, upsampling_factor
+from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge
 from planner.calibration.where import locate, operating_conditions
 from planner.model.effects import CATALOGUE, Effect
@@ -283,10 +284,23 @@ class Discrepancy:
             # one parameter: bounded scalar search in the grid cell pair around the best point
             # (robust where the residual is flat, e.g. a dead band wider than every command)
             d = 1.0 / max(self.grid - 1, 1)
+            # a Gauss-Newton step from the neutral value too: a true value far inside the
+            # first grid cell (a plausible range spanning decades) is found there
+            r0, h = resid(z0), 1e-7
+            zh = np.clip(z0 + h, 0, 1) if z0[0] + h <= 1 else z0 - h
+            sens = (resid(zh) - r0) / (zh[0] - z0[0])
+            nfev += 2
+            if float(sens @ sens) > 0:
+                zg = np.clip(z0 - float(sens @ r0) / float(sens @ sens), 0.0, 1.0)
+                Jn = float(np.sum(resid(zg) ** 2))
+                nfev += 1
+                if Jn < min(best_J, J0) and abs(zg[0] - z0[0]) < d:
+                    best_J, best_z = Jn, zg
+                    d = max(abs(zg[0] - z0[0]), 1e-12)
             a, b = max(best_z[0] - d, 0.0), min(best_z[0] + d, 1.0)
             sol = minimize_scalar(lambda x: float(np.sum(resid(np.array([x])) ** 2)),
                                   bounds=(a, b), method="bounded",
-                                  options=dict(xatol=1e-5))
+                                  options=dict(xatol=min(1e-5, 1e-3 * d)))
             nfev += sol.nfev
             z = np.array([sol.x]) if sol.fun <= best_J else best_z
             h = 1e-4
@@ -364,12 +378,16 @@ class Discrepancy:
                 seconds.sort(key=lambda c: -c.score)
                 if seconds and seconds[0].score > self.threshold and seconds[0].excited:
                     second = seconds[0]
+                    alone = _single(cands, second.effects[-1])
+                    if alone is not None and alone.J_test - second.J_test <= \
+                            self.threshold + pen * (second.k - alone.k):
+                        chosen, second = alone, None    # the first adds nothing to it
         final = second or chosen
         r0 = self.response(())
         conds = operating_conditions(crane, self._rec.u, r0.state)
         ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols, self.predict,
                       self.threshold, conds)
-        v = judge(ev, Y0, cands, final, cands[0] if chosen is not None else None)
+        v = judge(ev, Y0, cands, final, chosen)
         if v["verdict"] == "unexplained":
             final = chosen = second = None
         Yf = self.predict(final.effects) if final else Y0
@@ -412,7 +430,7 @@ class Discrepancy:
                                     for p in s.parameters})
         if v["verdict"] == "unexplained":
             sg = v["signature"][0] if v["signature"] else None
-            msg = ("unexplained: " + (_sig_text(sg) if sg else "; ".join(v["reasons"][:2]))
+            msg = ("unexplained: " + (signature_text(sg) if sg else "; ".join(v["reasons"][:2]))
                    + (f"; best fit {v['not_credible']['model']} is not credible ("
                       f"{v['not_credible']['why'][:160]})" if v["not_credible"] else ""))
         elif eff is None:
@@ -453,20 +471,10 @@ class Discrepancy:
             notes=list(self._notes))
 
 
-def _sig_text(s: dict) -> str:
-    """One line for a residual signature (:mod:`planner.calibration.signature`)."""
-    c = s["channel"]
-    k = s["kind"]
-    if k == "periodic":
-        return f"periodic at {s['frequency_hz']:.2f} Hz, amplitude {s['amplitude']:.3g} on {c}"
-    if k == "drift":
-        return f"drift at {s['rate']:.3g} per s on {c}"
-    if k == "step":
-        return f"step of {s['size']:.3g} at t = {s['time_s']:.2f} s on {c}"
-    if k == "outliers":
-        return (f"{s['count']} outlier(s) on {c} (largest {s['largest']:.3g}; at "
-                + ", ".join(f"{x:.2f}" for x in s["times_s"][:5]) + " s)")
-    return f"{c} at {s['rms_over_noise']:.1f} x noise, no simple shape"
+def _single(cands, effect):
+    """The single-effect fit of ``effect``'s (name, joint) among ``cands`` (or None)."""
+    return next((c for c in cands if (c.effects[0].name, c.effects[0].joint)
+                 == (effect.name, effect.joint)), None)
 
 
 def _excess(E, mask, sig, t, window_s: float = 0.5):

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy.ndimage import median_filter
 
-__all__ = ["describe", "channel_signature", "mean_square", "OUTLIER_Z", "SHARE",
+__all__ = ["describe", "channel_signature", "mean_square", "signature_text", "OUTLIER_Z", "SHARE",
            "MIN_REDUCTION", "MIN_SHARE_OF_NOISE"]
 
 OUTLIER_Z = 6.0            # a spike: this many σ from the median of its 5 neighbours
@@ -148,3 +148,19 @@ def describe(R: np.ndarray, t: np.ndarray, columns, sigma, channels=None) -> lis
         out.append(s)
     out.sort(key=lambda s: -s["excess"])
     return out
+
+
+def signature_text(s: dict) -> str:
+    """One line for a residual signature (:mod:`planner.calibration.signature`)."""
+    c = s["channel"]
+    k = s["kind"]
+    if k == "periodic":
+        return f"periodic at {s['frequency_hz']:.2f} Hz, amplitude {s['amplitude']:.3g} on {c}"
+    if k == "drift":
+        return f"drift at {s['rate']:.3g} per s on {c}"
+    if k == "step":
+        return f"step of {s['size']:.3g} at t = {s['time_s']:.2f} s on {c}"
+    if k == "outliers":
+        return (f"{s['count']} outlier(s) on {c} (largest {s['largest']:.3g}; at "
+                + ", ".join(f"{x:.2f}" for x in s["times_s"][:5]) + " s)")
+    return f"{c} at {s['rms_over_noise']:.1f} x noise, no simple shape"

@@ -2,8 +2,9 @@
 ``unexplained`` (DESIGN "CONTRACT: command line").
 
 * **explained** — no effect earns a name, and the nominal residual is noise: every channel's
-  held-out mean square within :func:`noise_bound` (so never when a channel's RMS is ≥ 2 σ)
-  and no material shape in it (:mod:`planner.calibration.signature`).
+  held-out mean square within :func:`noise_bound` (never 4 or more: a channel's RMS ≥ 2 σ),
+  no slow residual above noise (:func:`smoothed_excess`) and no material shape in it
+  (:mod:`planner.calibration.signature`).
 * **named** — the best fit earns a name (held-out score above the threshold, which the
   clean-data trials calibrate) *and* is credible: the residual left after it is noise by the
   same two tests (on every channel's held-out mean square, with a looser bound, and no
@@ -24,14 +25,19 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 from scipy.stats import norm
 
 from planner.calibration.signature import describe, mean_square
 
-__all__ = ["Evidence", "noise_bound", "judge", "TIE_Z", "MAX_CANDIDATES"]
+__all__ = ["Evidence", "noise_bound", "smoothed_excess", "judge", "TIE_Z", "MAX_CANDIDATES"]
 
 TIE_Z = 2.0
 MAX_CANDIDATES = 3
+SLACK_EXPLAINED = 0.35   # held-out mean square above 1 that σ's own error can explain
+SLACK_NAMED = 0.4
+SMOOTH_S = 0.5           # [s] window of the slow-residual test
+EXCESS_MIN = 0.05        # [σ²] least slow residual called above noise (RMS 0.22 σ)
 
 
 @dataclass
@@ -56,13 +62,31 @@ def noise_bound(n: int, slack: float = 0.1) -> float:
     return 1.0 + max(5.0 * math.sqrt(2.0 / max(n, 1)), slack)
 
 
+def smoothed_excess(R, t, mask, window_s: float = SMOOTH_S):
+    """(per-column above-noise mean square of R (noise units) smoothed over ``window_s``, on
+    ``mask`` rows; the largest value white noise reaches (5 standard errors, at least
+    :data:`EXCESS_MIN`)). A moving average of w samples divides white noise's variance by w
+    and keeps a slow systematic residual, so this barely depends on an error in σ (an
+    interpolated log's slightly correlated noise, say)."""
+    dt = float(np.median(np.diff(t)))
+    w = max(1, int(round(window_s / dt)))
+    f = uniform_filter1d(R, size=w, axis=0, mode="nearest")
+    n = max(int(np.sum(mask)), 1)
+    ex = np.mean(f[mask] ** 2, axis=0) - 1.0 / w
+    return ex, max(EXCESS_MIN, 5.0 * math.sqrt(2.0 * w / n) / w)
+
+
 def _noise_like(ev: Evidence, Yp, slack: float):
     """(is noise, reasons, per-channel held-out RMS/σ, signatures) of the residual Y − Yp."""
     R = (ev.Y - Yp) / ev.sigma
     ms = mean_square(R, ev.test)
-    bound = noise_bound(int(ev.test.sum()), slack)
+    bound = min(noise_bound(int(ev.test.sum()), slack), 4.0)
     why = [f"{c}: held-out RMS {math.sqrt(m):.2f} σ (noise: ≤ {math.sqrt(bound):.2f} σ)"
            for c, m in zip(ev.columns, ms) if m > bound]
+    ex, top = smoothed_excess(R, ev.t, ev.test)
+    why += [f"{c}: a slow residual of {math.sqrt(max(e, 0.0)):.2f} σ RMS (noise: ≤ "
+            f"{math.sqrt(top):.2f} σ)" for c, e, m in zip(ev.columns, ex, ms)
+            if e > top and m <= bound]
     sigs = [s for s in describe(R, ev.t, ev.columns, ev.sigma)
             if s["kind"] != "unclassified"]
     why += [f"{s['channel']}: {s['kind']} left in the residual ({100 * s['share']:.0f} % of "
@@ -98,13 +122,13 @@ def _entry(c) -> dict:
 def judge(ev: Evidence, Y0, ranked, final, single_best) -> dict:
     """The verdict (module doc). ``Y0``: nominal prediction; ``ranked``: single-effect fits,
     best first (``score``, ``effects``, ``excited``); ``final``: the fit the workflow would
-    name (None: nothing passed the threshold); ``single_best``: ranked[0] when it is the
-    first effect of ``final``. Returns dict verdict, confidence, candidates, signature,
+    name (None: nothing passed the threshold); ``single_best``: the single-effect fit named
+    first (one of ``ranked``). Returns dict verdict, confidence, candidates, signature,
     not_credible, reasons."""
     out = dict(verdict=None, confidence=None, candidates=[], signature=[], not_credible=None,
                reasons=[])
     if final is None:
-        ok, why, _, _ = _noise_like(ev, Y0, 0.1)
+        ok, why, _, _ = _noise_like(ev, Y0, SLACK_EXPLAINED)
         if ok:
             out["verdict"] = "explained"
             return out
@@ -113,7 +137,7 @@ def judge(ev: Evidence, Y0, ranked, final, single_best) -> dict:
                    signature=describe(R0, ev.t, ev.columns, ev.sigma))
         return out
     Yf = ev.predict(final.effects)
-    ok, why, _, _ = _noise_like(ev, Yf, 0.25)
+    ok, why, _, _ = _noise_like(ev, Yf, SLACK_NAMED)
     if not ok:
         R0 = (ev.Y - Y0) / ev.sigma
         out.update(verdict="unexplained", reasons=why,
@@ -129,7 +153,7 @@ def judge(ev: Evidence, Y0, ranked, final, single_best) -> dict:
         return out
     Yb = ev.predict(best.effects)
     ties, margin_z = [], math.inf
-    for c in ranked[1:8]:
+    for c in [c for c in ranked if c is not best][:7]:
         if not c.excited or c.score <= ev.threshold:
             continue
         D, where = _difference(ev, Yb, ev.predict(c.effects))

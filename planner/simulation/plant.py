@@ -283,7 +283,8 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
     for e in sensors:
         p_a, p_b = e.sense_p_at(crane, t, p_a, p_b)
     # the commanded u in effect at each sample (not what the valves saw)
-    j = np.clip(np.searchsorted(t_u, t + 1e-9 * dt, side="right") - 1, 0, len(t_u) - 1)
+    # (1e-6 of a step: the replay's sample times carry rounding from summing steps)
+    j = np.clip(np.searchsorted(t_u, t + 1e-6 * dt, side="right") - 1, 0, len(t_u) - 1)
     return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=given,
                     meta=dict(pump=sim.meta["pump"], clipped=sim.meta["clipped"], dt=dt,
                               payload=payload))

@@ -398,7 +398,8 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                        "(resampled on reading); resample the recording first: crane-planner "
                        "resample FILE --rate HZ --out FILE")
         notes.append(f"timestamp jitter up to {100 * float(off.max()):.1f} % of the step: "
-                     f"resampled onto the mean rate {1 / mean:.6g} Hz")
+                     f"resampled onto the mean rate {1 / mean:.6g} Hz (readings interpolated, "
+                     "each command kept with its sample)")
     a = 1
     u = None
     if has_u:
@@ -425,14 +426,16 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                        f"{why}; allowed: -2e6 ... 1e9 Pa")
         p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
     if notes:
-        t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean)
+        t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean, "nearest")
     return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes)
 
 
-def resample_arrays(t, arrays, rate: float):
+def resample_arrays(t, arrays, rate: float, commands: str = "hold"):
     """(t_new, arrays on it): a uniform grid from t[0] at ``rate`` [Hz] up to t[-1] (within
-    1e-9 of a step); ``arrays`` (u, q, p_a, p_b) — the commands u held (the command in effect
-    at each new time, zero-order hold), the readings interpolated linearly; None stays None."""
+    1e-9 of a step); ``arrays`` (u, q, p_a, p_b) — the readings interpolated linearly, the
+    commands u ``"hold"`` (the command in effect at each new time: a change of rate) or
+    ``"nearest"`` (the sample nearest in time: timestamp jitter, where the command logged
+    with a sample belongs to that sample's controller tick); None stays None."""
     t = np.asarray(t, float)
     if not (math.isfinite(rate) and rate > 0):
         raise ValueError(f"rate = {rate!r} Hz; allowed: a positive number of Hz")
@@ -443,6 +446,11 @@ def resample_arrays(t, arrays, rate: float):
                          f"{t[-1] - t[0]:g} s")
     tn = t[0] + np.arange(m) * h
     k = np.clip(np.searchsorted(t, tn + 1e-9 * h, side="right") - 1, 0, len(t) - 1)
+    if commands == "nearest":
+        k = np.clip(np.searchsorted(t, tn), 1, len(t) - 1)
+        k = np.where(np.abs(t[k - 1] - tn) <= np.abs(t[k] - tn), k - 1, k)
+    elif commands != "hold":
+        raise ValueError(f"commands = {commands!r}; allowed: 'hold', 'nearest'")
     out = []
     for i, Y in enumerate(arrays):
         if Y is None:

@@ -95,6 +95,33 @@ def test_an_exact_tie_is_ambiguous_with_both_candidates(cat):
     got = {(c["effect"], c["joint"]) for c in res.candidates}
     assert got == {("flow_gain", truth.joint), ("flow_gain_twin", truth.joint)}
     assert res.effect in ("flow_gain", "flow_gain_twin")      # the model still fits
+    assert res.suggest.startswith("crane-planner excite cat215b --separate ")
+    assert f"flow_gain@{truth.joint}" in res.suggest and f"flow_gain_twin@{truth.joint}" in res.suggest
+
+
+def test_excite_designs_within_limits_and_refuses_bad_input(tmp_path, capsys):
+    from planner import evaluate
+    from planner.calibration.excite import design_excitation, parse_candidates
+    from planner.cli.common import read_trajectory
+    out = tmp_path / "exc.csv"
+    assert main(["excite", "cat215b", "--separate", "viscous_friction,coulomb_friction",
+                 "--joint", "swing", "--duration", "12", "--candidates", "1",
+                 "--out", str(out), "--json", "-"]) == 0
+    js = json.loads(capsys.readouterr().out)
+    assert js["separation"] >= js["default_separation"] > 0      # never worse than the default
+    assert js["separation"] == min(js["pairs"].values())
+    crane = Crane.from_id("cat215b")
+    assert read_trajectory(crane, str(out)).duration >= 12
+    # the API: the design's plan keeps every limit of the machine (the independent evaluator)
+    effects = parse_candidates(crane, "viscous_friction@swing,coulomb_friction@swing")
+    d = design_excitation(crane, effects, duration=12, candidates=1)
+    assert evaluate(crane, d.plan).ok() and d.separation == min(d.pairs.values())
+    assert main(["excite", "cat215b", "--separate", "viscous_friction", "--out",
+                 str(tmp_path / "x.csv")]) == 2
+    assert "viscous_friction@JOINT" in capsys.readouterr().err
+    assert main(["excite", "cat215b", "--separate", "flow_gain@arm,leakage@boom", "--out",
+                 str(tmp_path / "x.csv")]) == 2
+    assert "unknown joint 'arm'" in capsys.readouterr().err and not (tmp_path / "x.csv").exists()
 
 
 def test_drift_is_named_by_the_new_effect(cat, clean):

@@ -24,11 +24,11 @@ commanded trajectory:
    exceeds :attr:`Discrepancy.threshold`; else "none: the nominal model explains the data
    within noise". When the named effect leaves some channel's held-out mean square residual
    above noise (by more than 4 standard errors of a χ² mean and 10 %), a second effect is
-   tried on top (both refitted) and named if its own score passes the threshold.
+   tried on top (both refitted) and named if its own score passes the threshold and the
+   pair beats the second alone. The verdict: :mod:`planner.calibration.verdict`.
 5. **Gap**: per channel held-out RMS before/after, VAF, and the share of the above-noise
-   residual removed (``gap_reduction``): above-noise = the residual smoothed over 0.5 s, its
-   mean square less the noise's share (:func:`_excess`), summed over the channels in units of
-   σ², gap = 1 − √(after/before).
+   residual removed (``gap_reduction``, :func:`planner.calibration.verdict.smoothed_excess`
+   summed over the channels in units of σ²): gap = 1 − √(after/before).
 
 The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
 :func:`planner.calibration.compensate.compensate` re-plans feed-forward commands on it and
@@ -43,12 +43,11 @@ import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares, minimize_scalar
 
 from planner.calibration.noise import noise_floor, upsampling_factor
 from planner.calibration.signature import signature_text
-from planner.calibration.verdict import Evidence, judge
+from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
 from planner.model.effects import CATALOGUE, Effect
 from planner.simulation.plant import respond
@@ -123,13 +122,14 @@ class DiscrepancyResult:
     candidates: list = field(default_factory=list)
     signature: list = field(default_factory=list)
     not_credible: dict | None = None
+    suggest: str | None = None
     reasons: list = field(default_factory=list)
     notes: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in (
             "verdict", "effect", "joint", "parameters", "uncertainty", "confidence",
-            "candidates", "signature", "not_credible", "reasons", "notes", "second",
+            "candidates", "suggest", "signature", "not_credible", "reasons", "notes", "second",
             "rms_before", "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
             "gap_reduction_channels", "identifiable", "message", "where", "runtime_s")}
         out["effects"] = [e.to_dict() for e in self.effects]
@@ -154,8 +154,8 @@ class Discrepancy:
     """The workflow (module doc). ``fit(recording)`` -> :class:`DiscrepancyResult`.
 
     candidates: catalogue names to try (default: all); block_s: length [s] of the alternating
-    train/held-out blocks; threshold: least held-out score to name an effect; grid: scan
-    points per parameter before the local fit."""
+    train/held-out blocks; threshold: least held-out score to name an effect (calibrated on
+    clean data); grid: scan points per parameter before the local fit."""
 
     def __init__(self, crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
                  grid: int = 13, second: bool = True):
@@ -170,6 +170,14 @@ class Discrepancy:
         self.threshold = float(threshold)
         self.grid = int(grid)
         self.try_second = second
+
+    def prepare(self, rec: Recording) -> None:
+        """Read ``rec`` (checks, noise, train/held-out blocks) for :meth:`fit_one`."""
+        self._prepare(rec)
+
+    def fit_one(self, effect: Effect) -> Candidate:
+        """Fit one effect (from its neutral values) to the prepared recording."""
+        return self._fit((), effect)
 
     # ------------------------------------------------------------------ data
     def _prepare(self, rec: Recording):
@@ -214,10 +222,9 @@ class Discrepancy:
         P[:, 0::2], P[:, 1::2] = rec.p_a, rec.p_b
         return np.hstack([rec.q, P])
 
-    def _floor(self, rec):
-        n = self.crane.n
-        k = n if (rec.p_a is None or rec.p_b is None) else 3 * n
-        return np.array([POSITION_FLOOR] * n + [PRESSURE_FLOOR] * (k - n))
+    def _floor(self, rec):  # the smallest σ per channel (noise-free data)
+        k = 0 if (rec.p_a is None or rec.p_b is None) else 2 * self.crane.n
+        return np.array([POSITION_FLOOR] * self.crane.n + [PRESSURE_FLOOR] * k)
 
     def predict(self, effects=()) -> np.ndarray:
         """Model channels (N, C) for the recording, with ``effects``."""
@@ -386,7 +393,7 @@ class Discrepancy:
         r0 = self.response(())
         conds = operating_conditions(crane, self._rec.u, r0.state)
         ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols, self.predict,
-                      self.threshold, conds)
+                      self.threshold, conds, crane.spec.id)
         v = judge(ev, Y0, cands, final, chosen)
         if v["verdict"] == "unexplained":
             final = chosen = second = None
@@ -394,7 +401,6 @@ class Discrepancy:
         res = self._report(Y0, Yf, final, chosen, second, ranking, t0, v, conds)
         return res
 
-    # ------------------------------------------------------------------ report
     def _report(self, Y0, Yf, final, chosen, second, ranking, t0, v, conds):
         te = self._test
         cols = self._cols
@@ -407,8 +413,8 @@ class Discrepancy:
         var = np.var(Yt, axis=0)
         vaf0 = 100 * (1 - np.var(E0, axis=0) / np.maximum(var, 1e-300))
         vaf1 = 100 * (1 - np.var(E1, axis=0) / np.maximum(var, 1e-300))
-        ex0, ex1 = _excess(self._Y - Y0, te, sig, self._rec.t), \
-            _excess(self._Y - Yf, te, sig, self._rec.t)
+        ex0 = np.maximum(smoothed_excess((self._Y - Y0) / sig, self._rec.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess((self._Y - Yf) / sig, self._rec.t, te)[0], 0.0)
         tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
         gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
         per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
@@ -468,25 +474,13 @@ class Discrepancy:
             message=msg, runtime_s=_time.perf_counter() - t0, series=series,
             verdict=v["verdict"], confidence=v["confidence"], candidates=v["candidates"],
             signature=v["signature"], not_credible=v["not_credible"], reasons=v["reasons"],
-            notes=list(self._notes))
+            notes=list(self._notes), suggest=v["suggest"])
 
 
 def _single(cands, effect):
     """The single-effect fit of ``effect``'s (name, joint) among ``cands`` (or None)."""
     return next((c for c in cands if (c.effects[0].name, c.effects[0].joint)
                  == (effect.name, effect.joint)), None)
-
-
-def _excess(E, mask, sig, t, window_s: float = 0.5):
-    """Above-noise residual per channel on ``mask``, in units of σ²: the mean square of the
-    residual smoothed over ``window_s`` (a moving average of w samples keeps a systematic
-    residual and divides white noise's variance by w) minus the noise's share σ²/w. Far less
-    sensitive to an error in σ than RMS² − σ² would be."""
-    dt = float(np.median(np.diff(t)))
-    w = max(1, int(round(window_s / dt)))
-    f = uniform_filter1d(E, size=w, axis=0, mode="nearest")
-    ms = np.mean(f[mask] ** 2, axis=0)
-    return np.maximum(ms / sig ** 2 - 1.0 / w, 0.0)
 
 
 # ---------------------------------------------------------------------------- the model

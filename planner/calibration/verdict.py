@@ -45,7 +45,8 @@ class Evidence:
     """What the verdict looks at: measured channels ``Y`` (N, C), their noise ``sigma`` (C,),
     the held-out rows ``test``, times ``t``, channel names ``columns``, ``predict`` (effects ->
     model channels), the naming ``threshold`` and ``conditions`` (joint -> condition name ->
-    row mask: where a difference of predictions shows)."""
+    row mask: where a difference of predictions shows), ``machine`` (for the suggested
+    ``excite`` command)."""
     Y: np.ndarray
     sigma: np.ndarray
     test: np.ndarray
@@ -54,6 +55,7 @@ class Evidence:
     predict: Callable
     threshold: float
     conditions: dict
+    machine: str = "MACHINE"
 
 
 def noise_bound(n: int, slack: float = 0.1) -> float:
@@ -124,9 +126,10 @@ def judge(ev: Evidence, Y0, ranked, final, single_best) -> dict:
     best first (``score``, ``effects``, ``excited``); ``final``: the fit the workflow would
     name (None: nothing passed the threshold); ``single_best``: the single-effect fit named
     first (one of ``ranked``). Returns dict verdict, confidence, candidates, signature,
-    not_credible, reasons."""
+    not_credible, reasons, suggest (ambiguous: the ``excite`` command that would tell the
+    candidates apart)."""
     out = dict(verdict=None, confidence=None, candidates=[], signature=[], not_credible=None,
-               reasons=[])
+               reasons=[], suggest=None)
     if final is None:
         ok, why, _, _ = _noise_like(ev, Y0, SLACK_EXPLAINED)
         if ok:
@@ -169,5 +172,8 @@ def judge(ev: Evidence, Y0, ranked, final, single_best) -> dict:
     cands = [dict(_entry(best), differs_most=[])]
     for c, D, where in ties[:MAX_CANDIDATES - 1]:
         cands.append(dict(_entry(c), prediction_difference=D, differs_most=where))
-    out.update(verdict="ambiguous", candidates=cands)
+    sep = ",".join(c["effect"] + (f"@{c['joint']}" if c["joint"] else "") for c in cands)
+    out.update(verdict="ambiguous", candidates=cands,
+               suggest=f"crane-planner excite {ev.machine} --separate {sep} --duration "
+                       f"{max(60, round(float(ev.t[-1] - ev.t[0]))):d} --out excitation.csv")
     return out

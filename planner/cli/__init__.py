@@ -14,7 +14,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from planner.cli import discrepancy, library, plan, problems, resample, simulate, studies
+from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
+                         studies)
 from planner.cli.common import CLIError
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
@@ -22,7 +23,7 @@ from planner.model.spec import SpecError
 __all__ = ["CLIError", "build_parser", "main"]
 
 # the order of the sub-commands in --help
-COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, resample, studies)
+COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, resample, excite, studies)
 
 
 def build_parser() -> argparse.ArgumentParser:

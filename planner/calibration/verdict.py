@@ -37,7 +37,7 @@ MAX_CANDIDATES = 3
 SLACK_EXPLAINED = 0.35   # held-out mean square above 1 that σ's own error can explain
 SLACK_NAMED = 0.4
 SMOOTH_S = 0.5           # [s] window of the slow-residual test
-EXCESS_MIN = 0.05        # [σ²] least slow residual called above noise (RMS 0.22 σ)
+EXCESS_MIN = 0.08        # [σ²] least slow residual called above noise (RMS 0.28 σ)
 
 
 @dataclass
@@ -58,15 +58,17 @@ class Evidence:
     machine: str = "MACHINE"
 
 
-def noise_bound(n: int, slack: float = 0.1) -> float:
+def noise_bound(n: int, slack: float = 0.1, n_sigma: int | None = None) -> float:
     """Largest held-out mean square (noise units) that is still noise over ``n`` samples:
-    1 + max(5 standard errors of a χ² mean, ``slack``) (σ itself is an estimate)."""
-    return 1.0 + max(5.0 * math.sqrt(2.0 / max(n, 1)), slack)
+    1 + max(``slack``, 4 standard errors) — of the χ² mean and, with ``n_sigma`` (the samples
+    σ was estimated from), of σ² itself (the MAD of Δ² gives σ to about 1.2/√n_sigma)."""
+    var = 2.0 / max(n, 1) + (4 * 1.44 / max(n_sigma, 1) if n_sigma else 0.0)
+    return 1.0 + max(4.0 * math.sqrt(var), slack)
 
 
 def smoothed_excess(R, t, mask, window_s: float = SMOOTH_S):
     """(per-column above-noise mean square of R (noise units) smoothed over ``window_s``, on
-    ``mask`` rows; the largest value white noise reaches (5 standard errors, at least
+    ``mask`` rows; the largest value white noise reaches (6 standard errors, at least
     :data:`EXCESS_MIN`)). A moving average of w samples divides white noise's variance by w
     and keeps a slow systematic residual, so this barely depends on an error in σ (an
     interpolated log's slightly correlated noise, say)."""
@@ -75,14 +77,14 @@ def smoothed_excess(R, t, mask, window_s: float = SMOOTH_S):
     f = uniform_filter1d(R, size=w, axis=0, mode="nearest")
     n = max(int(np.sum(mask)), 1)
     ex = np.mean(f[mask] ** 2, axis=0) - 1.0 / w
-    return ex, max(EXCESS_MIN, 5.0 * math.sqrt(2.0 * w / n) / w)
+    return ex, max(EXCESS_MIN, 6.0 * math.sqrt(2.0 * w / n) / w)
 
 
 def _noise_like(ev: Evidence, Yp, slack: float):
     """(is noise, reasons, per-channel held-out RMS/σ, signatures) of the residual Y − Yp."""
     R = (ev.Y - Yp) / ev.sigma
     ms = mean_square(R, ev.test)
-    bound = min(noise_bound(int(ev.test.sum()), slack), 4.0)
+    bound = min(noise_bound(int(ev.test.sum()), slack, len(ev.t)), 4.0)
     why = [f"{c}: held-out RMS {math.sqrt(m):.2f} σ (noise: ≤ {math.sqrt(bound):.2f} σ)"
            for c, m in zip(ev.columns, ms) if m > bound]
     ex, top = smoothed_excess(R, ev.t, ev.test)

@@ -52,6 +52,8 @@ def cmd_discrepancy(args):
                   + f": score {c['score']:.1f}"
                   + (f"; predictions differ most on {diff[0]['joint']} {diff[0]['condition']} "
                      f"({diff[0]['channel']})" if diff else ""))
+        if res.suggest:
+            print(f"  to tell them apart, record the sequence of: {res.suggest}")
         for sg in res.signature[:3]:
             print(f"  signature: {sg['kind']} on {sg['channel']} "
                   f"({sg['rms_over_noise']:.1f} x noise)")

@@ -24,11 +24,11 @@ commanded trajectory:
    exceeds :attr:`Discrepancy.threshold`; else "none: the nominal model explains the data
    within noise". When the named effect leaves some channel's held-out mean square residual
    above noise (by more than 4 standard errors of a χ² mean and 10 %), a second effect is
-   tried on top (both refitted) and named if its own score passes the threshold.
+   tried on top (both refitted) and named if its own score passes the threshold and the
+   pair beats the second alone. The verdict: :mod:`planner.calibration.verdict`.
 5. **Gap**: per channel held-out RMS before/after, VAF, and the share of the above-noise
-   residual removed (``gap_reduction``): above-noise = the residual smoothed over 0.5 s, its
-   mean square less the noise's share (:func:`_excess`), summed over the channels in units of
-   σ², gap = 1 − √(after/before).
+   residual removed (``gap_reduction``, :func:`planner.calibration.verdict.smoothed_excess`
+   summed over the channels in units of σ²): gap = 1 − √(after/before).
 
 The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
 :func:`planner.calibration.compensate.compensate` re-plans feed-forward commands on it and
@@ -43,26 +43,23 @@ import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares, minimize_scalar
 
+from planner.calibration.noise import noise_floor, upsampling_factor
+from planner.calibration.signature import signature_text
+from planner.calibration.verdict import Evidence, judge, smoothed_excess
+from planner.calibration.where import locate, operating_conditions
 from planner.model.effects import CATALOGUE, Effect
 from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
-from planner.simulation.replay import stroke_rates
 
 __all__ = ["Discrepancy", "DiscrepancyResult", "Candidate", "candidates", "noise_floor",
-           "locate", "calibrated_spec_text"]
+           "locate", "calibrated_spec_text", "VERDICTS"]
+
+VERDICTS = ("explained", "named", "ambiguous", "unexplained")
 
 PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
 POSITION_FLOOR = 1e-6    # [rad | m]
-
-
-def noise_floor(Y: np.ndarray) -> np.ndarray:
-    """Per-column noise standard deviation estimated from the data (module doc, step 2)."""
-    d2 = np.diff(Y, n=2, axis=0)
-    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
-    return 1.4826 * mad / math.sqrt(6.0)
 
 
 @dataclass
@@ -91,7 +88,11 @@ class Candidate:
 
 @dataclass
 class DiscrepancyResult:
-    """``effect``: the named catalogue effect (None = nominal explains the data within noise),
+    """``verdict`` (one of :data:`VERDICTS`, :mod:`planner.calibration.verdict`) with
+    ``confidence`` (named), ``candidates`` (ambiguous), ``signature`` and ``not_credible``
+    (unexplained), ``reasons`` and ``notes`` (how the data were read: upsampled, resampled);
+    ``effect``: the named catalogue effect (None = nothing named; when ambiguous, the best of
+    the candidates),
     ``joint``, ``parameters`` (fitted values) with ``uncertainty`` (standard errors),
     ``second``: a further effect (or None), per-channel ``rms_before``/``rms_after`` (held-out,
     channel units), ``vaf_before``/``vaf_after`` [%], ``noise``, ``gap_reduction`` (share of the
@@ -116,11 +117,20 @@ class DiscrepancyResult:
     message: str
     runtime_s: float
     series: dict = field(default_factory=dict, repr=False)
+    verdict: str = "explained"
+    confidence: float | None = None
+    candidates: list = field(default_factory=list)
+    signature: list = field(default_factory=list)
+    not_credible: dict | None = None
+    suggest: str | None = None
+    reasons: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in (
-            "effect", "joint", "parameters", "uncertainty", "second", "rms_before",
-            "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
+            "verdict", "effect", "joint", "parameters", "uncertainty", "confidence",
+            "candidates", "suggest", "signature", "not_credible", "reasons", "notes", "second",
+            "rms_before", "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
             "gap_reduction_channels", "identifiable", "message", "where", "runtime_s")}
         out["effects"] = [e.to_dict() for e in self.effects]
         out["ranking"] = self.ranking
@@ -144,8 +154,8 @@ class Discrepancy:
     """The workflow (module doc). ``fit(recording)`` -> :class:`DiscrepancyResult`.
 
     candidates: catalogue names to try (default: all); block_s: length [s] of the alternating
-    train/held-out blocks; threshold: least held-out score to name an effect; grid: scan
-    points per parameter before the local fit."""
+    train/held-out blocks; threshold: least held-out score to name an effect (calibrated on
+    clean data); grid: scan points per parameter before the local fit."""
 
     def __init__(self, crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
                  grid: int = 13, second: bool = True):
@@ -161,6 +171,14 @@ class Discrepancy:
         self.grid = int(grid)
         self.try_second = second
 
+    def prepare(self, rec: Recording) -> None:
+        """Read ``rec`` (checks, noise, train/held-out blocks) for :meth:`fit_one`."""
+        self._prepare(rec)
+
+    def fit_one(self, effect: Effect) -> Candidate:
+        """Fit one effect (from its neutral values) to the prepared recording."""
+        return self._fit((), effect)
+
     # ------------------------------------------------------------------ data
     def _prepare(self, rec: Recording):
         crane = self.crane
@@ -174,34 +192,44 @@ class Discrepancy:
         if np.ptp(dt) > 1e-6 * np.median(dt) + 1e-9:
             raise ValueError("recording: the sample times must be uniform (one command per "
                              "sample, as the CSV contract's simulate writes them)")
-        names = list(crane.names)
-        cols = [f"q_{j}" for j in names]
-        Y = [rec.q]
+        self._notes = list(getattr(rec, "notes", ()) or ())
+        m = upsampling_factor(self._channels(rec), self._floor(rec))
+        if m > 1:
+            rate = 1.0 / float(np.median(dt))
+            self._notes.append(
+                f"warning: the log looks upsampled (interpolated) about x{m} from "
+                f"~{rate / m:.0f} Hz: its samples are not independent measurements, so the "
+                f"noise estimate and the statistics use every {m}th sample")
+            rec = Recording(rec.t[::m], rec.u[::m], rec.q[::m],
+                            None if rec.p_a is None else rec.p_a[::m],
+                            None if rec.p_b is None else rec.p_b[::m])
         has_p = rec.p_a is not None and rec.p_b is not None
-        if has_p:
-            cols += [f"p_{j}_{s}" for j in names for s in ("a", "b")]
-            P = np.empty((len(rec.t), 2 * n))
-            P[:, 0::2], P[:, 1::2] = rec.p_a, rec.p_b
-            Y.append(P)
-        Y = np.hstack(Y)
-        sig = noise_floor(Y)
-        floor = np.array([POSITION_FLOOR] * n + [PRESSURE_FLOOR] * (Y.shape[1] - n))
-        sig = np.maximum(sig, floor)
+        cols = [f"q_{j}" for j in crane.names] + (
+            [f"p_{j}_{s}" for j in crane.names for s in ("a", "b")] if has_p else [])
+        Y = self._channels(rec)
+        sig = np.maximum(noise_floor(Y), self._floor(rec))
         block = np.floor((rec.t - rec.t[0]) / self.block_s).astype(int)
         train = block % 2 == 0
         self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p
         self._train, self._test = train, ~train
         self._cache = {}
 
+    def _channels(self, rec):
+        """(N, C) measured channels: q, then p_a, p_b interleaved per joint (if present)."""
+        if rec.p_a is None or rec.p_b is None:
+            return np.asarray(rec.q, float)
+        P = np.empty((len(rec.t), 2 * self.crane.n))
+        P[:, 0::2], P[:, 1::2] = rec.p_a, rec.p_b
+        return np.hstack([rec.q, P])
+
+    def _floor(self, rec):  # the smallest σ per channel (noise-free data)
+        k = 0 if (rec.p_a is None or rec.p_b is None) else 2 * self.crane.n
+        return np.array([POSITION_FLOOR] * self.crane.n + [PRESSURE_FLOOR] * k)
+
     def predict(self, effects=()) -> np.ndarray:
         """Model channels (N, C) for the recording, with ``effects``."""
         r = self.response(effects)
-        Y = [r.q]
-        if self._has_p:
-            P = np.empty((len(r.t), 2 * self.crane.n))
-            P[:, 0::2], P[:, 1::2] = r.p_a, r.p_b
-            Y.append(P)
-        return np.hstack(Y)
+        return self._channels(r if self._has_p else Recording(r.t, r.u, r.q))
 
     def response(self, effects=()):
         rec = self._rec
@@ -263,10 +291,23 @@ class Discrepancy:
             # one parameter: bounded scalar search in the grid cell pair around the best point
             # (robust where the residual is flat, e.g. a dead band wider than every command)
             d = 1.0 / max(self.grid - 1, 1)
+            # a Gauss-Newton step from the neutral value too: a true value far inside the
+            # first grid cell (a plausible range spanning decades) is found there
+            r0, h = resid(z0), 1e-7
+            zh = np.clip(z0 + h, 0, 1) if z0[0] + h <= 1 else z0 - h
+            sens = (resid(zh) - r0) / (zh[0] - z0[0])
+            nfev += 2
+            if float(sens @ sens) > 0:
+                zg = np.clip(z0 - float(sens @ r0) / float(sens @ sens), 0.0, 1.0)
+                Jn = float(np.sum(resid(zg) ** 2))
+                nfev += 1
+                if Jn < min(best_J, J0) and abs(zg[0] - z0[0]) < d:
+                    best_J, best_z = Jn, zg
+                    d = max(abs(zg[0] - z0[0]), 1e-12)
             a, b = max(best_z[0] - d, 0.0), min(best_z[0] + d, 1.0)
             sol = minimize_scalar(lambda x: float(np.sum(resid(np.array([x])) ** 2)),
                                   bounds=(a, b), method="bounded",
-                                  options=dict(xatol=1e-5))
+                                  options=dict(xatol=min(1e-5, 1e-3 * d)))
             nfev += sol.nfev
             z = np.array([sol.x]) if sol.fun <= best_J else best_z
             h = 1e-4
@@ -344,13 +385,23 @@ class Discrepancy:
                 seconds.sort(key=lambda c: -c.score)
                 if seconds and seconds[0].score > self.threshold and seconds[0].excited:
                     second = seconds[0]
+                    alone = _single(cands, second.effects[-1])
+                    if alone is not None and alone.J_test - second.J_test <= \
+                            self.threshold + pen * (second.k - alone.k):
+                        chosen, second = alone, None    # the first adds nothing to it
         final = second or chosen
+        r0 = self.response(())
+        conds = operating_conditions(crane, self._rec.u, r0.state)
+        ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols, self.predict,
+                      self.threshold, conds, crane.spec.id)
+        v = judge(ev, Y0, cands, final, chosen)
+        if v["verdict"] == "unexplained":
+            final = chosen = second = None
         Yf = self.predict(final.effects) if final else Y0
-        res = self._report(Y0, Yf, final, chosen, second, ranking, t0)
+        res = self._report(Y0, Yf, final, chosen, second, ranking, t0, v, conds)
         return res
 
-    # ------------------------------------------------------------------ report
-    def _report(self, Y0, Yf, final, chosen, second, ranking, t0):
+    def _report(self, Y0, Yf, final, chosen, second, ranking, t0, v, conds):
         te = self._test
         cols = self._cols
         sig = self._sig
@@ -362,8 +413,8 @@ class Discrepancy:
         var = np.var(Yt, axis=0)
         vaf0 = 100 * (1 - np.var(E0, axis=0) / np.maximum(var, 1e-300))
         vaf1 = 100 * (1 - np.var(E1, axis=0) / np.maximum(var, 1e-300))
-        ex0, ex1 = _excess(self._Y - Y0, te, sig, self._rec.t), \
-            _excess(self._Y - Yf, te, sig, self._rec.t)
+        ex0 = np.maximum(smoothed_excess((self._Y - Y0) / sig, self._rec.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess((self._Y - Yf) / sig, self._rec.t, te)[0], 0.0)
         tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
         gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
         per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
@@ -383,10 +434,21 @@ class Discrepancy:
             sec = dict(effect=s.name, joint=s.joint, parameters=s.values,
                        uncertainty={p.name: second.std.get(f"{s.name}.{p.name}")
                                     for p in s.parameters})
-        if eff is None:
+        if v["verdict"] == "unexplained":
+            sg = v["signature"][0] if v["signature"] else None
+            msg = ("unexplained: " + (signature_text(sg) if sg else "; ".join(v["reasons"][:2]))
+                   + (f"; best fit {v['not_credible']['model']} is not credible ("
+                      f"{v['not_credible']['why'][:160]})" if v["not_credible"] else ""))
+        elif eff is None:
             msg = ("none: the nominal model explains the data within noise "
                    f"(best candidate {ranking[0]['model']} scored {ranking[0]['score']:.1f} "
                    f"< {self.threshold:g})" if ranking else "none")
+        elif v["verdict"] == "ambiguous":
+            msg = ("ambiguous: the data cannot tell apart "
+                   + " | ".join(f"{c['effect']}" + (f" on {c['joint']}" if c["joint"] else "")
+                                + f" (score {c['score']:.1f})" for c in v["candidates"])
+                   + "; the calibrated model uses the best, "
+                   + f"{eff}" + (f" on {joint}" if joint else ""))
         else:
             msg = (f"{eff}" + (f" on {joint}" if joint else "") + ": "
                    + ", ".join(f"{k} = {v:.4g}" for k, v in params.items() if k != "joint")
@@ -396,7 +458,8 @@ class Discrepancy:
                    + (f"; second effect {sec['effect']}" + (f" on {sec['joint']}"
                                                             if sec['joint'] else "")
                       if sec else ""))
-        where = locate(self, Y0)
+        where = locate(self.crane, self._rec.t, (self._Y - Y0) / sig, cols, conds,
+                       self._has_p)
         series = dict(t=self._rec.t, Y=self._Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
                       threshold=self.threshold)
         return DiscrepancyResult(
@@ -408,65 +471,16 @@ class Discrepancy:
             vaf_after=dict(zip(cols, map(float, vaf1))),
             noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
             gap_reduction_channels=per, ranking=ranking, where=where, identifiable=ident,
-            message=msg, runtime_s=_time.perf_counter() - t0, series=series)
+            message=msg, runtime_s=_time.perf_counter() - t0, series=series,
+            verdict=v["verdict"], confidence=v["confidence"], candidates=v["candidates"],
+            signature=v["signature"], not_credible=v["not_credible"], reasons=v["reasons"],
+            notes=list(self._notes), suggest=v["suggest"])
 
 
-def _excess(E, mask, sig, t, window_s: float = 0.5):
-    """Above-noise residual per channel on ``mask``, in units of σ²: the mean square of the
-    residual smoothed over ``window_s`` (a moving average of w samples keeps a systematic
-    residual and divides white noise's variance by w) minus the noise's share σ²/w. Far less
-    sensitive to an error in σ than RMS² − σ² would be."""
-    dt = float(np.median(np.diff(t)))
-    w = max(1, int(round(window_s / dt)))
-    f = uniform_filter1d(E, size=w, axis=0, mode="nearest")
-    ms = np.mean(f[mask] ** 2, axis=0)
-    return np.maximum(ms / sig ** 2 - 1.0 / w, 0.0)
-
-
-# ---------------------------------------------------------------------------- where
-def locate(d: Discrepancy, Y0: np.ndarray, window_s: float = 2.0) -> dict:
-    """Where the nominal residual lives: channels (RMS / σ), time windows with an excess
-    above 2 (RMS/σ over the window, worst channel), and per joint the residual excess split
-    by operating condition (moving out / in / still, slow / fast, high / low load, pump
-    saturated or not) — ratios of mean squared normalised residual to 1 (noise)."""
-    crane = d.crane
-    rec, sig, cols = d._rec, d._sig, d._cols
-    R = (d._Y - Y0) / sig
-    ms = np.mean(R * R, axis=0)
-    channels = sorted(({"channel": c, "rms_over_noise": float(math.sqrt(m))}
-                       for c, m in zip(cols, ms)), key=lambda x: -x["rms_over_noise"])
-    t = rec.t
-    dt = float(np.median(np.diff(t)))
-    w = max(2, int(round(window_s / dt)))
-    windows = []
-    for a in range(0, len(t) - w + 1, w):
-        m = np.sqrt(np.mean(R[a:a + w] ** 2, axis=0))
-        k = int(np.argmax(m))
-        if m[k] > 2.0:
-            windows.append(dict(t0=float(t[a]), t1=float(t[a + w - 1]), channel=cols[k],
-                                rms_over_noise=float(m[k])))
-    r = d.response(())
-    s = r.state
-    n = crane.n
-    # the nominal replay's pump sharing factor at each sample (from its command intervals)
-    share = stroke_rates(crane, rec.u)[2]
-    conditions = {}
-    for i, j in enumerate(crane.names):
-        idx = [i] + ([n + 2 * i, n + 2 * i + 1] if d._has_p else [])
-        e2 = np.mean(R[:, idx] ** 2, axis=1)
-        xd = s.xd[:, i]
-        vmax = max(np.abs(xd).max(), 1e-12)
-        moving = np.abs(xd) > 0.02 * vmax
-        F = np.abs(s.force[:, i])
-        split = {
-            "extending": xd > 0.02 * vmax, "retracting": xd < -0.02 * vmax, "still": ~moving,
-            "slow": moving & (np.abs(xd) < 0.5 * vmax), "fast": moving & (np.abs(xd) >= 0.5 * vmax),
-            "high_load": F >= np.median(F), "low_load": F < np.median(F),
-            "pump_saturated": share < 1.0, "pump_not_saturated": share >= 1.0}
-        conditions[j] = {k: (float(np.mean(e2[m])) if m.sum() >= 10 else None)
-                         for k, m in split.items()}
-    return dict(channels=channels, windows=windows[:20], n_windows=len(windows),
-                conditions=conditions)
+def _single(cands, effect):
+    """The single-effect fit of ``effect``'s (name, joint) among ``cands`` (or None)."""
+    return next((c for c in cands if (c.effects[0].name, c.effects[0].joint)
+                 == (effect.name, effect.joint)), None)
 
 
 # ---------------------------------------------------------------------------- the model

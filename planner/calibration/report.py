@@ -41,7 +41,20 @@ def write_report(res: DiscrepancyResult, out_dir, *, crane, measured: str = "",
          f"Measured: `{measured}` — {len(res.series['t'])} samples, "
          f"{res.series['t'][-1] - res.series['t'][0]:.1f} s; held-out: alternate 1 s blocks.",
          "", "**Question**: does the nominal model explain the measurement, and if not, which "
-         "effect is missing?", "", f"**Answer**: {res.message}.", ""]
+         "effect is missing?", "", f"**Verdict**: {res.verdict}.", "",
+         f"**Answer**: {res.message}.", ""]
+    L += [f"Note: {x}" for x in res.notes] + ([""] if res.notes else [])
+    if res.candidates:
+        L += ["| candidate | joint | score | predictions differ most |", "| --- | --- | ---: | --- |"]
+        L += [f"| {c['effect']} | {c['joint'] or ''} | {c['score']:.1f} | "
+              + ", ".join(f"{d['joint']} {d['condition']} ({d['channel']})"
+                          for d in c.get("differs_most", [])[:2]) + " |"
+              for c in res.candidates] + [""]
+    if res.signature:
+        L += ["| residual signature | channel | RMS / noise | share of the excess |",
+              "| --- | --- | ---: | ---: |"]
+        L += [f"| {g['kind']} | {g['channel']} | {g['rms_over_noise']:.2f} | "
+              f"{100 * g['share']:.0f} % |" for g in res.signature[:6]] + [""]
     if res.effect:
         L += ["| parameter | estimate | standard error |", "| --- | ---: | ---: |"]
         for k, v in res.parameters.items():

@@ -76,9 +76,12 @@ class TrialSequence:
 
 
 def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
-               margin: float = 0.15) -> tuple[Trajectory, object]:
+               margin: float = 0.15, joints=None) -> tuple[Trajectory, object]:
     """(plan, feed-forward) of a test sequence at least ``duration`` [s] long (see module doc).
-    Poses are drawn in [margin, 1 − margin] of every joint range."""
+    Poses are drawn in [margin, 1 − margin] of every joint range; ``joints`` (names): only
+    these move, the others hold mid-range (default: all move)."""
+    still = (np.zeros(crane.n, bool) if joints is None else
+             ~np.isin(np.asarray(crane.names), list(joints)))
     rng = np.random.default_rng(seed)
     L = crane.limit_arrays()
     lo = L["q_min"] + margin * (L["q_max"] - L["q_min"])
@@ -107,6 +110,7 @@ def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
             first = False
         else:
             goal, scale = rng.uniform(lo, hi), float(rng.uniform(0.3, 1.0))
+        goal = np.where(still, q, goal)
         seg = rest_to_rest(crane, q, goal, scale=scale).trajectory
         ts.append(t_now + seg.t[1:] - seg.t[0])
         qs.append(seg.q[1:])

@@ -15,7 +15,8 @@ import argparse
 import re
 import sys
 
-from planner.cli import discrepancy, library, plan, problems, simulate, studies
+from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
+                         studies)
 from planner.cli.common import CLIError, package_version
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
@@ -23,7 +24,7 @@ from planner.model.spec import SpecError
 __all__ = ["CLIError", "build_parser", "join_negative_values", "main"]
 
 # the order of the sub-commands in --help
-COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, studies)
+COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, resample, excite, studies)
 
 
 def build_parser() -> argparse.ArgumentParser:

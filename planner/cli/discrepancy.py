@@ -2,6 +2,7 @@
 calibrated model written and the feed-forward re-planned on it."""
 from __future__ import annotations
 
+import sys
 import tomllib
 
 from planner.cli.common import add_json_arg, emit, read_trajectory
@@ -40,8 +41,22 @@ def cmd_discrepancy(args):
     if closed is not None:
         js["closed_loop"] = closed
     emit(args, js)
+    for note in res.notes:
+        print(f"crane-planner: {note}", file=sys.stderr)
     if not args.json:
+        print(f"verdict: {res.verdict}")
         print(res.message)
+        for c in res.candidates:
+            diff = c.get("differs_most") or []
+            print(f"  candidate {c['effect']}" + (f" on {c['joint']}" if c["joint"] else "")
+                  + f": score {c['score']:.1f}"
+                  + (f"; predictions differ most on {diff[0]['joint']} {diff[0]['condition']} "
+                     f"({diff[0]['channel']})" if diff else ""))
+        if res.suggest:
+            print(f"  to tell them apart, record the sequence of: {res.suggest}")
+        for sg in res.signature[:3]:
+            print(f"  signature: {sg['kind']} on {sg['channel']} "
+                  f"({sg['rms_over_noise']:.1f} x noise)")
         print(f"{'channel':12s} {'noise':>10s} {'RMS before':>11s} {'RMS after':>10s}")
         for c in res.rms_before:
             print(f"{c:12s} {res.noise[c]:10.4g} {res.rms_before[c]:11.4g} "

@@ -163,12 +163,12 @@ def _by_stage(effects, stage):
     return [e for e in effects if e.stage == stage]
 
 
-def _fit_start(crane, dx, x_guess, q_meas, bias, mask, iters: int = 4):
-    """Initial strokes (n,) so that q(x0 + dx) + bias fits q_meas on mask (per joint, Gauss-
-    Newton on the 1-D problems)."""
+def _fit_start(crane, dx, x_guess, q_meas, bias, mask, gain=1.0, iters: int = 4):
+    """Initial strokes (n,) so that bias + gain·q(x0 + dx) fits q_meas on mask (per joint,
+    Gauss-Newton on the 1-D problems)."""
     sm = stroke_map(crane)
     x0 = x_guess.copy()
-    qm = (q_meas - bias)[mask]
+    qm = ((q_meas - bias) / gain)[mask]
     d_m = dx[mask]
     for _ in range(iters):
         q = sm.q(x0 + d_m)
@@ -235,15 +235,20 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
     for e in _by_stage(effects, "forces"):
         payload = e.payload(crane, payload)
     sensors = _by_stage(effects, "sensors")
-    bias = np.zeros((1, crane.n))
-    for e in sensors:
-        bias = e.sense_q(crane, bias)
+    # the position sensors as an affine map of the true position at each sample:
+    # reading = bias + gain * q (offsets, gains, drifts); the start is fitted through it
+    bias, gain = np.zeros((1, crane.n)), np.ones((1, crane.n))
+    if sensors:
+        bias, one = np.zeros((len(t), crane.n)), np.ones((len(t), crane.n))
+        for e in sensors:
+            bias, one = e.sense_q_at(crane, t, bias), e.sense_q_at(crane, t, one)
+        gain = one - bias
     mask = np.ones(len(t), bool) if fit_mask is None else np.asarray(fit_mask, bool)
 
     def anchor(dx):
         if q_fit is None:
             return x_sim[0]
-        return _fit_start(crane, dx, x_sim[0], np.asarray(q_fit, float), bias, mask)
+        return _fit_start(crane, dx, x_sim[0], np.asarray(q_fit, float), bias, mask, gain)
 
     x0 = anchor(dx)
     q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
@@ -273,12 +278,13 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
             break
     q_s = q
     for e in sensors:
-        q_s = e.sense_q(crane, q_s)
+        q_s = e.sense_q_at(crane, t, q_s)
     p_a, p_b = s.p_a, s.p_b
     for e in sensors:
-        p_a, p_b = e.sense_p(crane, p_a, p_b)
+        p_a, p_b = e.sense_p_at(crane, t, p_a, p_b)
     # the commanded u in effect at each sample (not what the valves saw)
-    j = np.clip(np.searchsorted(t_u, t + 1e-9 * dt, side="right") - 1, 0, len(t_u) - 1)
+    # (1e-6 of a step: the replay's sample times carry rounding from summing steps)
+    j = np.clip(np.searchsorted(t_u, t + 1e-6 * dt, side="right") - 1, 0, len(t_u) - 1)
     return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=given,
                     meta=dict(pump=sim.meta["pump"], clipped=sim.meta["clipped"], dt=dt,
                               payload=payload))

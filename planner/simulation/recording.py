@@ -22,7 +22,11 @@ from planner.simulation.replay import pressures
 from planner.trajectory import Trajectory
 
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
-           "write_measured_csv", "read_measured_csv"]
+           "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units"]
+
+MS_STEPS = (1.0, 100.0)   # [s] median steps refused as time in ms (a 10-1000 Hz log)
+JITTER = 0.1          # timestamp jitter (share of the mean step) resampled on reading
+P_MIN = -2e6          # [Pa] lowest pressure read: gauge readings with a transducer offset
 
 # seed 001's sensor accuracies (resolvers ±0.1°, pressure transducers 0.17 MPa); telescope: 2 mm
 NOISE_DEFAULTS = dict(angle=math.radians(0.1), length=0.002, pressure=0.17e6)
@@ -67,12 +71,14 @@ def add_noise(crane, q, p_a, p_b, noise=None, seed: int = 0):
 @dataclass
 class Recording:
     """A measured recording on the sample grid: t (N,), commands u (N, n) in effect at t,
-    positions q (N, n), pressures p_a, p_b (N, n) [Pa] or None (positions only)."""
+    positions q (N, n), pressures p_a, p_b (N, n) [Pa] or None (positions only); ``notes``:
+    what reading it changed (e.g. timestamp jitter resampled), one line each."""
     t: np.ndarray
     u: np.ndarray
     q: np.ndarray
     p_a: np.ndarray | None = None
     p_b: np.ndarray | None = None
+    notes: tuple = ()
 
     @classmethod
     def from_replay(cls, crane, sim: Trajectory, u_at_samples=None,
@@ -124,6 +130,7 @@ class Recording:
         commands are the nominal feed-forward of ``plan`` (the commanded trajectory) at the
         file's sample rate, which must then start with the plan."""
         d = read_measured_csv(path, tuple(crane.names))
+        check_units(crane, d, path)
         u = d["u"]
         if u is None:
             if plan is None:
@@ -138,7 +145,45 @@ class Recording:
             ff = commands(crane, plan, 1.0 / dt)
             k = np.clip(np.round((t - ff.t[0]) / dt).astype(int), 0, len(ff.t) - 1)
             u = ff.u[k]
-        return cls(d["t"], u, d["q"], d["p_a"], d["p_b"])
+        return cls(d["t"], u, d["q"], d["p_a"], d["p_b"], tuple(d.get("notes", ())))
+
+    def resampled(self, rate: float) -> "Recording":
+        """The recording on a uniform grid at ``rate`` [Hz] (:func:`resample_arrays`)."""
+        t, (u, q, pa, pb) = resample_arrays(self.t, (self.u, self.q, self.p_a, self.p_b),
+                                            rate)
+        return Recording(t, u, q, pa, pb, self.notes)
+
+
+def check_units(crane, d: dict, path) -> None:
+    """Refuse pressures that are all below 1 bar (bar, MPa or kPa given) and positions that
+    are far outside the crane's joint ranges but inside them once converted (degrees for
+    revolute joints, mm for prismatic ones), naming the conversion.
+    ``d``: :func:`read_measured_csv`'s result."""
+    if d["p_a"] is not None:
+        top = float(max(np.max(np.abs(d["p_a"])), np.max(np.abs(d["p_b"]))))
+        if top < 1e5:
+            guess = ("MPa (multiply by 1e6) or bar (multiply by 1e5)" if top <= 60 else
+                     "bar (multiply by 1e5)" if top <= 1000 else "kPa (multiply by 1e3)")
+            raise ValueError(f"{path}: the largest pressure in every p_ column is {top:.6g}, "
+                             f"below 1e5 Pa (1 bar), which no working crane shows: the "
+                             f"pressures look like {guess}; allowed: pressures in Pa")
+    L = crane.limit_arrays()
+    for i, (j, spec) in enumerate(zip(crane.names, crane.spec.joints)):
+        q = d["q"][:, i]
+        lo, hi = float(L["q_min"][i]), float(L["q_max"][i])
+        pad = 0.2 * (hi - lo) + 0.1
+        out = (q < lo - pad) | (q > hi + pad)
+        if not out.any():
+            continue
+        f, unit, conv = ((math.pi / 180, "degrees", "multiply by pi/180 = 0.0174533")
+                         if spec.revolute else (1e-3, "mm", "multiply by 0.001"))
+        if np.all((q * f >= lo - pad) & (q * f <= hi + pad)):
+            k = int(np.argmax(out))
+            where = "" if d.get("notes") else f"line {k + 2}, "
+            raise ValueError(
+                f"{path}: {where}column q_{j}: {float(q[k]):.6g} is outside {j}'s range "
+                f"[{lo:.4g}, {hi:.4g}] {'rad' if spec.revolute else 'm'} by far; the "
+                f"positions look like {unit}: {conv}")
 
 
 def measured_table(crane, sim: Trajectory, u_at_samples=None, noise=None, seed: int = 0,
@@ -161,13 +206,14 @@ def write_measured_csv(path, crane, traj_sim: Trajectory, u_at_samples=None, noi
 
 
 # ----------------------------------------------------------------------------- reading
-def read_measured_csv(path, joint_names) -> dict:
+def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
     """Read a measured-data CSV (CONTRACT, see :func:`write_measured_csv`): a header row;
     ``t`` [s] first; ``u_<joint>`` (valve command, −1…1), ``q_<joint>`` [rad | m] and
     ``p_<joint>_a``, ``p_<joint>_b`` [Pa, absolute]; other columns are ignored (not parsed).
 
     Returns dict t (N,), u (N, n) or None (no command columns), q (N, n), p_a, p_b (N, n) or
-    None (no pressure columns: "positions only") and columns (the header names, a list).
+    None (no pressure columns: "positions only"), columns (the header names, a list) and
+    notes (what reading changed, one line each).
 
     A missing or unreadable file raises OSError. Every other rejection is a ValueError that
     starts with the path and names the line (1-based, header = line 1), the column (number and
@@ -176,16 +222,19 @@ def read_measured_csv(path, joint_names) -> dict:
     columns of unknown joints; a missing ``q_<joint>``; command or pressure columns for some
     joints only, or one side of a cylinder only; a row with the wrong number of fields or a
     blank line inside the data; a used cell that is not a number, or NaN/inf; time not strictly
-    increasing; a time step off the median step by more than 1e-6 relative (plus 1e-9·|t|,
-    the rounding of the 10 significant digits the writer prints), since the
-    workflow needs a fixed sample rate; |u| > 1 + 1e-9; a pressure below −1e6 Pa or above
-    1e9 Pa (wrong unit). Blank lines at the end of the file and a UTF-8 BOM are ignored."""
+    increasing; with ``uniform`` (the default): a median step in :data:`MS_STEPS` (time in
+    ms: the conversion is named), a step off the median by more than 2·:data:`JITTER` (a
+    gap), a time off the uniform grid of the mean step by more than :data:`JITTER` of the
+    step (jitter within it is resampled onto the mean rate — commands held, readings
+    interpolated — and said in ``notes``); |u| > 1 + 1e-9; a pressure below :data:`P_MIN`
+    or above 1e9 Pa. Blank lines at the end of the file and a UTF-8 BOM are ignored."""
     names = tuple(joint_names)
     n = len(names)
     joints = ", ".join(names)
 
     def fail(msg):
         return ValueError(f"{path}: {msg}")
+    uniform = bool(uniform)
 
     with open(path, "rb") as fh:
         raw = fh.read()
@@ -324,13 +373,33 @@ def read_measured_csv(path, joint_names) -> dict:
         raise fail(f"line {lines[k + 1]}, column 1 (t): time {float(t[k + 1])!r} is not after "
                    f"{float(t[k])!r} (line {lines[k]}); time must increase strictly")
     h = float(np.median(dt))
+    if uniform and MS_STEPS[0] <= h <= MS_STEPS[1]:
+        raise fail(f"line 1, column 1 (t): median time step {h:.6g} s ({1 / h:.3g} Hz); it "
+                   f"looks like milliseconds: divide t by 1000 (a {1000 / h:.0f} Hz log); "
+                   "allowed: time in s")
+    notes = []
     k = np.flatnonzero(np.abs(dt - h) > 1e-6 * h + 1e-9 * np.abs(t[1:]))
-    if k.size:
-        k = int(k[0])
-        raise fail(f"line {lines[k + 1]}, column 1 (t): time step {float(dt[k]):.9g} s (from "
-                   f"{float(t[k])!r} to {float(t[k + 1])!r}) differs from the median step "
-                   f"{h:.9g} s by more than 1e-6 relative; a fixed sample rate is required "
-                   "(resample the recording)")
+    if k.size and uniform:
+        k = np.flatnonzero(np.abs(dt - h) > 2 * JITTER * h * (1 + 1e-6))
+        if k.size:      # a gap or a burst: two stamps jittered by ±JITTER differ by ≤ 2·JITTER
+            k = int(k[0])
+            raise fail(f"line {lines[k + 1]}, column 1 (t): time step {float(dt[k]):.9g} s "
+                       f"(from {float(t[k])!r} to {float(t[k + 1])!r}) differs from the median "
+                       f"step {h:.9g} s by more than {200 * JITTER:.0f} %: not timestamp "
+                       "jitter; a fixed sample rate is required (resample the recording "
+                       "first: crane-planner resample FILE --rate HZ --out FILE)")
+        mean = (t[-1] - t[0]) / (len(t) - 1)
+        off = np.abs(t - (t[0] + np.arange(len(t)) * mean)) / mean
+        if float(off.max()) > JITTER * (1 + 1e-6):
+            k = int(np.argmax(off > JITTER * (1 + 1e-6)))
+            raise fail(f"line {lines[k]}, column 1 (t): time {float(t[k])!r} is "
+                       f"{100 * float(off[k]):.0f} % of the mean step ({mean:.9g} s) off the "
+                       f"uniform grid; allowed: timestamp jitter within {100 * JITTER:.0f} % "
+                       "(resampled on reading); resample the recording first: crane-planner "
+                       "resample FILE --rate HZ --out FILE")
+        notes.append(f"timestamp jitter up to {100 * float(off.max()):.1f} % of the step: "
+                     f"resampled onto the mean rate {1 / mean:.6g} Hz (readings interpolated, "
+                     "each command kept with its sample)")
     a = 1
     u = None
     if has_u:
@@ -346,13 +415,49 @@ def read_measured_csv(path, joint_names) -> dict:
     p_a = p_b = None
     if p_joints:
         P = A[:, a:]
-        bad = (P < -1e6) | (P > 1e9)
+        bad = (P < P_MIN) | (P > 1e9)
         if bad.any():
             line, c, v = first_bad(bad, a)
-            why = ("below -1e6 Pa: not an absolute pressure in Pa (MPa or bar given?)" if v < 0
+            why = ("below -2e6 Pa: not an absolute pressure in Pa (MPa or bar given?) nor a "
+                   "gauge one with a transducer offset" if v < 0
                    else "above 1e9 Pa (10 000 bar): not a pressure in Pa (wrong unit or "
                    "scale factor?)")
             raise fail(f"line {line}, column {c + 1} ({header[c]}): pressure {v!r} Pa is "
-                       f"{why}; allowed: -1e6 ... 1e9 Pa")
+                       f"{why}; allowed: -2e6 ... 1e9 Pa")
         p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
-    return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header)
+    if notes:
+        t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean, "nearest")
+    return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes)
+
+
+def resample_arrays(t, arrays, rate: float, commands: str = "hold"):
+    """(t_new, arrays on it): a uniform grid from t[0] at ``rate`` [Hz] up to t[-1] (within
+    1e-9 of a step); ``arrays`` (u, q, p_a, p_b) — the readings interpolated linearly, the
+    commands u ``"hold"`` (the command in effect at each new time: a change of rate) or
+    ``"nearest"`` (the sample nearest in time: timestamp jitter, where the command logged
+    with a sample belongs to that sample's controller tick); None stays None."""
+    t = np.asarray(t, float)
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate = {rate!r} Hz; allowed: a positive number of Hz")
+    h = 1.0 / rate
+    m = int(math.floor((t[-1] - t[0]) / h + 1e-9)) + 1
+    if m < 2:
+        raise ValueError(f"rate = {rate:g} Hz gives fewer than 2 samples over "
+                         f"{t[-1] - t[0]:g} s")
+    tn = t[0] + np.arange(m) * h
+    k = np.clip(np.searchsorted(t, tn + 1e-9 * h, side="right") - 1, 0, len(t) - 1)
+    if commands == "nearest":
+        k = np.clip(np.searchsorted(t, tn), 1, len(t) - 1)
+        k = np.where(np.abs(t[k - 1] - tn) <= np.abs(t[k] - tn), k - 1, k)
+    elif commands != "hold":
+        raise ValueError(f"commands = {commands!r}; allowed: 'hold', 'nearest'")
+    out = []
+    for i, Y in enumerate(arrays):
+        if Y is None:
+            out.append(None)
+        elif i == 0:
+            out.append(np.asarray(Y, float)[k])
+        else:
+            Y = np.asarray(Y, float)
+            out.append(np.column_stack([np.interp(tn, t, Y[:, c]) for c in range(Y.shape[1])]))
+    return tn, tuple(out)

@@ -56,6 +56,7 @@ def test_clean_data_give_none(machine, seed):
     rec, _, _, _ = hidden_trial(crane, None, seed, DUR)
     res = Discrepancy(crane).fit(rec)
     assert res.effect is None and res.effects == ()
+    assert res.verdict == "explained"
     assert res.message.startswith("none: the nominal model explains the data within noise")
 
 
@@ -109,8 +110,10 @@ def test_cli_simulate_then_discrepancy_end_to_end(tmp_path, capsys):
     assert main(["discrepancy", "cat215b", "--measured", str(meas), "--trajectory", str(exc),
                  "--report", str(rep), "--save-model", str(model), "--json", "-"]) == 0
     js = json.loads(capsys.readouterr().out)
-    for k in ("effect", "parameters", "rms_before", "rms_after", "gap_reduction"):
+    for k in ("verdict", "effect", "parameters", "candidates", "signature", "rms_before",
+              "rms_after", "gap_reduction"):
         assert k in js
+    assert js["verdict"] == "named"
     assert js["effect"] == "coulomb_friction" and js["parameters"]["joint"] == "boom"
     assert js["parameters"]["force"] == pytest.approx(8000, rel=0.1)
     assert js["rms_after"]["p_boom_a"] < js["rms_before"]["p_boom_a"]
@@ -119,7 +122,8 @@ def test_cli_simulate_then_discrepancy_end_to_end(tmp_path, capsys):
     assert "coulomb_friction" in (rep / "report.md").read_text()
     # the calibrated model explains the same data: nothing left to name
     assert main(["discrepancy", str(model), "--measured", str(meas), "--json", "-"]) == 0
-    assert json.loads(capsys.readouterr().out)["effect"] is None
+    js = json.loads(capsys.readouterr().out)
+    assert js["effect"] is None and js["verdict"] == "explained"
 
 
 def test_cli_refuses_bad_input_and_writes_nothing(tmp_path, capsys):

@@ -275,9 +275,17 @@ def test_time_not_strictly_increasing(tmp_path, text, found):
 
 
 def test_time_step_not_uniform(tmp_path):
-    p = _set_cell(_good(tmp_path / "t.csv"), 21, T, "0.3801")    # 0.38 + 1e-4
-    _rejects(p, "line 21, column 1 (t): time step 0.0201 s", "median step 0.02 s",
+    # issue 14: timestamp jitter (within 10 % of the step) is resampled, a larger step refused
+    p = _set_cell(_good(tmp_path / "t.csv"), 21, T, "0.386")     # 0.38 + 0.006: a 30 % step
+    _rejects(p, "line 21, column 1 (t): time step 0.026 s", "median step 0.02 s",
              "fixed sample rate")
+
+
+def test_timestamp_jitter_is_resampled_onto_the_mean_rate(tmp_path):
+    p = _set_cell(_good(tmp_path / "t.csv"), 21, T, "0.3801")    # 0.38 + 1e-4: jitter
+    r = read_measured_csv(p, JOINTS)
+    np.testing.assert_allclose(r["t"], np.arange(60) * 0.02, rtol=0, atol=1e-12)
+    assert len(r["notes"]) == 1 and "jitter" in r["notes"][0] and "50 Hz" in r["notes"][0]
 
 
 def test_dropped_sample_is_a_non_uniform_step(tmp_path):
@@ -303,12 +311,15 @@ def test_first_offending_command_is_reported_in_file_order(tmp_path):
 
 
 def test_pressure_too_low(tmp_path):
+    # issue 14: gauge pressures down to -2 MPa are read
+    p = _set_cell(_good(tmp_path / "p.csv"), 40, P_BOOM_A, "-2.5e6")
+    _rejects(p, f"line 40, column {P_BOOM_A} (p_boom_a): pressure -2500000.0 Pa",
+             "not an absolute pressure in Pa (MPa or bar given?)", "allowed: -2e6 ... 1e9 Pa")
     p = _set_cell(_good(tmp_path / "p.csv"), 40, P_BOOM_A, "-2e6")
-    _rejects(p, f"line 40, column {P_BOOM_A} (p_boom_a): pressure -2000000.0 Pa",
-             "not an absolute pressure in Pa (MPa or bar given?)", "allowed: -1e6 ... 1e9 Pa")
+    assert read_measured_csv(p, JOINTS)["p_a"][38, 1] == -2e6
 
 
 def test_pressure_too_high(tmp_path):
     p = _set_cell(_good(tmp_path / "p.csv"), 41, P_TELE_B, "2.5e10")
     _rejects(p, f"line 41, column {P_TELE_B} (p_tele_b): pressure 25000000000.0 Pa",
-             "above 1e9 Pa", "wrong unit", "allowed: -1e6 ... 1e9 Pa")
+             "above 1e9 Pa", "wrong unit", "allowed: -2e6 ... 1e9 Pa")

@@ -18,7 +18,8 @@ valves       valve and pump data of the replay (flow_gain, valve_deadband, pump_
 forces       extra actuator force or load (coulomb_friction, viscous_friction, payload_mass,
              actuator_mass; grapple_load, not in the catalogue)
 strokes      extra stroke motion driven by pressure (leakage)
-sensors      what the transducers report (joint_offset, pressure_offset)
+sensors      what the transducers report (joint_offset, pressure_offset, sensor_gain,
+             sensor_drift, pressure_drift)
 ===========  ==================================================================================
 
 Adding an effect is one class: subclass :class:`Effect`, set its attributes, override its
@@ -35,14 +36,17 @@ from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleL
                                               ViscousFriction)
 from planner.model.effects.motion import (FlowGain, Leakage, PumpFlowLimit, StartOffset,
                                                TimeDelay, ValveDeadband, ValveLag)
+from planner.model.effects.sensors import PressureDrift, SensorDrift, SensorGain
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",
            "catalogue", "make", "parse_effect", "effect_from_dict", "as_effects",
            "JointOffset", "FlowGain", "ValveDeadband", "ValveLag", "TimeDelay", "PumpFlowLimit",
            "Leakage", "CoulombFriction", "ViscousFriction", "PayloadMass", "ActuatorMass",
-           "PressureOffset", "StartOffset", "GrappleLoad"]
+           "PressureOffset", "StartOffset", "GrappleLoad", "SensorGain", "SensorDrift",
+           "PressureDrift"]
 
 for _cls in (JointOffset, FlowGain, ValveDeadband, ValveLag, TimeDelay, PumpFlowLimit, Leakage,
-             CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset):
+             CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset,
+             SensorGain, SensorDrift, PressureDrift):
     register(_cls)
 del _cls

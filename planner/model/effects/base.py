@@ -243,6 +243,16 @@ class Effect:
         """What the pressure transducers report for the true chamber pressures."""
         return p_a, p_b
 
+    def sense_q_at(self, crane, t, q):
+        """:meth:`sense_q` at the sample times ``t`` (N,) [s] (the plant calls this one): a
+        sensor effect that changes with time (a drift) overrides it; the default ignores
+        ``t``."""
+        return self.sense_q(crane, q)
+
+    def sense_p_at(self, crane, t, p_a, p_b):
+        """:meth:`sense_p` at the sample times ``t`` (N,) [s] (see :meth:`sense_q_at`)."""
+        return self.sense_p(crane, p_a, p_b)
+
     def plant(self, crane, plant=()) -> tuple:
         """``plant`` (a sequence of effects, or a :class:`planner.simulation.replay.Plant`)
         with this effect added: the effect set that the replay, ``stroke_rates`` and the

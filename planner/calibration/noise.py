@@ -1,0 +1,69 @@
+"""The noise floor of a recording, estimated from the data, and a check that the samples are
+what the logger measured (not interpolated between measurements).
+
+σ per channel = 1.4826·MAD(Δ²y)/√6: the second difference of white noise has variance 6σ²;
+smooth motion contributes little at logger rates, sparse jumps are rejected by the median.
+
+An upsampled (interpolated) log breaks that estimate: a linear interpolation makes Δ² zero
+between the measured samples, a spline makes it smooth, and σ collapses towards the fixed
+floor, so every model looks wrong (a false alarm). :func:`upsampling_factor` tells: for white
+noise Δ² is negatively correlated with its neighbour (ρ = −2/3), so the spread of
+Δ²ₖ + Δ²ₖ₊₁ is √(4/20) ≈ 0.45 of the spread of Δ²ₖ − Δ²ₖ₊₁; interpolated samples give about
+1 or more. The factor is the least decimation m at which every m-th sample looks white again.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["noise_floor", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
+
+WHITE_RATIO = 0.7     # above: the samples are not independent measurements (white: ≈ 0.45)
+
+
+def noise_floor(Y: np.ndarray) -> np.ndarray:
+    """Per-column noise standard deviation estimated from the data (module doc)."""
+    d2 = np.diff(Y, n=2, axis=0)
+    mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
+    return 1.4826 * mad / math.sqrt(6.0)
+
+
+def _mad(x):
+    return np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+
+
+def whiteness_ratio(Y: np.ndarray) -> np.ndarray:
+    """Per column MAD(Δ²ₖ + Δ²ₖ₊₁) / MAD(Δ²ₖ − Δ²ₖ₊₁): ≈ 0.45 for white measurement noise,
+    ≳ 1 for interpolated samples or noise-free smooth data (NaN where Δ² is all zero)."""
+    d2 = np.diff(np.asarray(Y, float), n=2, axis=0)
+    if len(d2) < 3:
+        return np.full(np.shape(Y)[1], np.nan)
+    a, b = _mad(d2[:-1] + d2[1:]), _mad(d2[:-1] - d2[1:])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(b > 0, a / b, np.nan)
+
+
+def upsampling_factor(Y: np.ndarray, floor, max_factor: int = 8, min_samples: int = 200) -> int:
+    """1 when the columns of ``Y`` (N, C) with noise above ``floor`` (C,) look like independent
+    measurements; else the least m ≤ ``max_factor`` at which every m-th sample does (the log
+    was probably upsampled ×m). 1 also when no column has measurable noise (exact data) or
+    no decimation looks white (smooth data: nothing to correct)."""
+    Y = np.asarray(Y, float)
+    s = noise_floor(Y)
+    # columns with noise: Δ² not dominated by the fixed floor at some decimation
+    for m in range(1, max_factor + 1):
+        Z = Y[::m]
+        if len(Z) < min_samples:
+            break
+        sm = noise_floor(Z)
+        use = sm > 10 * np.asarray(floor)
+        if m == 1 and not use.any() and not (s > 0).any():
+            return 1
+        if not use.any():
+            continue
+        ratio = whiteness_ratio(Z[:, use])
+        ratio = ratio[np.isfinite(ratio)]
+        if ratio.size and float(np.median(ratio)) < WHITE_RATIO:
+            return m
+    return 1

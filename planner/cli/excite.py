@@ -1,0 +1,54 @@
+"""``excite CRANE --separate A[@JOINT],B[@JOINT][,…] --duration T --out FILE.csv``: a test
+trajectory within the machine's limits on which the named effects show as differently as
+possible (:mod:`planner.calibration.excite`)."""
+from __future__ import annotations
+
+from planner.cli.common import add_json_arg, emit
+from planner.model import Crane
+
+
+def cmd_excite(args):
+    """Design (random search over the trials' feasible test sequences), then write."""
+    # scipy and the planners: only when the command runs
+    from planner.calibration.excite import design_excitation, parse_candidates
+    crane = Crane.from_id(args.crane)
+    effects = parse_candidates(crane, args.separate, args.joint, args.seed)
+    if not 10.0 <= args.duration <= 600.0:
+        raise ValueError(f"--duration {args.duration:g}: allowed 10 ... 600 s")
+    if not 1 <= args.candidates <= 100:
+        raise ValueError(f"--candidates {args.candidates}: allowed 1 ... 100")
+    d = design_excitation(crane, effects, duration=args.duration, rate=args.rate,
+                          candidates=args.candidates, seed=args.seed)
+    # everything computed: now write
+    d.ff.to_csv(args.out, d.plan)
+    info = dict(status="ok", out=args.out, crane=crane.spec.id, seed=d.seed,
+                duration_s=float(d.plan.duration), separation=d.separation,
+                default_separation=d.default_separation, pairs=d.pairs,
+                effects=[e.to_dict() for e in d.effects],
+                tried={str(k): v for k, v in d.tried.items()})
+    emit(args, info)
+    if not args.json:
+        print(f"{args.out}: {d.plan.duration:.1f} s test sequence (seed {d.seed}); smallest "
+              f"separation of the candidates {d.separation:.1f} σ² (default sequence: "
+              f"{d.default_separation:.1f} σ²)")
+        for k, v in d.pairs.items():
+            print(f"  {k}: {v:.1f}")
+    return 0
+
+
+def add_parsers(sub) -> None:
+    """``excite``."""
+    p = sub.add_parser("excite", help="a test trajectory that tells candidate effects apart")
+    p.add_argument("crane", help="machine id or a TOML spec")
+    p.add_argument("--separate", required=True, metavar="A[@JOINT],B[@JOINT],…",
+                   help="catalogue effects to tell apart (per-joint ones with @JOINT)")
+    p.add_argument("--joint", help="the joint of per-joint effects written without @JOINT")
+    p.add_argument("--duration", type=float, default=60.0, help="seconds (60)")
+    p.add_argument("--rate", type=float, default=50.0, help="command rate in Hz (50)")
+    p.add_argument("--candidates", type=int, default=6,
+                   help="test sequences tried besides the default one (6)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, metavar="FILE.csv",
+                   help="the trajectory CSV (t, q_*, qd_*, qdd_*, u_*)")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_excite)

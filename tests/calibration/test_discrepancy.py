@@ -28,8 +28,8 @@ def test_noise_floor_recovers_white_noise_under_a_smooth_signal():
     assert s[0] == pytest.approx(0.01, rel=0.08) and s[1] == pytest.approx(1.7e5, rel=0.08)
 
 
-# the default run checks one effect per plant stage; the whole catalogue runs with -m slow
-FAST = ("time_delay", "flow_gain", "coulomb_friction", "leakage", "joint_offset")
+# the default run checks two effects; the whole catalogue runs with -m slow (make bench)
+FAST = ("flow_gain", "coulomb_friction")   # a valve effect and a force effect
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=() if n in FAST else pytest.mark.slow)
@@ -48,9 +48,8 @@ def test_each_hidden_effect_is_named(cat215b, name):
             (k, v, res.parameters[k], sd)
 
 
-@pytest.mark.parametrize("machine,seed", [("cat215b", 11),
-                                          pytest.param("s100f", 12, marks=pytest.mark.slow),
-                                          pytest.param("umea-lab", 13, marks=pytest.mark.slow)])
+@pytest.mark.slow   # clean data are also judged in test_verdicts (the explained verdict)
+@pytest.mark.parametrize("machine,seed", [("cat215b", 11), ("s100f", 12), ("umea-lab", 13)])
 def test_clean_data_give_none(machine, seed):
     crane = Crane.from_id(machine)
     rec, _, _, _ = hidden_trial(crane, None, seed, DUR)
@@ -72,6 +71,7 @@ def test_a_second_effect_is_found_on_top(cat215b):
     assert names == {("flow_gain", "stick"), ("coulomb_friction", "boom")}
 
 
+@pytest.mark.slow   # a study-sized check (~15 s): make bench
 def test_replanned_feedforward_tracks_the_true_plant_better(cat215b):
     from planner.calibration.trials import trackable
     rec, plan, _, truth = hidden_trial(cat215b, "flow_gain", 21, DUR)
@@ -150,6 +150,7 @@ def test_cli_refuses_bad_input_and_writes_nothing(tmp_path, capsys):
     assert not (tmp_path / "x.csv").exists()
 
 
+@pytest.mark.slow   # a study-sized check (~15 s): make bench
 def test_same_inputs_same_outputs(tmp_path):
     crane = Crane.from_id("cat215b")
     exc = _excitation_csv(tmp_path, crane, dur=15.0)

@@ -71,6 +71,7 @@ def test_tiny_build_through_a_dask_local_cluster(tmp_path):
     assert s["statuses"] == {"ok": 2}
 
 
+@pytest.mark.slow   # SIGKILL mid-build (~25 s); test_faults covers the signals in the default run
 @pytest.mark.parametrize("kill_after", [2])
 def test_kill_and_resume_equals_a_clean_build(tmp_path, kill_after):
     cmd = [sys.executable, "-m", "planner", "library", "build", "s100f", "--tasks",

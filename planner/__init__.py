@@ -15,8 +15,8 @@ from planner.methods import PlanRequest, PlanResult, plan
 from planner.model import Crane, UnreachableError
 from planner.model.spec import CraneSpec, SpecError, load_spec
 from planner.trajectory import Trajectory, evaluate
+from planner.version import __version__
 
-__version__ = "0.1.0"
 __all__ = ["Crane", "CraneSpec", "SpecError", "UnreachableError", "load_spec", "Trajectory",
            "evaluate", "plan", "PlanRequest", "PlanResult", "LibraryStore", "Discrepancy",
            "__version__"]

@@ -15,7 +15,7 @@ MAX_LINES = 500
 
 # layer of each top-level part of the package (lower numbers never import higher ones)
 LAYERS = {
-    "units": 0, "io": 0, "plots": 0,
+    "units": 0, "io": 0, "plots": 0, "version": 0,
     "model": 1,
     "geometry": 2, "trajectory": 2, "bounds": 2, "feedforward": 2, "tasks": 2,
     "methods": 3,

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from planner.model.spec import parse_angle
+from planner.units import parse_angle
 
 MARGIN = 0.02  # assumed: 20 mm of stroke kept free at each end
 

@@ -6,7 +6,7 @@ import argparse
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
-from planner import __version__
+from planner.version import __version__
 from planner.io import OutputError, check_output, missing_dirs, write_json
 from planner.methods import available
 from planner.trajectory import Trajectory

@@ -76,7 +76,7 @@ class StoreError(ValueError):
 
 
 def _planner_version() -> str:
-    from planner import __version__
+    from planner.version import __version__
     return __version__
 
 

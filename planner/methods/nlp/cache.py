@@ -76,7 +76,7 @@ def _source_digest() -> str:
 
 def entry_key(spec, **formulation) -> tuple[str, dict]:
     """(hex key, the description it hashes) of a spec and a formulation."""
-    from planner import __version__
+    from planner.version import __version__
     desc = dict(format=FORMAT, casadi=ca.__version__, planner=__version__,
                 python=f"{sys.version_info[0]}.{sys.version_info[1]}", sources=_source_digest(),
                 spec=repr(dataclasses.asdict(spec)),

@@ -42,17 +42,14 @@ if str(ROOT) not in sys.path:  # run from a checkout without installing
 
 import numpy as np  # noqa: E402
 import ruckig  # noqa: E402
-import toppra  # noqa: E402
-import toppra.algorithm as algo  # noqa: E402
-import toppra.constraint as constraint  # noqa: E402
 
 from planner.geometry.paths import Line  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
 from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: E402
-from planner.methods.topp import PumpFlowConstraint, retime  # noqa: E402
+from planner.methods.topp import raw_retime, retime  # noqa: E402
 from planner.model import Crane  # noqa: E402
-from planner.trajectory import Trajectory, evaluate  # noqa: E402
+from planner.trajectory import evaluate  # noqa: E402
 from problems import crane_ids  # noqa: E402
 
 SEED = 15
@@ -85,22 +82,8 @@ def interleaved(fa, fb, repeat):
 
 # ---------------------------------------------------------------------------- TOPP-RA
 def raw_toppra(crane, path_q, gridpoints=200, rate=SAMPLE_RATE):
-    """Raw toppra as its documentation shows it, on the same path parameter, limits and grid
-    as :func:`retime`: ConstAccel, then its own sampling at ``rate``. Returns a Trajectory."""
-    seg = np.linalg.norm(np.diff(path_q, axis=0), axis=1)
-    keep = np.concatenate([[True], seg > 1e-12])
-    ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
-    L = crane.limit_arrays()
-    cons = [constraint.JointVelocityConstraint(np.column_stack([L["qd_min"], L["qd_max"]])),
-            constraint.JointAccelerationConstraint(np.column_stack([-L["qdd_max"],
-                                                                    L["qdd_max"]])),
-            PumpFlowConstraint(crane)]
-    jt = algo.TOPPRA(cons, toppra.SplineInterpolator(ss, path_q[keep]),
-                     gridpoints=np.linspace(0, ss[-1], gridpoints + 1),
-                     parametrizer="ParametrizeConstAccel").compute_trajectory(0.0, 0.0)
-    t = np.linspace(0.0, jt.duration, max(200, int(np.ceil(jt.duration * rate)) + 1))
-    return Trajectory(t, jt(t), jt(t, 1), jt(t, 2), joint_names=tuple(crane.names),
-                      limits=("position",) + KINDS)
+    """Raw toppra as its documentation shows it (:func:`planner.methods.topp.raw_retime`)."""
+    return raw_retime(crane, path_q, gridpoints, rate)
 
 
 def topp_cases(quick):

@@ -436,6 +436,27 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 200,
                       duration_s=T, solve_time_s=_time.perf_counter() - t0, **stats)
 
 
+def raw_retime(crane, path_q, gridpoints: int = 200, rate: float = 500.0) -> Trajectory:
+    """The peer: toppra as its documentation shows it, on the same path parameter, limits
+    (velocity, acceleration, pump) and grid as :func:`retime` — ConstAccel, then toppra's own
+    sampling at ``rate`` [Hz], nothing verified between grid points. For comparisons only
+    (benchmarks/bench_peers.py, the tests): it can break the acceleration limit between points."""
+    seg = np.linalg.norm(np.diff(path_q, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-12])
+    ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
+    L = crane.limit_arrays()
+    cons = [constraint.JointVelocityConstraint(np.column_stack([L["qd_min"], L["qd_max"]])),
+            constraint.JointAccelerationConstraint(np.column_stack([-L["qdd_max"],
+                                                                    L["qdd_max"]])),
+            PumpFlowConstraint(crane)]
+    jt = algo.TOPPRA(cons, toppra.SplineInterpolator(ss, path_q[keep]),
+                     gridpoints=np.linspace(0, ss[-1], gridpoints + 1),
+                     parametrizer="ParametrizeConstAccel").compute_trajectory(0.0, 0.0)
+    t = np.linspace(0.0, jt.duration, max(200, int(np.ceil(jt.duration * rate)) + 1))
+    return Trajectory(t, jt(t), jt(t, 1), jt(t, 2), joint_names=tuple(crane.names),
+                      limits=("position", "velocity", "acceleration", "pump_flow"))
+
+
 class ToppPlanner(Planner):
     """``topp``: the minimum-time DP's joint path along the tip line, retimed by TOPP-RA under
     velocity, acceleration and pump limits (fastest, or the request's ``duration``). Options:

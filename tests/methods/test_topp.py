@@ -4,7 +4,7 @@ import pytest
 
 from planner import Crane
 from planner.methods.dp import dp
-from planner.methods.topp import retime
+from planner.methods.topp import raw_retime, retime
 from planner.geometry.paths import Line
 from planner.trajectory import evaluate
 
@@ -54,25 +54,7 @@ def test_fixed_duration_and_infeasible_duration(cranab850):
 def _raw_toppra(crane, path_q, gridpoints):
     """Raw toppra on the same path and limits (velocity, acceleration, pump), ConstAccel,
     sampled by toppra itself at 500 Hz."""
-    import toppra
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
-    from planner.methods.topp import PumpFlowConstraint
-    from planner.trajectory import Trajectory
-    seg = np.linalg.norm(np.diff(path_q, axis=0), axis=1)
-    keep = np.concatenate([[True], seg > 1e-12])
-    ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
-    L = crane.limit_arrays()
-    cons = [constraint.JointVelocityConstraint(np.column_stack([L["qd_min"], L["qd_max"]])),
-            constraint.JointAccelerationConstraint(np.column_stack([-L["qdd_max"],
-                                                                    L["qdd_max"]])),
-            PumpFlowConstraint(crane)]
-    jt = algo.TOPPRA(cons, toppra.SplineInterpolator(ss, path_q[keep]),
-                     gridpoints=np.linspace(0, ss[-1], gridpoints + 1),
-                     parametrizer="ParametrizeConstAccel").compute_trajectory(0.0, 0.0)
-    t = np.linspace(0, jt.duration, int(np.ceil(jt.duration * 500)) + 1)
-    return Trajectory(t, jt(t), jt(t, 1), jt(t, 2), joint_names=tuple(crane.names),
-                      limits=("velocity", "acceleration", "pump_flow"))
+    return raw_retime(crane, path_q, gridpoints)
 
 
 def test_verified_where_raw_toppra_breaks_the_acceleration_limit_between_grid_points():

@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "planner"]
 BUILD = CLI + ["library", "build", "s100f", "--tasks", "forwarder-cycle", "--limit", "4",
                "--no-robustness", "--intervals", "20"]
-WAIT_S = 30.0  # generous on a loaded CI machine; the 10 s bound is measured by benchmarks/bench_faults.py (0.97 s)
+# generous on a loaded CI machine; the 10 s bound is measured by bench_faults.py (0.97 s)
+WAIT_S = 30.0
 
 
 # ------------------------------------------------------------------ helpers

@@ -18,8 +18,9 @@ median and the largest ratio over the cases. The machine is shared (2 cores): re
    arrays, calculate, ``at_time`` at the switching times), against
    :func:`planner.methods.ruckig.rest_to_rest` sampled at its switching times
    (``sample_rate=None``) and at its default 200 Hz.                         target ≤ 20×
-3. NLP rows: a marked placeholder (:func:`nlp_rows`) for the lead's plain-Opti baseline vs
-   MoveNLP comparison.
+The NLP against a plain CasADi Opti problem of the same size is measured (build + solve of a
+one-off call) by benchmarks/bench_nlp_cache.py; the NLP's solve-only comparison of issue 15 is
+not done yet.
 
 Writes <out>/peers.json and <out>/peers.md (atomically) and prints the markdown.
 """
@@ -166,15 +167,6 @@ def ruckig_rows(repeat, quick):
     return rows
 
 
-# ---------------------------------------------------------------------------- NLP (lead)
-def nlp_rows(repeat, quick):
-    """PLACEHOLDER for the lead (issue 15, NLP part): a plain ``casadi.Opti`` triple integrator
-    with MoveNLP's limits minus the pump (N = 40, the same start/goal joint configurations)
-    against MoveNLP's build and solve, with and without the pump. Return a list of dicts with
-    at least ``case``, ``project_s``, ``peer_s``, ``ratio``; :func:`report` prints them."""
-    return []
-
-
 # ---------------------------------------------------------------------------- report
 def summary(values):
     v = [x for x in values if np.isfinite(x)]
@@ -183,7 +175,7 @@ def summary(values):
 
 
 def report(res) -> str:
-    m, tp, rk, nl = res["machine"], res["topp"], res["ruckig"], res["nlp"]
+    m, tp, rk = res["machine"], res["topp"], res["ruckig"]
     s = res["summary"]
     lines = [
         "# Peers: the project's methods against their raw libraries (issue 15)", "",
@@ -238,13 +230,7 @@ def report(res) -> str:
                      f"{r['ratio_calc']:.1f}× | {r['raw_user_us']:.1f} | "
                      f"{r['ours_switch2_us']:.1f} | {r['ratio_user']:.2f}× | "
                      f"{r['ours_200hz_us']:.1f} | {r['ratio_200hz_user']:.2f}× |")
-    lines += ["", "## NLP (min-time move: plain Opti baseline vs MoveNLP)", ""]
-    if nl:
-        lines += ["| case | project s | peer s | ratio |", "| --- | --- | --- | --- |"]
-        lines += [f"| {r['case']} | {r['project_s']:.3f} | {r['peer_s']:.3f} | "
-                  f"{r['ratio']:.2f}× |" for r in nl]
-    else:
-        lines.append("Not measured here: placeholder `nlp_rows()` for the NLP part of issue 15.")
+    lines += ["", "The NLP against a plain CasADi Opti problem: benchmarks/results/nlp_cache.md."]
     return "\n".join(lines) + "\n"
 
 
@@ -262,8 +248,7 @@ def main(argv=None):
                    ruckig=metadata.version("ruckig"))
     tp = topp_rows(repeat, a.quick)
     rk = ruckig_rows(repeat, a.quick)
-    nl = nlp_rows(repeat, a.quick)
-    res = dict(machine=machine, repeat=repeat, topp=tp, ruckig=rk, nlp=nl,
+    res = dict(machine=machine, repeat=repeat, topp=tp, ruckig=rk,
                summary=dict(topp_ratio=summary([r["ratio"] for r in tp]),
                             topp_coarse=summary([r["coarse_excess"] for r in tp]),
                             topp_raw_violation=summary([r["raw_violation"] for r in tp]),

@@ -11,8 +11,13 @@ arrive, failures are stored with their status and reason, and a rerun of the sam
 skips the entries already in the file (a killed build resumes where it stopped).
 
 Executors: in-process (``workers=1``), local processes (``workers=N``), or a Dask cluster
-(``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N workers). Workers
-build each solver once per process and reuse it for every move (the method's own cache).
+(``scheduler="tcp://host:8786"``; ``"local:N"`` starts a LocalCluster of N one-thread workers,
+:mod:`planner.library.cluster`). Every worker runs :class:`WorkerSetup` once when it starts
+(the machine model and the method's solvers for every objective, built or loaded from the
+compiled cache) and reuses them for every move; its seconds are in the summary
+(``worker_setup_s``), with ``first_entry_s``, the time from the last worker's set-up to the
+first entry written. Tasks carry only the move and the options; the driver gathers results
+as they complete and is the only writer.
 
 Faults: one build per file (:mod:`planner.library.lock`: a second one is told the first one's
 pid); Ctrl-C or SIGTERM stops the build within seconds, ends the workers, completes the entry
@@ -29,7 +34,7 @@ from pathlib import Path
 
 from planner.io import progress
 from planner.library.lock import BuildLock
-from planner.library.workers import Interrupted, SignalGuard, WorkerPool
+from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
 from planner.methods import PlanRequest, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
@@ -59,6 +64,28 @@ def _request(move: Move, objective: str, N: int, obstacles, duration=None, time_
     return PlanRequest(move.start, move.goal, objective=objective, path="free",
                        duration=duration, obstacles=obstacles,
                        options=dict(intervals=N, time_result=time_result))
+
+
+class WorkerSetup:
+    """What a worker builds once, before its first task: the machine model and the planning
+    method's solvers for every objective of the build (:meth:`Planner.prepare`: loaded from the
+    compiled cache when there is an entry, built otherwise). Picklable: it is shipped to
+    every worker, local or remote."""
+
+    def __init__(self, crane_id: str, method: str, objectives, N: int, obstacles, move):
+        self.crane_id, self.method, self.objectives = crane_id, method, tuple(objectives)
+        self.N, self.obstacles, self.move = N, tuple(obstacles), move
+
+    def __call__(self) -> dict:
+        from planner.model import Crane
+        crane = Crane.from_id(self.crane_id)
+        p = get(self.method)
+        built = 0.0
+        if self.move is not None:
+            for o in self.objectives:
+                built += p.prepare(crane, _request(self.move, o, self.N, self.obstacles,
+                                                   1.0 if o == "energy" else None))
+        return dict(solver_build_s=built)
 
 
 def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
@@ -130,7 +157,7 @@ def check_scheduler(scheduler: str) -> None:
         if not n.isdigit() or int(n) < 1:
             raise BuildError(f"--scheduler {scheduler!r}: local:N needs N >= 1 workers")
     try:
-        import dask.distributed  # noqa: F401  (only checked here; used by _run_dask)
+        import dask.distributed  # noqa: F401  (only checked here; used by library.cluster)
     except ImportError:
         raise BuildError(f"--scheduler {scheduler}: Dask is not installed; install the "
                          "'cluster' extra: pip install 'crane-planner[cluster]'") from None
@@ -177,9 +204,12 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
         raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
     out.parent.mkdir(parents=True, exist_ok=True)  # the lock file lives next to it
     t0 = _time.perf_counter()
-    state = dict(todo=[], counts={}, written=0, skipped=0)
+    state = dict(todo=[], counts={}, written=0, skipped=0, setup=[], first_entry_t=None,
+                 setup_done_t=None)
+    setup = WorkerSetup(crane.spec.id, method, objectives, N, obstacles,
+                        moves[0] if moves else None)
     with SignalGuard() as guard:
-        pool = WorkerPool(workers) if workers > 1 and not scheduler else None
+        pool = WorkerPool(workers, setup) if workers > 1 and not scheduler else None
         try:
             # workers first: a forked worker must not inherit the lock or the open file
             with (pool or nullcontext()), BuildLock(out):
@@ -187,7 +217,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                       else LibraryStore.create(out, crane.spec))
                 with db:
                     _fill(db, crane, suite, moves, objectives, obstacles, N, robustness,
-                          method, scheduler, pool, progress, guard, state)
+                          method, scheduler, pool, progress, guard, state, setup)
                     info = db.info()
         except Interrupted as e:
             e.summary = _summary(out, crane, suite, moves, objectives, state, t0,
@@ -199,14 +229,20 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
 
 def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:
     status = kw.pop("status")
+    first = state.get("first_entry_t")
+    done = state.get("setup_done_t")
     return dict(status=status, library=str(out), crane=crane.spec.id, suite=suite,
                 moves=len(moves), objectives=list(objectives), planned=len(state["todo"]),
                 skipped_existing=state["skipped"], written=state["written"],
-                statuses=state["counts"], seconds=_time.perf_counter() - t0, **kw)
+                statuses=state["counts"], seconds=_time.perf_counter() - t0,
+                workers=state.get("setup", []),
+                worker_setup_s=[w["setup_s"] for w in state.get("setup", [])],
+                setup_done_s=None if done is None else done - t0,
+                first_entry_s=None if first is None or done is None else first - done, **kw)
 
 
 def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method, scheduler,
-          pool, show_progress, guard, state) -> None:
+          pool, show_progress, guard, state, setup=None) -> None:
     """Plan the entries ``db`` lacks and write each as it arrives (``state`` is kept current so
     that an interrupted build can still say what it wrote)."""
     done = set(db.ids())
@@ -223,6 +259,8 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
         traj = r.pop("trajectory", None)
         ev = r.pop("evaluation", None)
         with guard.critical():  # a signal waits until the entry is complete
+            if state["first_entry_t"] is None:
+                state["first_entry_t"] = _time.perf_counter()
             db.add(r["id"], traj, start=r["start"], goal=r["goal"], objective=r["objective"],
                    method=r["method"], status=r["status"], reason=r.get("reason", ""),
                    evaluation=ev, robustness=r.get("robustness", float("nan")),
@@ -234,39 +272,28 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
             bar.update(1)
 
     args = [(crane_id, m, o, N, robustness, obstacles, method) for m, o in todo]
+    if not args:
+        bar.close()
+        return
     try:
         if scheduler:
-            _run_dask(scheduler, args, write)
+            from planner.library.cluster import DaskPool
+            with DaskPool(scheduler, setup) as dpool:
+                state["setup"], state["setup_done_t"] = dpool.setup_info, _time.perf_counter()
+                for r in dpool.imap_unordered(plan_entry, args):
+                    write(r)
         elif pool is None:
+            state["setup"] = [run_setup(setup)]
+            state["setup_done_t"] = _time.perf_counter()
             for a in args:
                 write(plan_entry(*a))
         else:
+            state["setup"], state["setup_done_t"] = pool.setup_info, _time.perf_counter()
             for r in pool.imap_unordered(plan_entry, args):
                 write(r)
     finally:
         bar.close()
 
 
-def _run_dask(scheduler, args, write):
-    from dask.distributed import Client, LocalCluster, as_completed as dask_completed
-    cluster = None
-    if scheduler.startswith("local:"):
-        cluster = LocalCluster(n_workers=int(scheduler.split(":", 1)[1]), threads_per_worker=1,
-                               processes=True, dashboard_address=None)
-        client = Client(cluster)
-    else:
-        client = Client(scheduler)
-    futs = []
-    try:
-        futs = [client.submit(plan_entry, *a, pure=False) for a in args]
-        for f in dask_completed(futs):
-            write(f.result())
-    finally:
-        client.cancel(futs)
-        client.close()
-        if cluster is not None:
-            cluster.close()
-
-
-__all__ = ["plan_entry", "build", "check_method", "check_scheduler", "clear_planner_caches",
+__all__ = ["plan_entry", "WorkerSetup", "build", "check_method", "check_scheduler", "clear_planner_caches",
            "BuildError", "OBJECTIVES"]

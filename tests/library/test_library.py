@@ -64,11 +64,51 @@ def test_failed_moves_are_stored_and_do_not_stop_the_build(tmp_path):
         assert "unreachable" in db.entry_attrs(bad[0]["id"])["reason"]
 
 
-def test_tiny_build_through_a_dask_local_cluster(tmp_path):
+def test_dask_and_process_builds_write_the_same_entries_and_report_worker_setup(tmp_path):
+    """Issue 18: the Dask path (LocalCluster) and the local process pool give identical
+    entries; each worker is set up once (its own pid, seconds in the summary), and the Dask
+    workers run without the allocator setting that slowed every solve."""
     pytest.importorskip("dask.distributed")
-    lib = tmp_path / "lib.h5"
-    s = build("s100f", "forwarder-cycle", lib, limit=2, scheduler="local:2", **KW)
-    assert s["statuses"] == {"ok": 2}
+    s_dask = build("s100f", "forwarder-cycle", tmp_path / "dask.h5", limit=3,
+                   scheduler="local:2", **KW)
+    s_proc = build("s100f", "forwarder-cycle", tmp_path / "proc.h5", limit=3, workers=2, **KW)
+    assert s_dask["statuses"] == s_proc["statuses"] == {"ok": 3}
+    assert_same_entries(tmp_path / "proc.h5", tmp_path / "dask.h5", 3)
+    for s in (s_dask, s_proc):
+        assert len(s["workers"]) == 2 and len({w["pid"] for w in s["workers"]}) == 2
+        assert all(w["error"] == "" and w["setup_s"] > 0 for w in s["workers"])
+        assert s["worker_setup_s"] == [w["setup_s"] for w in s["workers"]]
+        assert s["first_entry_s"] is not None and s["first_entry_s"] >= 0
+        assert os.getpid() not in {w["pid"] for w in s["workers"]}
+    for w in s_dask["workers"]:
+        assert w["malloc_env"] is None            # the LocalCluster left it out
+        if sys.platform.startswith("linux"):
+            assert w["malloc_tuned"] is True
+
+
+def test_in_process_build_reports_its_setup_in_the_driver(tmp_path):
+    s = build("s100f", "forwarder-cycle", tmp_path / "lib.h5", limit=1, **KW)
+    assert [w["pid"] for w in s["workers"]] == [os.getpid()]
+    assert s["workers"][0]["error"] == "" and s["worker_setup_s"][0] > 0
+
+
+def test_a_failing_worker_setup_is_reported_not_raised():
+    from planner.library.workers import run_setup
+
+    def broken():
+        raise RuntimeError("no compiler")
+    info = run_setup(broken)
+    assert info["error"] == "RuntimeError: no compiler" and info["pid"] == os.getpid()
+    assert info["setup_s"] >= 0
+
+
+def test_local_cluster_workers_keep_dasks_thread_settings_but_not_the_malloc_trim():
+    pytest.importorskip("dask.distributed")
+    import dask
+    from planner.library.cluster import worker_environ
+    with dask.config.set({"distributed.nanny.pre-spawn-environ":
+                          {"MALLOC_TRIM_THRESHOLD_": 65536, "OMP_NUM_THREADS": 1}}):
+        assert worker_environ() == {"OMP_NUM_THREADS": 1}
 
 
 @pytest.mark.slow   # SIGKILL mid-build (~25 s); test_faults covers the signals in the default run

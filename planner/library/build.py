@@ -96,7 +96,7 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
     from planner.feedforward import commands
     from planner.model import Crane
     from planner.trajectory import evaluate
-    t0 = _time.perf_counter()
+    t0, c0 = _time.perf_counter(), _time.process_time()
     out = dict(id=f"{move.id}:{objective}", start=move.start, goal=move.goal,
                objective=objective, method=method)
     try:
@@ -135,7 +135,12 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
             rob = float(robust(crane, traj_u)["score_m"])
         return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
                     robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
-                    iterations=res.stats.get("iterations", 0))
+                    iterations=res.stats.get("iterations", 0),
+                    # CPU seconds of the worker process (its own threads included) and the
+                    # seconds spent building solvers (0: the worker's set-up had built them)
+                    cpu_s=_time.process_time() - c0,
+                    build_s=float(rt.stats.get("build_time_s", 0.0)
+                                  + (res.stats.get("build_time_s", 0.0) if res is not rt else 0)))
     except UnsupportedRequest as e:
         return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
     except Exception as e:  # a failed move must never stop the build: record why
@@ -264,7 +269,8 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
             db.add(r["id"], traj, start=r["start"], goal=r["goal"], objective=r["objective"],
                    method=r["method"], status=r["status"], reason=r.get("reason", ""),
                    evaluation=ev, robustness=r.get("robustness", float("nan")),
-                   attrs=dict(solve_s=r.get("solve_s"), suite=suite,
+                   attrs=dict(solve_s=r.get("solve_s"), cpu_s=r.get("cpu_s"),
+                              build_s=r.get("build_s"), suite=suite,
                               energy_winner=r.get("energy_winner"),
                               clearance_m=r.get("clearance_m")))
             state["written"] += 1

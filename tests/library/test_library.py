@@ -80,6 +80,9 @@ def test_dask_and_process_builds_write_the_same_entries_and_report_worker_setup(
         assert s["worker_setup_s"] == [w["setup_s"] for w in s["workers"]]
         assert s["first_entry_s"] is not None and s["first_entry_s"] >= 0
         assert os.getpid() not in {w["pid"] for w in s["workers"]}
+    for f in ("dask.h5", "proc.h5"):            # the set-up's solvers served every move
+        with LibraryStore.open(tmp_path / f, "r") as db:
+            assert [db.entry_attrs(e)["build_s"] for e in db.ids()] == [0.0] * 3
     for w in s_dask["workers"]:
         assert w["malloc_env"] is None            # the LocalCluster left it out
         if sys.platform.startswith("linux"):

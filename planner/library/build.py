@@ -214,16 +214,23 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     setup = WorkerSetup(crane.spec.id, method, objectives, N, obstacles,
                         moves[0] if moves else None)
     with SignalGuard() as guard:
-        pool = WorkerPool(workers, setup) if workers > 1 and not scheduler else None
+        if scheduler:   # connected (and its workers set up) before any file is touched
+            from planner.library.cluster import DaskPool
+            pool = DaskPool(scheduler, setup)
+        else:
+            pool = WorkerPool(workers, setup) if workers > 1 else None
         try:
             # workers first: a forked worker must not inherit the lock or the open file
-            with (pool or nullcontext()), BuildLock(out):
-                db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
-                      else LibraryStore.create(out, crane.spec))
-                with db:
-                    _fill(db, crane, suite, moves, objectives, obstacles, N, robustness,
-                          method, scheduler, pool, progress, guard, state, setup)
-                    info = db.info()
+            with (pool or nullcontext()):
+                if pool is not None:
+                    state["setup"], state["setup_done_t"] = pool.setup_info, _time.perf_counter()
+                with BuildLock(out):
+                    db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
+                          else LibraryStore.create(out, crane.spec))
+                    with db:
+                        _fill(db, crane, suite, moves, objectives, obstacles, N, robustness,
+                              method, pool, progress, guard, state, setup)
+                        info = db.info()
         except Interrupted as e:
             e.summary = _summary(out, crane, suite, moves, objectives, state, t0,
                                  status="interrupted", signal=signal.Signals(e.signum).name)
@@ -246,8 +253,8 @@ def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:
                 first_entry_s=None if first is None or done is None else first - done, **kw)
 
 
-def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method, scheduler,
-          pool, show_progress, guard, state, setup=None) -> None:
+def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method, pool,
+          show_progress, guard, state, setup=None) -> None:
     """Plan the entries ``db`` lacks and write each as it arrives (``state`` is kept current so
     that an interrupted build can still say what it wrote)."""
     done = set(db.ids())
@@ -282,19 +289,12 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
         bar.close()
         return
     try:
-        if scheduler:
-            from planner.library.cluster import DaskPool
-            with DaskPool(scheduler, setup) as dpool:
-                state["setup"], state["setup_done_t"] = dpool.setup_info, _time.perf_counter()
-                for r in dpool.imap_unordered(plan_entry, args):
-                    write(r)
-        elif pool is None:
+        if pool is None:   # in this process: its set-up first, timed like a worker's
             state["setup"] = [run_setup(setup)]
             state["setup_done_t"] = _time.perf_counter()
             for a in args:
                 write(plan_entry(*a))
         else:
-            state["setup"], state["setup_done_t"] = pool.setup_info, _time.perf_counter()
             for r in pool.imap_unordered(plan_entry, args):
                 write(r)
     finally:

@@ -161,3 +161,13 @@ def test_replay_with_gain_error_and_mismatch_stays_within_the_stored_envelope(tm
                              Plant(q0_offset=None, flow_gain_scale=1.02))
                 err = np.linalg.norm(crane.fk(sim.q) - crane.fk(tr.sample(sim.t)[0]), axis=1)
                 assert 0 < err.max() <= row["robustness"] * (1 + 1e-6), (row["id"], joint)
+
+
+def test_an_unreachable_scheduler_fails_before_any_file_is_created(tmp_path):
+    pytest.importorskip("dask.distributed")
+    import dask
+    lib = tmp_path / "lib.h5"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(OSError, match="127.0.0.1:9"):
+            build("s100f", "forwarder-cycle", lib, limit=1, scheduler="tcp://127.0.0.1:9", **KW)
+    assert list(tmp_path.iterdir()) == []          # neither the library nor its lock file

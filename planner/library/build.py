@@ -128,7 +128,7 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
         # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
         # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
         traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
-        ev = evaluate(crane, traj_u)
+        ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
         rob = float("nan")
         if robustness:
             from planner.simulation.replay import robustness as robust

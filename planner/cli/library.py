@@ -49,6 +49,16 @@ def cmd_library_build(args):
         print(f"{summary['library']}: planned {summary['planned']} entries "
               f"({summary['statuses'] or 'none'}), {summary['skipped_existing']} already there, "
               f"{summary['seconds']:.1f} s")
+        ws = summary.get("workers") or []
+        if ws and summary.get("planned"):
+            setup = "/".join(f"{w['setup_s']:.1f}" for w in ws)
+            first = summary.get("first_entry_s")
+            print(f"  {len(ws)} worker(s) set up in {setup} s"
+                  + (f"; first entry {first:.1f} s later" if first is not None else ""))
+            for w in ws:
+                if w.get("error"):
+                    print(f"  warning: worker {w.get('worker', w['pid'])} set-up failed "
+                          f"({w['error']}); its tasks build what they need", file=sys.stderr)
     return 0
 
 

@@ -107,7 +107,14 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--machines", default=",".join(MACHINES))
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--from-json", action="store_true",
+                    help="rewrite the markdown from the results JSON (no runs)")
     args = ap.parse_args()
+    if args.from_json:
+        from planner.io import atomic_write_text
+        rep = json.loads((Path(args.out) / "discrepancy_exudyn.json").read_text())
+        atomic_write_text(Path(args.out) / "discrepancy_exudyn.md", "\n".join(markdown(rep)))
+        return
     cases = [dict(machine=m, seed=900 + s, effect=e, duration=args.duration)
              for m in args.machines.split(",") for s in range(args.seeds)
              for e in (None,) + HIDDEN]
@@ -173,6 +180,24 @@ def markdown(rep) -> list:
         ne = sum(r.get("exudyn_verdict", r.get("verdict")) == v for r in cln)
         nf = sum(r.get("fast_verdict") == v for r in cln)
         L.append(f"| clean recording: {v} | {ne} of {len(cln)} | {nf} of {len(cln)} |")
+    n_unexp = sum(r.get("exudyn_verdict") == "unexplained" for r in rows)
+    per = sorted({round(r["exudyn_signature"][0]["frequency_hz"], 2) for r in rows
+                  if r.get("exudyn_signature") and r["exudyn_signature"][0].get("frequency_hz")})
+    L += ["", "## Reading", "",
+          f"With the dynamic plant as the truth the fast model leaves a residual above noise on "
+          f"every recording: {n_unexp} of {len(rows)} verdicts are `unexplained`, none names a "
+          f"catalogue effect that is not there and none says `explained`. The signatures are "
+          f"the plant's own dynamics, which no catalogue effect of the quasi-static model "
+          f"represents: a periodic residual on the slew pressures at "
+          f"{', '.join(f'{f:g}' for f in per) or '–'} Hz on s100f and cranab850 (their slews' "
+          f"lowest hydraulic modes, 0.71 and 0.75 Hz in `exudyn_validation.md`: oil "
+          f"compliance against the slewing inertia), steps and drifts on joints where the "
+          f"open-loop replay settles elsewhere. The price is that a hidden catalogue effect on "
+          f"top of that gap is not named either ({n_ok_e} of {len(hid)}, against {n_ok_f} of "
+          f"{len(hid)} when the fast plant is the truth): the workflow, as issue 14 asks, says "
+          f"what it cannot explain rather than naming something else, and the gap it reports "
+          f"is the one to close first (a dynamic diagnosing model, or oil compliance in the "
+          f"catalogue).", ""]
     L += ["", "## Cases", "", "| machine | seed | hidden | truth = Exudyn | truth = fast plant "
           "| Exudyn s |", "| --- | ---: | --- | --- | --- | ---: |"]
     for r in rows:

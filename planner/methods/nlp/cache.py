@@ -52,7 +52,9 @@ MODES = ("off", "use", "build")
 ENV_MODE = "CRANE_PLANNER_NLP_CACHE"
 FORMAT = 1
 # the modules whose source writes the NLP's expressions: a change to any invalidates every key
-_SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "model/__init__.py",
+_SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "methods/nlp/limits.py",
+            "methods/nlp/tip.py",
+            "model/__init__.py",
             "model/kinematics.py", "model/actuators.py", "model/dynamics.py",
             "model/hydraulics.py", "model/spec.py", "geometry/obstacles.py")
 

@@ -30,13 +30,14 @@ def stretch(traj: Trajectory, T: float) -> Trajectory:
                       limits=traj.limits, meta=dict(traj.meta, stretched_by=k))
 
 
-def ruckig_guess(crane, start, goal, lb) -> tuple:
+def ruckig_guess(crane, start, goal, lb, q_start=None, q_goal=None) -> tuple:
     """(the guess: the Ruckig rest-to-rest move slowed to 1.05 × the combined bound when
     faster, the Ruckig move itself) between tips ``start`` and ``goal`` at the telescopes of
-    the lower bound ``lb`` (:func:`~planner.bounds.lower_bound`). ValueError when an end is
-    unreachable."""
-    tr = rest_to_rest(crane, crane.ik(start, lb.tele_start),
-                      crane.ik(goal, lb.tele_goal)).trajectory
+    the lower bound ``lb`` (:func:`~planner.bounds.lower_bound`), or between the joint
+    configurations ``q_start``/``q_goal`` when given. ValueError when an end is unreachable."""
+    q0 = crane.ik(start, lb.tele_start) if q_start is None else np.asarray(q_start, float)
+    q1 = crane.ik(goal, lb.tele_goal) if q_goal is None else np.asarray(q_goal, float)
+    tr = rest_to_rest(crane, q0, q1).trajectory
     slow = stretch(tr, 1.05 * lb.combined_s) if 1.05 * lb.combined_s > tr.duration else tr
     return slow, tr
 

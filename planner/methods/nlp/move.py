@@ -3,17 +3,14 @@
 Transcription: N intervals of equal length h = T/N; every joint is a triple integrator with
 piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so acceleration and jerk
 limits hold everywhere by construction; velocity, position, the pump flow and (path mode) the
-tip path are imposed at the nodes and the interval midpoints. Velocity is quadratic on an
-interval, so its extremum lies at most h/4 from a check point and exceeds it by at most
-j_max·h²/32: the checked velocity is tightened by exactly that, and the limit holds everywhere.
-Ends: tip positions (the redundancy is free at both ends) at rest (q̇ = q̈ = 0).
+tip path are imposed at the nodes and the interval midpoints, the velocity with each
+interval's own jerk bound and the pump as one smooth conservative inequality per check point
+(minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits`; the 0.5 %
+default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
+positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
 
-Pump flow without abs/max (anchors.md): per check point and actuator a slack s ≥ A_a·ẋ,
-s ≥ −A_b·ẋ (single-acting: s ≥ A_a·ẋ), s ≥ 0, and Σ s ≤ (1 − pump_margin)·Q_max; the flow is
-nonlinear in q between check points, the 0.5 % default margin covers that (measured overshoot
-≤ 0.15 % at N = 30).
-
-Energy (load sensing) without max/abs: flows split by direction (s⁺ piston side extending, s⁻
+Energy (load sensing) without max/abs: flow slacks per check point and actuator split by
+direction (s⁺ piston side extending, s⁻
 annulus retracting, as fractions of Q_max); per node a pump-pressure variable p [MPa] ≥ standby
 with p ≥ margin + p_meter-in for every function marked active at that node — the activity mask
 is an NLP parameter (inactive ones relaxed by a big M, so all constraints are smooth), taken
@@ -46,6 +43,8 @@ from planner.bounds import lower_bound
 from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
+from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
+from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.model.flows import actuator_table
 from planner.model.hydraulics import ACTIVE_FLOW
@@ -56,11 +55,9 @@ __all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
 IPOPT_DEFAULTS = {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
                   "acceptable_tol": 1e-5, "mu_strategy": "adaptive", "max_wall_time": 60.0}
 BIG_T = 1e3  # [s] upper bound of the duration
-
-
-def _step(q, v, a, j, h):
-    """The exact triple-integrator step: (q, q̇, q̈) after time h under constant jerk j."""
-    return (q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j, v + h * a + h ** 2 / 2 * j, a + h * j)
+# the lower bound the default guess is taken at: a coarser telescope search than the reported
+# bound's (≈ 2.5× cheaper; only the guess's telescopes and slowing depend on it)
+GUESS_BOUND = dict(n_grid=41, refine=2, starts=2)
 
 
 class MoveNLP:
@@ -90,7 +87,7 @@ class MoveNLP:
         self.obstacles = tuple(obstacles)
         n = crane.n
         self.L = crane.limit_arrays()
-        acts = actuator_table(crane.spec)   # the model's hydraulic constants (planner.model.flows)
+        acts = self._acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
         self._Aa, self._Ab, self._dbl = acts.area_a, acts.area_b, ~acts.single
         self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
         ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
@@ -132,13 +129,14 @@ class MoveNLP:
         # ---- check points: nodes and interval midpoints
         pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
         mids = [self._at(X, U, k, h / 2) for k in range(N)]
-        self._add_joint_limits(pts, mids, jmax * h ** 2 / 32)
+        self._add_joint_limits(pts, mids, U, h, jmax)
         if self.obstacles:
-            self._add_obstacles(pts + mids + [self._at(X, U, k, hh)
-                                              for k in range(N) for hh in (h / 4, 3 * h / 4)])
-        TH = self._add_curve(X) if path == "curve" else None
+            add_obstacles(lay, crane.f_fk, self.obstacles,
+                          pts + mids + [self._at(X, U, k, hh)
+                                        for k in range(N) for hh in (h / 4, 3 * h / 4)])
+        TH = add_curve(lay, crane.f_fk, self.curve, X, n, N) if path == "curve" else None
         if path == "line":
-            self._add_line(pts, par["start"], par["goal"])
+            add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
         energy = self._add_pump_and_energy(pts, mids, h, par["payload"], par["activity"],
                                            pump_margin)
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
@@ -152,7 +150,8 @@ class MoveNLP:
         else:
             f = T + par["lam"] * energy + smooth
         if TH is not None:
-            lay.add_var("TH", TH, *self._th_bounds())  # last block: θ per node
+            u0, u1 = self.curve.u_range
+            lay.add_var("TH", TH, min(u0, u1), max(u0, u1))  # last block: θ per node
         wv = lay.w
         self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
         opts = {"expand": True, "print_time": False, "ipopt": ipopt}
@@ -171,61 +170,16 @@ class MoveNLP:
     def _at(self, X, U, k, hh):
         """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
         n = self.crane.n
-        return _step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
+        return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
 
-    def _add_joint_limits(self, pts, mids, gap):
-        """Positions at the midpoints (the nodes are bounded as variables); velocities at every
-        check point, tightened by ``gap`` = j_max·h²/32, the largest overshoot between them."""
-        L, lay = self.L, self.layout
+    def _add_joint_limits(self, pts, mids, U, h, jmax):
+        """Positions at the midpoints (the nodes are bounded as variables); velocities at each
+        interval's check points with its own overshoot bound
+        (:func:`~planner.methods.nlp.limits.add_velocity_limits`)."""
         for q, v, a in mids:
-            lay.add_con("position", q, L["q_min"], L["q_max"])
-        for q, v, a in pts + mids:
-            lay.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
-            lay.add_con("velocity", v - gap, L["qd_min"], ca.inf)
-
-    def _add_obstacles(self, checks):
-        """Clearance from every obstacle at the nodes, midpoints and quarter points (q is a
-        cubic per interval: the tip moves a quarter interval between checks)."""
-        for q, _, _ in checks:
-            xyz, cyl = self.crane.f_fk(q)
-            for ob in self.obstacles:
-                for expr, lo in ob.constraints(xyz, cyl):
-                    self.layout.add_con("obstacle", expr, lo, ca.inf)
-
-    def _th_bounds(self):
-        u0, u1 = self.curve.u_range
-        return min(u0, u1), max(u0, u1)
-
-    def _add_curve(self, X):
-        """One path parameter per node (returned; added as the last variable block),
-        monotone, fixed at the ends; the tip on p(θ_k) at the nodes: per interval n jerks + 1 θ
-        − 3 equations leave n − 2 free directions."""
-        n, N, lay = self.crane.n, self.N, self.layout
-        u0, u1 = self.curve.u_range
-        TH = ca.SX.sym("TH", N + 1)
-        for k in range(N + 1):
-            lay.add_con("curve", self.crane.f_fk(X[:n, k])[0] - self.curve.p_sym(TH[k]), 0.0, 0.0)
-        lay.add_con("curve_ends", TH[0] - u0, 0.0, 0.0)
-        lay.add_con("curve_ends", TH[N] - u1, 0.0, 0.0)
-        sgn = 1.0 if u1 >= u0 else -1.0
-        lay.add_con("curve_monotone", sgn * (TH[1:] - TH[:-1]), 0.0, ca.inf)
-        return TH
-
-    def _add_line(self, pts, pa, pb):
-        """The tip on the straight line pa → pb at the interior nodes only: per interval the n
-        jerks leave n − 2 free directions (progress and redundancy); also imposing the
-        midpoints would fix the motion completely."""
-        d = pb - pa
-        dn = d / ca.norm_2(d)
-        # two unit vectors perpendicular to the line (robust for any direction)
-        helper = ca.if_else(ca.fabs(dn[2]) < 0.9, ca.DM([0, 0, 1]), ca.DM([1, 0, 0]))
-        e1 = ca.cross(dn, helper)
-        e1 = e1 / ca.norm_2(e1)
-        e2 = ca.cross(dn, e1)
-        for q, _, _ in pts[1:-1]:
-            r = self.crane.f_fk(q)[0] - pa
-            self.layout.add_con("line", ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0)
-            self.layout.add_con("line_progress", ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
+            self.layout.add_con("position", q, self.L["q_min"], self.L["q_max"])
+        add_velocity_limits(self.layout, self.L, jmax, pts, mids, U, h,
+                            uniform=self.path == "curve")
 
     def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
         """Pump flow slacks and limit at every check point; for the energy objectives the
@@ -237,6 +191,15 @@ class MoveNLP:
         Qm = spec.pump.max_flow
         need_energy = self.objective in ("energy", "blend")
         if not (self.pump or need_energy):
+            return 0
+        if not need_energy:   # minimum time: one smooth inequality per check point
+            # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
+            # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
+            # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
+            J = [crane.f_stroke(q)[1] for q, _, _ in pts]
+            Jm = [(J[k] + J[k + 1]) / 2 for k in range(N)]
+            for Jk, (_, v, _) in zip(J + Jm, pts + mids):
+                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin)
             return 0
         checks = pts + mids if self.pump else pts
         powers = []
@@ -305,31 +268,41 @@ class MoveNLP:
             lay.pack(w0, "TH", th)
         return w0
 
-    def default_guess(self, start, goal):
-        """Free path: Ruckig rest-to-rest between the ends at the lower bound's best telescope
-        values, slowed to the pump bound when the pump limits. Line: a coarse DP along the line
-        retimed by TOPP-RA (velocity, acceleration, pump)."""
+    def default_guess(self, start, goal, q_ends=(None, None)):
+        """Free path: Ruckig rest-to-rest between the ends (``q_ends``: joint configurations,
+        else the tips at the best telescope values of a coarse lower bound,
+        :data:`GUESS_BOUND`), slowed to the pump bound when the pump limits. Line: a coarse DP
+        along the line retimed by TOPP-RA (velocity, acceleration, pump)."""
         crane = self.crane
-        lb = lower_bound(crane, start, goal)
         if self.path in ("line", "curve"):
+            lb = lower_bound(crane, start, goal, **GUESS_BOUND)
             geo = self.curve if self.path == "curve" else Line(start, goal)
             return self.guess_from(path_guess(crane, geo)), lb
-        return self._plain_guess(start, goal, lb), lb
+        lb = self._bound(start, goal, q_ends)
+        return self._plain_guess(start, goal, lb, q_ends), lb
 
-    def _plain_guess(self, start, goal, lb):
+    def _bound(self, start, goal, q_ends=(None, None)):
+        """The coarse lower bound the guess is taken at (fixed joint ends when given)."""
+        qs, qg = q_ends
+        return lower_bound(self.crane, None if qs is not None else start,
+                           None if qg is not None else goal, q_start=qs, q_goal=qg,
+                           **GUESS_BOUND)
+
+    def _plain_guess(self, start, goal, lb, q_ends=(None, None)):
         """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
-        return self.guess_from(self._plain_traj(start, goal, lb)[0])
+        return self.guess_from(self._plain_traj(start, goal, lb, q_ends)[0])
 
-    def _plain_traj(self, start, goal, lb):
+    def _plain_traj(self, start, goal, lb, q_ends=(None, None)):
         """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
         Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
+        qk = tuple(None if q is None else tuple(map(float, q)) for q in q_ends)
         key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
-               lb.combined_s)
+               lb.combined_s, qk)
         if self._plain[0] != key:
-            self._plain = (key, ruckig_guess(self.crane, start, goal, lb))
+            self._plain = (key, ruckig_guess(self.crane, start, goal, lb, *q_ends))
         return self._plain[1]
 
-    def _prefer_exact(self, res, start, goal, lb, t0):
+    def _prefer_exact(self, res, start, goal, lb, t0, q_ends=(None, None)):
         """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes
         from, when it is faster than the NLP's solution and itself feasible — every limit of
         the NLP (the pump too) on a 1 kHz resampling, clear of the obstacles. N equal intervals
@@ -338,7 +311,7 @@ class MoveNLP:
         its switch times only: between them every joint is a cubic, which the quintic
         interpolation reproduces exactly."""
         try:
-            exact = self._plain_traj(start, goal, lb)[1]
+            exact = self._plain_traj(start, goal, lb, q_ends)[1]
         except ValueError:
             return res
         if res.ok and exact.duration >= res.duration_s * (1 - 1e-6):
@@ -355,7 +328,8 @@ class MoveNLP:
         if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
             return res
         return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
-                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig"),
+                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig", nlp_duration_s=(
+                              res.duration_s if res.ok else float("nan"))),
                           solve_time_s=_time.perf_counter() - t0)
 
     def _activity(self, w) -> np.ndarray:
@@ -372,11 +346,20 @@ class MoveNLP:
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
-              payload: float | None = None, w0=None):
-        """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
-        [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`). Returns a
-        :class:`~planner.methods.base.PlanResult`."""
+              payload: float | None = None, w0=None, q_start=None, q_goal=None):
+        """Solve for tips ``start``/``goal`` (r, z, slew), or joint configurations
+        ``q_start``/``q_goal`` [rad, m] (free path: the end joints fixed by their bounds, the
+        tips follow). ``T_max`` [s] (energy), ``lam`` [s/J] (blend), ``w0`` a primal guess
+        (default: :meth:`default_guess`). Returns a :class:`~planner.methods.base.PlanResult`."""
         t0 = _time.perf_counter()
+        q_ends = (q_start, q_goal)
+        if q_start is not None or q_goal is not None:
+            if self.path != "free" or self.obstacles:
+                raise ValueError("joint ends (q_start/q_goal) need path 'free' without obstacles")
+            q_ends = tuple(None if q is None else self._joint_end(q, name)
+                           for q, name in ((q_start, "q_start"), (q_goal, "q_goal")))
+            start = self.crane.tip(q_ends[0]) if q_ends[0] is not None else start
+            goal = self.crane.tip(q_ends[1]) if q_ends[1] is not None else goal
         if self.curve is not None and start is None:  # curve mode: the curve's ends
             ends = np.asarray(self.curve.p(np.array(self.curve.u_range)))
             start, goal = xyz_to_tip(ends[0]), xyz_to_tip(ends[1])
@@ -387,13 +370,22 @@ class MoveNLP:
         if w0 is None and self.obstacles and self.path == "free":
             return self._solve_among_obstacles(start, goal, T_max, lam, payload, t0)
         try:
-            guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
+            guess, lb = self.default_guess(start, goal, q_ends) if w0 is None else (w0, None)
         except ValueError as e:  # unreachable end
             return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
-        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0)
+        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
-            res = self._prefer_exact(res, start, goal, lb, t0)
+            res = self._prefer_exact(res, start, goal, lb, t0, q_ends)
         return res
+
+    def _joint_end(self, q, name):
+        """A joint end as an array inside the position limits, else ValueError naming it."""
+        q = np.asarray(q, float).ravel()
+        L = self.L
+        if q.shape != (self.crane.n,) or np.any(q < L["q_min"]) or np.any(q > L["q_max"]):
+            raise ValueError(f"{name} = {q.tolist()}: {self.crane.n} joint values within "
+                             f"[{L['q_min'].tolist()}, {L['q_max'].tolist()}] expected")
+        return q
 
     def _solve_among_obstacles(self, start, goal, T_max, lam, payload, t0):
         """Obstacle problems are multimodal: try the plain and (when the move meets an
@@ -448,7 +440,7 @@ class MoveNLP:
         lay.pack(g, "T", T_max)
         return g
 
-    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0):
+    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0, q_ends=(None, None)):
         crane, lay = self.crane, self.layout
         if T_max is not None and self.objective == "energy":
             guess = self._slowed_to(guess, T_max)  # start from the guess slowed to the budget
@@ -457,11 +449,17 @@ class MoveNLP:
                     goal=tip_to_xyz(np.asarray(goal, float)),
                     T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
         mask = self._activity(guess)
+        lbw, ubw = self.lbw.copy(), self.ubw.copy()
+        X0 = self.layout.slice("X").start
+        for k, q in zip((0, self.N), q_ends):   # joint ends: fixed by their bounds
+            if q is not None:
+                i = X0 + 3 * crane.n * k
+                lbw[i:i + crane.n] = ubw[i:i + crane.n] = q
         iters = 0
         for _round in range(4 if self.objective != "time" else 1):
             P = lay.param_vector(**pars, activity=mask)
             try:
-                sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
+                sol = self.solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg,
                                   ubg=self.ubg)
             except RuntimeError as e:
                 return nlp_result("error", f"IPOPT failed: {e}",
@@ -485,7 +483,7 @@ class MoveNLP:
         t = np.linspace(0.0, T, N + 1)
         h = T / N
         for k in range(N):  # re-integrate exactly: node states consistent with the jerks
-            X[:n, k + 1], X[n:2 * n, k + 1], X[2 * n:, k + 1] = _step(
+            X[:n, k + 1], X[n:2 * n, k + 1], X[2 * n:, k + 1] = step(
                 X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], h)
         traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
                           method="nlp", objective=self.objective,

@@ -5,7 +5,8 @@ piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so accel
 limits hold everywhere by construction; velocity, position, the pump flow and (path mode) the
 tip path are imposed at the nodes and the interval midpoints, the velocity with each
 interval's own jerk bound and the pump as one smooth conservative inequality per check point
-(minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits`; the 0.5 %
+(minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits` (the curve mode,
+fragile under IPOPT, keeps the earlier uniform velocity tightening and the flow slacks); the 0.5 %
 default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
 positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
 
@@ -192,7 +193,7 @@ class MoveNLP:
         need_energy = self.objective in ("energy", "blend")
         if not (self.pump or need_energy):
             return 0
-        if not need_energy:   # minimum time: one smooth inequality per check point
+        if not need_energy and self.path != "curve":   # one smooth inequality per check point
             # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
             # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
             # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)

@@ -9,7 +9,8 @@ Every timed call is a fresh process (as a user running one command pays it):
   ``solve_time_s`` from its JSON: once with an empty cache and ``--compile`` (first call: build,
   generate C, compile, store), then ``rounds`` times loading the stored solver;
 * ``opti`` — a plain Opti triple integrator (jerk-limited, no pump, no model: the shared
-  baseline of benchmarks/opti_baseline.py) with the umea-lab limits, N intervals, between the joint configurations of the same move, minimum time: build
+  baseline of benchmarks/opti_baseline.py) with the umea-lab limits, N intervals, between the
+  joint configurations of the same move, minimum time: build
   and solve timed inside the process; the two commands interleaved, medians compared.
 Also: byte-identical trajectory CSV with the cache off and on, and two processes building the
 same entry at once on an empty cache. Writes benchmarks/results/nlp_cache.md and .json.

@@ -307,9 +307,9 @@ def nlp_report(nl) -> list:
              "--- | --- |"]
     for r in nl["timing"]:
         target = "" if r["baseline_pump"] else ("≤ 2×" if r["pump"] else "≤ 1.2×")
+        base = "pump at nodes" if r["baseline_pump"] else "no pump"
         lines.append(
-            f"| {'on' if r['pump'] else 'off'} | {'pump at nodes' if r['baseline_pump'] else 'no pump'}"
-            f" | {r['nlp_ms']:.0f} | {r['opti_ms']:.0f} | {r['ratio']:.2f}× | {target} | "
+            f"| {'on' if r['pump'] else 'off'} | {base} | {r['nlp_ms']:.0f} | {r['opti_ms']:.0f} | {r['ratio']:.2f}× | {target} | "
             f"{r['nlp_s']:.4f} ({r['nlp_own_s']:.4f}) | {r['winner']} | {r['nlp_iterations']} | "
             f"{r['nlp_variables']}/{r['nlp_constraints']} | {r['opti_s']:.4f} | "
             f"{r['opti_iterations']} | {r['opti_variables']}/{r['opti_constraints']} | "

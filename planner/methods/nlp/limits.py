@@ -12,8 +12,9 @@ second derivative j: between two check points h/2 apart it exceeds the larger of
 |j|·(h/2)²/8 = |j|·h²/32. Each interval's three check points (its ends and its midpoint) are
 tightened by that interval's own bound (a node by the larger of its two intervals'), with |j|
 over-estimated smoothly by √(j² + ε²) (ε = 10⁻³·j_max): the limit holds everywhere, and a
-cruise at the limit (j = 0) is checked at the limit itself. The earlier uniform tightening j_max·h²/32 held a long move's cruise that far below
-the limit (up to +9.7 % duration against the Ruckig optimum on joint-space ends).
+cruise at the limit (j = 0) is checked at the limit itself. The earlier uniform tightening
+j_max·h²/32 held a long move's cruise that far below the limit (up to +9.7 % duration against
+the Ruckig optimum on joint-space ends).
 
 Pump. An actuator draws A_a·ẋ extending and A_b·|ẋ| retracting (a single-acting one nothing
 retracting): c₁·ẋ + c₂·|ẋ| with c₁ = (A_a − A_b)/2, c₂ = (A_a + A_b)/2 (single-acting: A_b = 0).
@@ -21,8 +22,8 @@ retracting): c₁·ẋ + c₂·|ẋ| with c₁ = (A_a − A_b)/2, c₂ = (A_a + 
 over-estimated by at most :data:`PUMP_SMOOTH` (1 %) of Q_max, only with every actuator at rest
 (ε²/2|ẋ| for a moving one): one inequality per check point, never below the exact draw. A smaller
 ε (0.1 %) curved the rows so sharply near ẋ = 0 that IPOPT hit max_iter on a umea-lab move
-(0.3 % took 211 iterations, 1 % 49). The slack form it replaces (per check point and actuator s ≥ A_a·ẋ,
-s ≥ −A_b·ẋ, Σ s ≤ Q_max) doubled the variables (1301 vs 653 at N = 40 on umea-lab).
+(0.3 % took 211 iterations, 1 % 49). The slack form it replaces (per check point and actuator
+s ≥ A_a·ẋ, s ≥ −A_b·ẋ, Σ s ≤ Q_max) doubled the variables (1301 vs 653 at N = 40 on umea-lab).
 """
 from __future__ import annotations
 

@@ -329,8 +329,9 @@ class MoveNLP:
         if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
             return res
         return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
-                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig", nlp_duration_s=(
-                              res.duration_s if res.ok else float("nan"))),
+                          ipopt_status=res.ipopt_status,
+                          stats=dict(winner="ruckig",
+                                     nlp_duration_s=res.duration_s if res.ok else float("nan")),
                           solve_time_s=_time.perf_counter() - t0)
 
     def _activity(self, w) -> np.ndarray:

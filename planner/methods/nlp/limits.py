@@ -10,7 +10,7 @@
 Velocity. In an interval of length h under constant jerk j the velocity is a quadratic with
 second derivative j: between two check points h/2 apart it exceeds the larger of them by at most
 |j|·(h/2)²/8 = |j|·h²/32. Each interval's three check points (its ends and its midpoint) are
-tightened by that interval's own bound (a node by the larger of its two intervals'), with |j|
+tightened by that interval's own bound, with |j|
 over-estimated smoothly by √(j² + ε²) (ε = 10⁻³·j_max): the limit holds everywhere, and a
 cruise at the limit (j = 0) is checked at the limit itself. The earlier uniform tightening
 j_max·h²/32 held a long move's cruise that far below the limit (up to +9.7 % duration against
@@ -41,30 +41,28 @@ def step(q, v, a, j, h):
     return (q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j, v + h * a + h ** 2 / 2 * j, a + h * j)
 
 
-def add_velocity_limits(layout, L, jmax, pts, mids, U, h, uniform: bool = False) -> None:
-    """Velocity rows ("velocity") into ``layout``: every interval's midpoint ``mids[k]`` and
-    every node ``pts[k]`` (each a (q, q̇, q̈) triple) within the limits of ``L`` (qd_min,
-    qd_max) tightened by √(j² + ε²)·h²/32, ε = JERK_SMOOTH·``jmax``, j² the interval's squared
-    jerk ``U[:, k]``² (a node: the sum over the intervals it joins, which bounds the larger);
-    ``uniform``: every node and midpoint tightened by ``jmax``·h²/32 instead (the earlier
-    form, kept for the curve mode: its jerk-coupled rows left IPOPT at max_iter on seed 003's
-    circle, where the uniform rows solve in 365 iterations)."""
+def add_velocity_limits(layout, L, jmax, pts, mids, ends, U, h, uniform: bool = False) -> None:
+    """Velocity rows ("velocity") into ``layout``: every interval k's start ``pts[k]``,
+    midpoint ``mids[k]`` and end ``ends[k]`` (each a (q, q̇, q̈) triple; the end written in the
+    interval's own variables) within the limits of ``L`` (qd_min, qd_max) tightened by
+    √(U_k² + ε²)·h_k²/32, ε = JERK_SMOOTH·``jmax`` — every row inside stage k. ``h`` the
+    interval lengths (N + 1 equal expressions: the duration's copies). ``uniform``: every node
+    and midpoint tightened by ``jmax``·h²/32 instead (the earlier form, kept for the curve
+    mode: its jerk-coupled rows left IPOPT at max_iter on seed 003's circle, where the uniform
+    rows solve in 365 iterations)."""
+    N = len(mids)
     if uniform:
-        gap = np.asarray(jmax, float) * h ** 2 / 32
-        for _, v, _ in pts + mids:
+        for k, (_, v, _) in enumerate(pts + mids):
+            gap = np.asarray(jmax, float) * h[k % (N + 1)] ** 2 / 32
             layout.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
             layout.add_con("velocity", v - gap, L["qd_min"], ca.inf)
         return
     eps2 = (JERK_SMOOTH * np.asarray(jmax, float)) ** 2
-    N = len(mids)
-    checks = [(mids[k][1], U[:, k] ** 2) for k in range(N)]
-    # a node serves both intervals it joins: √(j_{k−1}² + j_k² + ε²) ≥ the larger |j|
-    checks += [(pts[k][1], sum(U[:, i] ** 2 for i in (k - 1, k) if 0 <= i < N))
-               for k in range(N + 1)]
-    for v, j2 in checks:
-        gap = ca.sqrt(j2 + eps2) * h ** 2 / 32
-        layout.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
-        layout.add_con("velocity", v - gap, L["qd_min"], ca.inf)
+    for k in range(N):
+        gap = ca.sqrt(U[:, k] ** 2 + eps2) * h[k] ** 2 / 32
+        for _, v, _ in (pts[k], mids[k], ends[k]):
+            layout.add_con("velocity", v + gap, -ca.inf, L["qd_max"], stage=(k, 1))
+            layout.add_con("velocity", v - gap, L["qd_min"], ca.inf, stage=(k, 1))
 
 
 def pump_draw(dxdq, v, acts, max_flow: float):

@@ -45,6 +45,7 @@ from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
+from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
 from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.model.flows import actuator_table
@@ -73,7 +74,7 @@ class MoveNLP:
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
                  obstacles: tuple = (), ipopt_options: dict | None = None,
-                 cache: str | None = None):
+                 cache: str | None = None, solver: str = "ipopt"):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
         self.curve = None
@@ -93,10 +94,17 @@ class MoveNLP:
         self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
         ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
         t0 = _time.perf_counter()
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")
+        # FATROP (stage-wise) serves minimum time on a free path or the tip line; the other
+        # formulations (slacks, curve parameters) have no stage structure: IPOPT
+        self.solver_name = solver if objective == "time" and path != "curve" else "ipopt"
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
-                           pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt)
+                           pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
+                           solver=self.solver_name)
         self.cache_status = build_or_load(
-            self, "off" if path == "curve" else cache, formulation,
+            self, "off" if path == "curve" or self.solver_name != "ipopt" else cache,
+            formulation,
             lambda: self._build(reg, pump_margin, ipopt))
         self.build_time_s = _time.perf_counter() - t0
         self._last = None
@@ -114,35 +122,45 @@ class MoveNLP:
         xlo = np.concatenate([L["q_min"], L["qd_min"], -L["qdd_max"]])
         xhi = np.concatenate([L["q_max"], L["qd_max"], L["qdd_max"]])
         X = lay.add_var("X", (3 * n, N + 1), np.tile(xlo[:, None], (1, N + 1)),
-                        np.tile(xhi[:, None], (1, N + 1)))
+                        np.tile(xhi[:, None], (1, N + 1)), stage=0)
         U = lay.add_var("U", (n, N), np.tile(-jmax[:, None], (1, N)),
-                        np.tile(jmax[:, None], (1, N)))
-        T = lay.add_var("T", 1, 1e-3, BIG_T)
-        h = T / N
+                        np.tile(jmax[:, None], (1, N)), stage=1)
+        # the duration as one copy per node, chained equal (a state of every stage): each row
+        # then involves one interval's variables only, as a stage-wise solver needs
+        TT = lay.add_var("T", (1, N + 1), 1e-3, BIG_T, stage=0)
+        T, hs = TT[0], [TT[k] / N for k in range(N + 1)]
         for k in range(N):
-            lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*self._at(X, U, k, h)), 0.0, 0.0)
+            lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*self._at(X, U, k, hs[k])), 0.0,
+                        0.0, stage=(k, 0))
+        for k in range(N):
+            lay.add_con("duration_chain", TT[k + 1] - TT[k], 0.0, 0.0, stage=(k, 0))
         # ---- ends: the tips given, at rest
         fk = crane.f_fk
-        lay.add_con("start", fk(X[:n, 0])[0] - par["start"], 0.0, 0.0)
-        lay.add_con("goal", fk(X[:n, N])[0] - par["goal"], 0.0, 0.0)
-        lay.add_con("start_at_rest", X[n:, 0], 0.0, 0.0)
-        lay.add_con("goal_at_rest", X[n:, N], 0.0, 0.0)
-        # ---- check points: nodes and interval midpoints
+        lay.add_con("start", fk(X[:n, 0])[0] - par["start"], 0.0, 0.0, stage=(0, 1))
+        lay.add_con("goal", fk(X[:n, N])[0] - par["goal"], 0.0, 0.0, stage=(N, 1))
+        lay.add_con("start_at_rest", X[n:, 0], 0.0, 0.0, stage=(0, 1))
+        lay.add_con("goal_at_rest", X[n:, N], 0.0, 0.0, stage=(N, 1))
+        # ---- check points: nodes and interval midpoints (and each interval's end, in terms
+        # of its own variables: the velocity rows stay inside one stage)
         pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
-        mids = [self._at(X, U, k, h / 2) for k in range(N)]
-        self._add_joint_limits(pts, mids, U, h, jmax)
+        mids = [self._at(X, U, k, hs[k] / 2) for k in range(N)]
+        ends = [self._at(X, U, k, hs[k]) for k in range(N)]
+        for k, (q, _, _) in enumerate(mids):
+            lay.add_con("position", q, L["q_min"], L["q_max"], stage=(k, 1))
+        add_velocity_limits(lay, L, jmax, pts, mids, ends, U, hs, uniform=path == "curve")
         if self.obstacles:
             add_obstacles(lay, crane.f_fk, self.obstacles,
-                          pts + mids + [self._at(X, U, k, hh)
-                                        for k in range(N) for hh in (h / 4, 3 * h / 4)])
+                          [(k, c) for k in range(N + 1) for c in
+                           ([pts[k]] + ([mids[k]] + [self._at(X, U, k, f * hs[k])
+                                                     for f in (0.25, 0.75)] if k < N else []))])
         TH = add_curve(lay, crane.f_fk, self.curve, X, n, N) if path == "curve" else None
         if path == "line":
             add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
-        energy = self._add_pump_and_energy(pts, mids, h, par["payload"], par["activity"],
+        energy = self._add_pump_and_energy(pts, mids, hs[0], par["payload"], par["activity"],
                                            pump_margin)
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
         # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
-        smooth = reg * h * ca.sumsqr(U)
+        smooth = reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
         if objective == "time":
             f = T + smooth
         elif objective == "energy":
@@ -155,10 +173,14 @@ class MoveNLP:
             lay.add_var("TH", TH, min(u0, u1), max(u0, u1))  # last block: θ per node
         wv = lay.w
         self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
-        opts = {"expand": True, "print_time": False, "ipopt": ipopt}
-        self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": lay.P, "f": f, "g": lay.g},
-                                opts)
         self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
+        problem = {"x": wv, "p": lay.P, "f": f, "g": lay.g}
+        self.solver = None
+        if self.solver_name == "fatrop":
+            self.solver = stagewise_solver(problem, lay, self.lbg == self.ubg, ipopt)
+        if self.solver is None:
+            self.solver = ca.nlpsol("move", "ipopt", problem,
+                                    {"expand": True, "print_time": False, "ipopt": ipopt})
         self.nw = lay.nw
 
     @property
@@ -172,15 +194,6 @@ class MoveNLP:
         """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
         n = self.crane.n
         return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
-
-    def _add_joint_limits(self, pts, mids, U, h, jmax):
-        """Positions at the midpoints (the nodes are bounded as variables); velocities at each
-        interval's check points with its own overshoot bound
-        (:func:`~planner.methods.nlp.limits.add_velocity_limits`)."""
-        for q, v, a in mids:
-            self.layout.add_con("position", q, self.L["q_min"], self.L["q_max"])
-        add_velocity_limits(self.layout, self.L, jmax, pts, mids, U, h,
-                            uniform=self.path == "curve")
 
     def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
         """Pump flow slacks and limit at every check point; for the energy objectives the
@@ -197,10 +210,13 @@ class MoveNLP:
             # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
             # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
             # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
+            # (FATROP: a row may only use its own stage's variables, so the midpoint's own)
             J = [crane.f_stroke(q)[1] for q, _, _ in pts]
-            Jm = [(J[k] + J[k + 1]) / 2 for k in range(N)]
-            for Jk, (_, v, _) in zip(J + Jm, pts + mids):
-                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin)
+            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.solver_name == "fatrop"
+                  else [(J[k] + J[k + 1]) / 2 for k in range(N)])
+            for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
+                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin,
+                            stage=(k % (N + 1), 1))
             return 0
         checks = pts + mids if self.pump else pts
         powers = []

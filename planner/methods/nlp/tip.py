@@ -11,13 +11,13 @@ __all__ = ["add_obstacles", "add_curve", "add_line"]
 
 
 def add_obstacles(layout, f_fk, obstacles, checks) -> None:
-    """Clearance from every obstacle at the check points ``checks`` ((q, q̇, q̈) triples; the
-    move NLP passes nodes, midpoints and quarter points: q is a cubic per interval)."""
-    for q, _, _ in checks:
+    """Clearance from every obstacle at the check points ``checks``: (stage, (q, q̇, q̈)) pairs
+    (the move NLP passes nodes, midpoints and quarter points: q is a cubic per interval)."""
+    for k, (q, _, _) in checks:
         xyz, cyl = f_fk(q)
         for ob in obstacles:
             for expr, lo in ob.constraints(xyz, cyl):
-                layout.add_con("obstacle", expr, lo, ca.inf)
+                layout.add_con("obstacle", expr, lo, ca.inf, stage=(k, 1))
 
 
 def add_curve(layout, f_fk, curve, X, n: int, N: int) -> ca.SX:
@@ -46,7 +46,9 @@ def add_line(layout, f_fk, pts, pa, pb) -> None:
     e1 = ca.cross(dn, helper)
     e1 = e1 / ca.norm_2(e1)
     e2 = ca.cross(dn, e1)
-    for q, _, _ in pts[1:-1]:
+    for k, (q, _, _) in enumerate(pts[1:-1], 1):
         r = f_fk(q)[0] - pa
-        layout.add_con("line", ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0)
-        layout.add_con("line_progress", ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
+        layout.add_con("line", ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0,
+                       stage=(k, 1))
+        layout.add_con("line_progress", ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02,
+                       stage=(k, 1))

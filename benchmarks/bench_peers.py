@@ -63,6 +63,7 @@ from planner.geometry.paths import Line  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
 from planner.methods.nlp import MoveNLP  # noqa: E402
+from planner.methods.nlp.stagewise import SOLVERS  # noqa: E402
 from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: E402
 from planner.methods.topp import raw_retime, retime  # noqa: E402
 from planner.model import Crane  # noqa: E402
@@ -199,27 +200,33 @@ def nlp_timing(repeat):
     crane = Crane.from_id(cid)
     lb = lower_bound(crane, a, b)
     q0, q1 = crane.ik(a, lb.tele_start), crane.ik(b, lb.tele_goal)
-    nlp = {p: MoveNLP(crane, "time", N=40, pump=p, cache="off") for p in (True, False)}
+    nlp = {(p, s): MoveNLP(crane, "time", N=40, pump=p, cache="off", solver=s)
+           for p in (True, False) for s in SOLVERS}
     opti = {p: PlainOpti(crane, q0, q1, 40, pump=p, guess_T=lb.combined_s)
             for p in (True, False)}
     rows = []
-    for pump, base in ((True, False), (False, False), (True, True)):
-        t_nlp, t_opti = interleaved(lambda: nlp[pump].solve(a, b), opti[base].solve, repeat)
-        r = nlp[pump].solve(a, b)
-        T_opti, it_opti = opti[base].solve()
-        kinds = ("position", "velocity", "acceleration", "jerk") + (("pump_flow",) if pump
-                                                                      else ())
-        rows.append(dict(pump=pump, baseline_pump=base, nlp_ms=1e3 * t_nlp,
-                         opti_ms=1e3 * t_opti, ratio=t_nlp / t_opti, nlp_s=r.duration_s,
-                         nlp_own_s=r.stats.get("nlp_duration_s", r.duration_s),
-                         winner=r.stats.get("winner", "nlp"), nlp_iterations=r.iterations,
-                         nlp_variables=nlp[pump].nw, nlp_constraints=len(nlp[pump].lbg),
-                         opti_s=T_opti, opti_iterations=it_opti,
-                         opti_variables=opti[base].variables,
-                         opti_constraints=opti[base].constraints,
-                         nlp_violation=judged(crane, r.trajectory, kinds),
-                         opti_violation=judged(crane, opti[base].trajectory(crane), kinds)))
+    for solver in SOLVERS:
+        for pump, base in ((True, False), (False, False), (True, True)):
+            rows.append(nlp_timing_row(crane, a, b, nlp[pump, solver], opti[base], pump, base,
+                                       repeat))
     return rows
+
+
+def nlp_timing_row(crane, a, b, nlp, opti, pump, base, repeat):
+    """One interleaved comparison of :func:`nlp_timing`."""
+    t_nlp, t_opti = interleaved(lambda: nlp.solve(a, b), opti.solve, repeat)
+    r = nlp.solve(a, b)
+    T_opti, it_opti = opti.solve()
+    kinds = ("position", "velocity", "acceleration", "jerk") + (("pump_flow",) if pump else ())
+    return dict(solver=nlp.solver_name, pump=pump, baseline_pump=base, nlp_ms=1e3 * t_nlp,
+                opti_ms=1e3 * t_opti, ratio=t_nlp / t_opti, nlp_s=r.duration_s,
+                nlp_own_s=r.stats.get("nlp_duration_s", r.duration_s),
+                winner=r.stats.get("winner", "nlp"), nlp_iterations=r.iterations,
+                nlp_variables=nlp.nw, nlp_constraints=len(nlp.lbg),
+                opti_s=T_opti, opti_iterations=it_opti, opti_variables=opti.variables,
+                opti_constraints=opti.constraints,
+                nlp_violation=judged(crane, r.trajectory, kinds),
+                opti_violation=judged(crane, opti.trajectory(crane), kinds))
 
 
 def nlp_joint_rows(quick):
@@ -275,7 +282,7 @@ def nlp_summary(timing, joint, tip):
     for r in timing:
         key = ("pump_on" if r["pump"] else "pump_off") + ("_vs_pump_opti" if r["baseline_pump"]
                                                           else "")
-        out[key] = r["ratio"]
+        out[f"{r['solver']}_{key}"] = r["ratio"]
     out["joint_excess"] = summary([r["excess"] for r in joint])
     out["joint_own_excess"] = summary([r["own_excess"] for r in joint])
     for cid in NLP_MACHINES:
@@ -295,21 +302,23 @@ def nlp_report(nl) -> list:
     lines = ["", "## NLP", "",
              f"{m['date']}, load {m['load']}, casadi {m['casadi']}, {nl['repeat']} interleaved "
              "rounds, medians (`python benchmarks/bench_peers.py --only nlp`). Ours: "
-             "`MoveNLP(crane, 'time', N=40, pump=…).solve(start, goal)` built once (cache off), "
+             "`MoveNLP(crane, 'time', N=40, pump=…, solver=…).solve(start, goal)` built once "
+             "(cache off), "
              "the whole call timed (default guess, IPOPT, the exact-Ruckig check). Baseline: "
              "benchmarks/opti_baseline.py (`PlainOpti`, built once, `opti.solve()` timed) "
              "between the joint configurations at the lower bound's telescopes. Violation: "
              "`evaluate()` at 1 kHz (position, velocity, acceleration, jerk, pump).", "",
-             "| NLP pump | baseline | ours ms | Opti ms | ratio | target | ours s (NLP's own) | "
+             "| solver | NLP pump | baseline | ours ms | Opti ms | ratio | target | ours s (NLP's own) | "
              "winner | ours it. | ours vars/cons | Opti s | Opti it. | Opti vars/cons | "
              "ours violation | Opti violation |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | "
-             "--- | --- |"]
+             "--- | --- | --- |"]
     for r in nl["timing"]:
         target = "" if r["baseline_pump"] else ("≤ 2×" if r["pump"] else "≤ 1.2×")
         base = "pump at nodes" if r["baseline_pump"] else "no pump"
         lines.append(
-            f"| {'on' if r['pump'] else 'off'} | {base} | {r['nlp_ms']:.0f} | {r['opti_ms']:.0f} | {r['ratio']:.2f}× | {target} | "
+            f"| {r.get('solver', 'ipopt')} | {'on' if r['pump'] else 'off'} | {base} | "
+            f"{r['nlp_ms']:.0f} | {r['opti_ms']:.0f} | {r['ratio']:.2f}× | {target} | "
             f"{r['nlp_s']:.4f} ({r['nlp_own_s']:.4f}) | {r['winner']} | {r['nlp_iterations']} | "
             f"{r['nlp_variables']}/{r['nlp_constraints']} | {r['opti_s']:.4f} | "
             f"{r['opti_iterations']} | {r['opti_variables']}/{r['opti_constraints']} | "

@@ -87,3 +87,32 @@ def test_joint_space_duration_within_one_percent_of_ruckig(umea_lab, joint_move)
     r2 = m.solve(q_start=q0, q_goal=q1)
     assert r2.ok and r2.duration_s <= r.duration_s + 1e-9
     assert np.allclose(r2.trajectory.q[0], q0) and np.allclose(r2.trajectory.q[-1], q1)
+
+
+def test_fatrop_and_ipopt_agree_on_a_pump_limited_move(s100f):
+    """The stage-wise FATROP solve against IPOPT on the same formulation: the same duration
+    (to 1e-4 relative) and a trajectory that passes evaluate() (pump included)."""
+    a, b = (7.276, 0.793, -0.506), (7.259, 5.691, -0.124)
+    res = {s: MoveNLP(s100f, "time", N=20, cache="off", solver=s).solve(a, b)
+           for s in ("ipopt", "fatrop")}
+    assert all(r.ok for r in res.values()), {s: r.reason for s, r in res.items()}
+    assert res["fatrop"].duration_s == pytest.approx(res["ipopt"].duration_s, rel=1e-4)
+    assert evaluate(s100f, res["fatrop"].trajectory).max_limit_violation <= 1e-6
+
+
+def test_stage_order_puts_states_controls_dynamics_and_path_rows_stage_by_stage():
+    """Layout.stage_order on a two-stage toy: variables x0, u0, x1; rows dyn0, path0, path1."""
+    import casadi as ca
+    from planner.methods.nlp import Layout
+    lay = Layout()
+    X = lay.add_var("X", (2, 2), -1, 1, stage=0)      # w 0..3: x0 = (0, 1), x1 = (2, 3)
+    U = lay.add_var("U", (1, 1), -1, 1, stage=1)      # w 4: u0
+    lay.add_con("path", X[:, 1], -1, 1, stage=(1, 1))   # g 0, 1
+    lay.add_con("path", U[0], -1, 1, stage=(0, 1))      # g 2
+    lay.add_con("dyn", X[:, 1] - X[:, 0] - U[0], 0, 0, stage=(0, 0))   # g 3, 4
+    wp, gp = lay.stage_order()
+    assert wp.tolist() == [0, 1, 4, 2, 3]
+    assert gp.tolist() == [3, 4, 2, 0, 1]
+    lay.add_con("free", ca.sumsqr(X), 0, 1)
+    with pytest.raises(ValueError):
+        lay.stage_order()

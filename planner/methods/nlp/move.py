@@ -103,8 +103,7 @@ class MoveNLP:
                            pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
                            solver=self.solver_name)
         self.cache_status = build_or_load(
-            self, "off" if path == "curve" or self.solver_name != "ipopt" else cache,
-            formulation,
+            self, "off" if path == "curve" else cache, formulation,
             lambda: self._build(reg, pump_margin, ipopt))
         self.build_time_s = _time.perf_counter() - t0
         self._last = None

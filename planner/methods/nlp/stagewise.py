@@ -15,7 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["SOLVERS", "StagewiseSolver", "stagewise_solver"]
+__all__ = ["SOLVERS", "StagewiseSolver", "stagewise_solver", "fatrop_options"]
 
 SOLVERS = ("ipopt", "fatrop")
 
@@ -28,15 +28,21 @@ def stagewise_solver(problem: dict, layout, equality, ipopt: dict):
         wperm, gperm = layout.stage_order()
     except ValueError:
         return None
-    opts = {"structure_detection": "auto", "expand": True, "print_time": False,
-            "equality": [bool(e) for e in np.asarray(equality)[gperm]],
-            "fatrop": {"print_level": 0, "tol": ipopt.get("tol", 1e-7),
-                       "max_iter": ipopt.get("max_iter", 1000)}}
+    eq = [bool(e) for e in np.asarray(equality)[gperm]]
     x, g = problem["x"], problem["g"]
     solver = ca.nlpsol("move_fatrop", "fatrop", {"x": x[wperm.tolist()], "p": problem["p"],
                                                  "f": problem["f"],
-                                                 "g": g[gperm.tolist()]}, opts)
-    return StagewiseSolver(solver, wperm, gperm)
+                                                 "g": g[gperm.tolist()]},
+                       dict(fatrop_options(eq, ipopt), expand=True))
+    return StagewiseSolver(solver, wperm, gperm, eq)
+
+
+def fatrop_options(equality, ipopt: dict) -> dict:
+    """FATROP's options: automatic stage detection, the stage-ordered ``equality`` rows, the
+    tolerance and iteration limit of the IPOPT options ``ipopt``."""
+    return {"structure_detection": "auto", "print_time": False, "equality": list(equality),
+            "fatrop": {"print_level": 0, "tol": ipopt.get("tol", 1e-7),
+                       "max_iter": ipopt.get("max_iter", 1000)}}
 
 
 class StagewiseSolver:
@@ -45,8 +51,9 @@ class StagewiseSolver:
     ``return_status`` ("Solve_Succeeded" on success, else "FATROP: <status>"), ``iter_count``
     and FATROP's own statistics."""
 
-    def __init__(self, solver, wperm, gperm):
+    def __init__(self, solver, wperm, gperm, equality=()):
         self.solver, self.wperm, self.gperm = solver, wperm, gperm
+        self.equality = list(equality)   # stage-ordered equality rows (kept for the cache)
         self._stats = {}
 
     def __call__(self, x0, p, lbx, ubx, lbg, ubg):

@@ -63,7 +63,6 @@ from planner.geometry.paths import Line  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
 from planner.methods.nlp import MoveNLP  # noqa: E402
-from planner.methods.nlp.stagewise import SOLVERS  # noqa: E402
 from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: E402
 from planner.methods.topp import raw_retime, retime  # noqa: E402
 from planner.model import Crane  # noqa: E402
@@ -201,11 +200,11 @@ def nlp_timing(repeat):
     lb = lower_bound(crane, a, b)
     q0, q1 = crane.ik(a, lb.tele_start), crane.ik(b, lb.tele_goal)
     nlp = {(p, s): MoveNLP(crane, "time", N=40, pump=p, cache="off", solver=s)
-           for p in (True, False) for s in SOLVERS}
+           for p in (True, False) for s in ("ipopt", "fatrop")}
     opti = {p: PlainOpti(crane, q0, q1, 40, pump=p, guess_T=lb.combined_s)
             for p in (True, False)}
     rows = []
-    for solver in SOLVERS:
+    for solver in ("ipopt", "fatrop"):
         for pump, base in ((True, False), (False, False), (True, True)):
             rows.append(nlp_timing_row(crane, a, b, nlp[pump, solver], opti[base], pump, base,
                                        repeat))
@@ -243,7 +242,8 @@ def nlp_joint_rows(quick):
             opt = rest_to_rest(crane, q0, q1).duration_s
             r = m.solve(q_start=q0, q_goal=q1)
             own = r.stats.get("nlp_duration_s", r.duration_s)
-            rows.append(dict(machine=cid, status=r.status, ruckig_s=opt, nlp_s=r.duration_s,
+            rows.append(dict(machine=cid, solver=m.solver_name, status=r.status, ruckig_s=opt,
+                             nlp_s=r.duration_s,
                              nlp_own_s=own, winner=r.stats.get("winner", "nlp"),
                              excess=r.duration_s / opt - 1, own_excess=own / opt - 1,
                              solve_s=r.solve_time_s,
@@ -265,7 +265,8 @@ def nlp_tip_rows(quick):
             lb = lower_bound(crane, a, b)
             r = m.solve(a, b)
             ev = evaluate(crane, r.trajectory) if r.ok else None
-            rows.append(dict(machine=cid, start=list(a), goal=list(b), status=r.status,
+            rows.append(dict(machine=cid, solver=m.solver_name, start=list(a), goal=list(b),
+                             status=r.status,
                              bound_s=lb.combined_s, pump_bound_s=lb.pump_s,
                              nlp_s=r.duration_s,
                              nlp_own_s=r.stats.get("nlp_duration_s", r.duration_s),
@@ -324,7 +325,9 @@ def nlp_report(nl) -> list:
             f"{r['opti_iterations']} | {r['opti_variables']}/{r['opti_constraints']} | "
             f"{100 * r['nlp_violation']:.3f} % | {100 * r['opti_violation']:.2f} % |")
     j, jo = s["joint_excess"], s["joint_own_excess"]
-    lines += ["", "Joint-space ends, no pump, against the Ruckig optimum (`rest_to_rest`): "
+    lines += ["", "Joint-space ends, no pump (default solver: "
+              f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['joint']}))}), "
+              "against the Ruckig optimum (`rest_to_rest`): "
               f"returned median {pc(j['median'])}, max {pc(j['max'])} (target ≤ 1 %); the "
               f"NLP's own solution before the exact-Ruckig swap median {pc(jo['median'])}, "
               f"max {pc(jo['max'])}, min {pc(jo['min'])}.", "",
@@ -336,7 +339,9 @@ def nlp_report(nl) -> list:
                      f"{r['nlp_s']:.4f} | {r['winner']} | {pc(r['excess'])} | "
                      f"{r['nlp_own_s']:.4f} | {pc(r['own_excess'])} | {r['solve_s']:.3f} | "
                      f"{100 * r['violation']:.4f} % |")
-    lines += ["", "Tip ends with the pump against the analytic lower bound "
+    lines += ["", "Tip ends with the pump (default solver: "
+              f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['tip']}))}) "
+              "against the analytic lower bound "
               "(`lower_bound(...).combined_s`; target p90 ≤ 3 %, never below): " + "; ".join(
                   f"{cid} median {pc(s['tip_' + cid]['median'])}, p90 "
                   f"{pc(s['tip_' + cid]['p90'])}, max {pc(s['tip_' + cid]['max'])}, min "

@@ -41,9 +41,9 @@ import casadi as ca
 import numpy as np
 
 from planner.bounds import lower_bound
-from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
+from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.cache import build_or_load
-from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
+from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
 from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
 from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
@@ -57,12 +57,10 @@ __all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
 IPOPT_DEFAULTS = {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
                   "acceptable_tol": 1e-5, "mu_strategy": "adaptive", "max_wall_time": 60.0}
 BIG_T = 1e3  # [s] upper bound of the duration
-# the lower bound the default guess is taken at: a coarser telescope search than the reported
-# bound's (≈ 2.5× cheaper; only the guess's telescopes and slowing depend on it)
-GUESS_BOUND = dict(n_grid=41, refine=2, starts=2)
+AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IPOPT)
 
 
-class MoveNLP:
+class MoveNLP(Guesses):
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
@@ -74,7 +72,7 @@ class MoveNLP:
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
                  obstacles: tuple = (), ipopt_options: dict | None = None,
-                 cache: str | None = None, solver: str = "ipopt"):
+                 cache: str | None = None, solver: str = "auto"):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
         self.curve = None
@@ -98,7 +96,17 @@ class MoveNLP:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")
         # FATROP (stage-wise) serves minimum time on a free path or the tip line; the other
         # formulations (slacks, curve parameters) have no stage structure: IPOPT
-        self.solver_name = solver if objective == "time" and path != "curve" else "ipopt"
+        # FATROP serves minimum time on a free path or the tip line ("auto": without the pump,
+        # where it won; with the pump its solves had a failure tail, see SOLVERS)
+        stagewise = objective == "time" and path != "curve"
+        self.solver_name = ("fatrop" if stagewise and (solver == "fatrop" or (
+            solver == "auto" and not pump)) else "ipopt")
+        self.fallback = solver == "auto" and self.solver_name == "fatrop"
+        if self.fallback:   # fail fast: its solves take ~20–40 iterations
+            ipopt["max_iter"] = min(ipopt["max_iter"], AUTO_FATROP_ITER)
+        self._twin_args = (crane, objective, path, N, pump, reg, pump_margin, obstacles,
+                           ipopt_options, cache)
+        self._twin = None
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
                            pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
                            solver=self.solver_name)
@@ -182,6 +190,15 @@ class MoveNLP:
                                     {"expand": True, "print_time": False, "ipopt": ipopt})
         self.nw = lay.nw
 
+    def _ipopt_twin(self):
+        """The same formulation solved by IPOPT (built on first use): the fallback of
+        ``solver="auto"`` when FATROP fails (its variables and rows are the same)."""
+        if self._twin is None:
+            c, o, p, N, pump, reg, pm, obs, io, cache = self._twin_args
+            self._twin = MoveNLP(c, o, p, N=N, pump=pump, reg=reg, pump_margin=pm,
+                                 obstacles=obs, ipopt_options=io, cache=cache, solver="ipopt")
+        return self._twin.solver
+
     @property
     def _nx(self) -> int:
         """Number of node-state variables (kept for benchmarks/bench_scaling.py: the jerks
@@ -260,63 +277,6 @@ class MoveNLP:
         if not need_energy:
             return 0
         return h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
-
-    # ------------------------------------------------------------------------ guesses
-    def guess_from(self, traj) -> np.ndarray:
-        """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
-        N, lay = self.N, self.layout
-        t = np.linspace(traj.t[0], traj.t[-1], N + 1)
-        q, qd, qdd, _ = traj.sample(t)
-        h = (t[-1] - t[0]) / N
-        w0 = np.zeros(self.nw)
-        lay.pack(w0, "X", np.vstack([q.T, qd.T, qdd.T]))
-        lay.pack(w0, "U", np.diff(qdd, axis=0).T / h)
-        lay.pack(w0, "T", traj.duration)
-        rest = lay.slice("T").stop
-        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
-        if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
-            u = np.linspace(*self.curve.u_range, 4001)
-            P = np.asarray(self.curve.p(u))
-            tips = self.crane.fk(q)
-            k = np.argmin(((tips[:, None, :] - P[None, :, :]) ** 2).sum(-1), axis=1)
-            th = np.maximum.accumulate(u[k]) if u[-1] > u[0] else np.minimum.accumulate(u[k])
-            th[0], th[-1] = u[0], u[-1]
-            lay.pack(w0, "TH", th)
-        return w0
-
-    def default_guess(self, start, goal, q_ends=(None, None)):
-        """Free path: Ruckig rest-to-rest between the ends (``q_ends``: joint configurations,
-        else the tips at the best telescope values of a coarse lower bound,
-        :data:`GUESS_BOUND`), slowed to the pump bound when the pump limits. Line: a coarse DP
-        along the line retimed by TOPP-RA (velocity, acceleration, pump)."""
-        crane = self.crane
-        if self.path in ("line", "curve"):
-            lb = lower_bound(crane, start, goal, **GUESS_BOUND)
-            geo = self.curve if self.path == "curve" else Line(start, goal)
-            return self.guess_from(path_guess(crane, geo)), lb
-        lb = self._bound(start, goal, q_ends)
-        return self._plain_guess(start, goal, lb, q_ends), lb
-
-    def _bound(self, start, goal, q_ends=(None, None)):
-        """The coarse lower bound the guess is taken at (fixed joint ends when given)."""
-        qs, qg = q_ends
-        return lower_bound(self.crane, None if qs is not None else start,
-                           None if qg is not None else goal, q_start=qs, q_goal=qg,
-                           **GUESS_BOUND)
-
-    def _plain_guess(self, start, goal, lb, q_ends=(None, None)):
-        """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
-        return self.guess_from(self._plain_traj(start, goal, lb, q_ends)[0])
-
-    def _plain_traj(self, start, goal, lb, q_ends=(None, None)):
-        """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
-        Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
-        qk = tuple(None if q is None else tuple(map(float, q)) for q in q_ends)
-        key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
-               lb.combined_s, qk)
-        if self._plain[0] != key:
-            self._plain = (key, ruckig_guess(self.crane, start, goal, lb, *q_ends))
-        return self._plain[1]
 
     def _prefer_exact(self, res, start, goal, lb, t0, q_ends=(None, None)):
         """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes
@@ -475,15 +435,23 @@ class MoveNLP:
         iters = 0
         for _round in range(4 if self.objective != "time" else 1):
             P = lay.param_vector(**pars, activity=mask)
-            try:
-                sol = self.solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg,
-                                  ubg=self.ubg)
-            except RuntimeError as e:
-                return nlp_result("error", f"IPOPT failed: {e}",
-                                  solve_time_s=_time.perf_counter() - t0)
-            st = self.solver.stats()
-            iters += st.get("iter_count", 0)
-            ist = st.get("return_status", "")
+            # FATROP takes no fixed end joints (it counts them as end equalities): IPOPT
+            fixed = self.solver_name == "fatrop" and any(q is not None for q in q_ends)
+            tries = (True,) if fixed else (False, True) if self.fallback else (False,)
+            for twin in tries:
+                solver = self._ipopt_twin() if twin else self.solver   # auto: IPOPT 2nd
+                try:
+                    sol = solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg, ubg=self.ubg)
+                except RuntimeError as e:
+                    if not twin and self.fallback:
+                        continue
+                    return nlp_result("error", f"{'IPOPT' if twin else self.solver_name} "
+                                      f"failed: {e}", solve_time_s=_time.perf_counter() - t0)
+                st = solver.stats()
+                iters += st.get("iter_count", 0)
+                ist = st.get("return_status", "")
+                if ist in STATUS_OK:
+                    break
             w = np.array(sol["x"]).ravel()
             if ist not in STATUS_OK or self.objective == "time":
                 break

@@ -242,7 +242,8 @@ def nlp_joint_rows(quick):
             opt = rest_to_rest(crane, q0, q1).duration_s
             r = m.solve(q_start=q0, q_goal=q1)
             own = r.stats.get("nlp_duration_s", r.duration_s)
-            rows.append(dict(machine=cid, solver=m.solver_name, status=r.status, ruckig_s=opt,
+            rows.append(dict(machine=cid, solver=r.stats.get("solver") or m.solver_name,
+                             status=r.status, ruckig_s=opt,
                              nlp_s=r.duration_s,
                              nlp_own_s=own, winner=r.stats.get("winner", "nlp"),
                              excess=r.duration_s / opt - 1, own_excess=own / opt - 1,
@@ -265,7 +266,8 @@ def nlp_tip_rows(quick):
             lb = lower_bound(crane, a, b)
             r = m.solve(a, b)
             ev = evaluate(crane, r.trajectory) if r.ok else None
-            rows.append(dict(machine=cid, solver=m.solver_name, start=list(a), goal=list(b),
+            rows.append(dict(machine=cid, solver=r.stats.get("solver") or m.solver_name,
+                             start=list(a), goal=list(b),
                              status=r.status,
                              bound_s=lb.combined_s, pump_bound_s=lb.pump_s,
                              nlp_s=r.duration_s,
@@ -325,7 +327,7 @@ def nlp_report(nl) -> list:
             f"{r['opti_iterations']} | {r['opti_variables']}/{r['opti_constraints']} | "
             f"{100 * r['nlp_violation']:.3f} % | {100 * r['opti_violation']:.2f} % |")
     j, jo = s["joint_excess"], s["joint_own_excess"]
-    lines += ["", "Joint-space ends, no pump (default solver: "
+    lines += ["", "Joint-space ends, no pump (solved by: "
               f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['joint']}))}), "
               "against the Ruckig optimum (`rest_to_rest`): "
               f"returned median {pc(j['median'])}, max {pc(j['max'])} (target ≤ 1 %); the "
@@ -339,7 +341,7 @@ def nlp_report(nl) -> list:
                      f"{r['nlp_s']:.4f} | {r['winner']} | {pc(r['excess'])} | "
                      f"{r['nlp_own_s']:.4f} | {pc(r['own_excess'])} | {r['solve_s']:.3f} | "
                      f"{100 * r['violation']:.4f} % |")
-    lines += ["", "Tip ends with the pump (default solver: "
+    lines += ["", "Tip ends with the pump (solved by: "
               f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['tip']}))}) "
               "against the analytic lower bound "
               "(`lower_bound(...).combined_s`; target p90 ≤ 3 %, never below): " + "; ".join(

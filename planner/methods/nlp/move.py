@@ -1,4 +1,5 @@
-"""MoveNLP: a point-to-point move as one CasADi NLP (IPOPT), built once and solved many times.
+"""MoveNLP: a point-to-point move as one CasADi NLP (IPOPT or FATROP), built once and solved
+many times.
 
 Transcription: N intervals of equal length h = T/N; every joint is a triple integrator with
 piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so acceleration and jerk
@@ -9,6 +10,9 @@ interval's own jerk bound and the pump as one smooth conservative inequality per
 fragile under IPOPT, keeps the earlier uniform velocity tightening and the flow slacks); the 0.5 %
 default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
 positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
+The duration is a state copied per node (chained equal), so every row lies inside one interval:
+the stage structure FATROP exploits (:mod:`planner.methods.nlp.stagewise`; ``solver="auto"``
+uses it for minimum time without the pump, where it was measured faster, IPOPT elsewhere).
 
 Energy (load sensing) without max/abs: flow slacks per check point and actuator split by
 direction (s⁺ piston side extending, s⁻
@@ -65,9 +69,11 @@ class MoveNLP(Guesses):
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
     face (:func:`planner.geometry.paths.circle` / :func:`~planner.geometry.paths.parabola`);
-    N intervals. ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
-    jerk per interval, "T", per check point the flow slacks "sp<k>"/"sm<k>" and the pump
-    pressure "p<k>", curve mode "TH") and the constraint blocks."""
+    N intervals; ``solver``: "auto" | "ipopt" | "fatrop" (:data:`~planner.methods.nlp.stagewise.
+    SOLVERS`). ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
+    jerk per interval, "T" the duration per node, energy objectives per check point the flow
+    slacks "sp<k>"/"sm<k>" and the pump pressure "p<k>", curve mode "TH") and the constraint
+    blocks."""
 
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
@@ -305,7 +311,7 @@ class MoveNLP(Guesses):
             return res
         return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
                           ipopt_status=res.ipopt_status,
-                          stats=dict(winner="ruckig",
+                          stats=dict(winner="ruckig", solver=res.stats.get("solver"),
                                      nlp_duration_s=res.duration_s if res.ok else float("nan")),
                           solve_time_s=_time.perf_counter() - t0)
 
@@ -460,7 +466,8 @@ class MoveNLP(Guesses):
                 break
             mask, guess = np.maximum(mask, new), w  # keep functions once seen active
         if ist not in STATUS_OK:
-            return nlp_result(ipopt_code(ist), f"IPOPT: {ist}", iterations=iters,
+            return nlp_result(ipopt_code(ist), ist if ist.startswith("FATROP") else
+                              f"IPOPT: {ist}", iterations=iters,
                               ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
         n, N = crane.n, self.N
         X, U = lay.unpack(w, "X"), lay.unpack(w, "U")
@@ -479,4 +486,5 @@ class MoveNLP(Guesses):
         E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
         return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
                           iterations=iters, ipopt_status=ist,
+                          solver="ipopt" if twin else self.solver_name,
                           solve_time_s=_time.perf_counter() - t0)

@@ -8,8 +8,9 @@ Every timed call is a fresh process (as a user running one command pays it):
 * ``plan`` — ``crane-planner plan umea-lab --method nlp --json -`` reading ``build_time_s`` and
   ``solve_time_s`` from its JSON: once with an empty cache and ``--compile`` (first call: build,
   generate C, compile, store), then ``rounds`` times loading the stored solver;
-* ``opti`` — a plain Opti triple integrator (jerk-limited, no pump, no model) with the umea-lab
-  limits, N intervals, between the joint configurations of the same move, minimum time: build
+* ``opti`` — a plain Opti triple integrator (jerk-limited, no pump, no model: the shared
+  baseline of benchmarks/opti_baseline.py) with the umea-lab limits, N intervals, between the
+  joint configurations of the same move, minimum time: build
   and solve timed inside the process; the two commands interleaved, medians compared.
 Also: byte-identical trajectory CSV with the cache off and on, and two processes building the
 same entry at once on an empty cache. Writes benchmarks/results/nlp_cache.md and .json.
@@ -34,43 +35,21 @@ CRANE, START, GOAL = "umea-lab", "2.65,2.2,0.2", "3.2,1.6,-0.4"
 OPTI = r'''
 import json, sys, time
 t0 = time.perf_counter()
-import casadi as ca, numpy as np
+sys.path.insert(0, sys.argv[5])   # benchmarks/: the shared baseline
+from opti_baseline import PlainOpti
 from planner import Crane
 from planner.bounds import lower_bound
 crane = Crane.from_id(sys.argv[1]); N = int(sys.argv[2])
 start = tuple(float(v) for v in sys.argv[3].split(",")); goal = tuple(float(v) for v in sys.argv[4].split(","))
 lb = lower_bound(crane, start, goal)
 q0, q1 = crane.ik(start, lb.tele_start), crane.ik(goal, lb.tele_goal)
-L = crane.limit_arrays(); n = crane.n
-jmax = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 1e3)
 t1 = time.perf_counter()
-opti = ca.Opti()
-X = opti.variable(3 * n, N + 1); U = opti.variable(n, N); T = opti.variable()
-h = T / N
-for k in range(N):
-    q, v, a, j = X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k]
-    opti.subject_to(X[:, k + 1] == ca.vertcat(q + h * v + h**2 / 2 * a + h**3 / 6 * j,
-                                               v + h * a + h**2 / 2 * j, a + h * j))
-opti.subject_to(X[:n, 0] == q0); opti.subject_to(X[:n, N] == q1)
-opti.subject_to(X[n:, 0] == 0); opti.subject_to(X[n:, N] == 0)
-for k in range(N + 1):
-    opti.subject_to(opti.bounded(L["q_min"], X[:n, k], L["q_max"]))
-    opti.subject_to(opti.bounded(L["qd_min"], X[n:2 * n, k], L["qd_max"]))
-    opti.subject_to(opti.bounded(-L["qdd_max"], X[2 * n:, k], L["qdd_max"]))
-for k in range(N):
-    opti.subject_to(opti.bounded(-jmax, U[:, k], jmax))
-opti.subject_to(opti.bounded(1e-3, T, 1e3))
-opti.minimize(T + 1e-6 * h * ca.sumsqr(U))
-opti.set_initial(T, max(lb.combined_s, 0.1))
-for k in range(N + 1):
-    opti.set_initial(X[:n, k], q0 + (q1 - q0) * k / N)
-opti.solver("ipopt", {"print_time": False, "expand": True},
-            {"print_level": 0, "sb": "yes", "tol": 1e-7, "mu_strategy": "adaptive"})
+base = PlainOpti(crane, q0, q1, N, guess_T=lb.combined_s)
 t2 = time.perf_counter()
-sol = opti.solve()
+T, it = base.solve()
 t3 = time.perf_counter()
-print(json.dumps(dict(build_s=t2 - t1, solve_s=t3 - t2, T=float(sol.value(T)),
-                      variables=int(opti.nx), constraints=int(opti.ng))))
+print(json.dumps(dict(build_s=t2 - t1, solve_s=t3 - t2, T=T, iterations=it,
+                      variables=base.variables, constraints=base.constraints)))
 '''
 
 
@@ -99,7 +78,7 @@ def main(argv=None) -> int:
     for _ in range(args.rounds):   # interleaved: A B A B ...
         later.append(json.loads(run(plan_cmd(args.N, "--json", "-"), env)))
         opti.append(json.loads(run([sys.executable, "-c", OPTI, CRANE, str(args.N), START,
-                                    GOAL], env)))
+                                    GOAL, str(HERE)], env)))
     off = dict(env, CRANE_PLANNER_NLP_CACHE="off")
     nocache = json.loads(run(plan_cmd(args.N, "--json", "-"), off))
     # byte-identical CSV with and without the cache

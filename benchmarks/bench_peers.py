@@ -2,6 +2,7 @@
 """The project's methods against their raw peers, timed side by side in one run (issue 15).
 
     python benchmarks/bench_peers.py [--out benchmarks/results] [--repeat 15] [--quick]
+                                     [--only topp,ruckig,nlp]
 
 Every comparison is interleaved (A, B, A, B, … with the order swapped every round) on the
 same inputs, and reported as medians and the ratio of medians per case; the summary gives the
@@ -18,15 +19,25 @@ median and the largest ratio over the cases. The machine is shared (2 cores): re
    arrays, calculate, ``at_time`` at the switching times), against
    :func:`planner.methods.ruckig.rest_to_rest` sampled at its switching times
    (``sample_rate=None``) and at its default 200 Hz.                         target ≤ 20×
-The NLP against a plain CasADi Opti problem of the same size is measured (build + solve of a
-one-off call) by benchmarks/bench_nlp_cache.py; the NLP's solve-only comparison of issue 15 is
-not done yet.
+3. The move NLP (:class:`planner.methods.nlp.MoveNLP`, minimum time, N = 40, built once):
+   its solve on umea-lab's tip move against the plain Opti triple integrator with the same
+   limits (benchmarks/opti_baseline.py, built once, solve timed), pump on and off, and against
+   that baseline with a pump inequality at the nodes; each side's result judged by
+   ``evaluate()``.                                         target pump on ≤ 2×, pump off ≤ 1.2×
+   Joint-space ends without pump (random configurations, umea-lab and s100f): the returned
+   duration and the NLP's own (before the exact-Ruckig swap) against the Ruckig optimum.
+                                                                              target max ≤ 1 %
+   Tip ends with pump (random tips, umea-lab and s100f): duration above the analytic lower
+   bound (:func:`planner.bounds.lower_bound`, combined).  target p90 ≤ 3 %, never below it
+The one-off call (build + solve, fresh process) against the same Opti baseline is measured by
+benchmarks/bench_nlp_cache.py.
 
 Writes <out>/peers.json and <out>/peers.md (atomically) and prints the markdown.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import statistics
@@ -40,13 +51,18 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 if str(ROOT) not in sys.path:  # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
+if str(HERE) not in sys.path:  # the shared Opti baseline
+    sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 import ruckig  # noqa: E402
 
+from opti_baseline import PlainOpti  # noqa: E402
+from planner.bounds import lower_bound  # noqa: E402
 from planner.geometry.paths import Line  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods.dp import dp  # noqa: E402
+from planner.methods.nlp import MoveNLP  # noqa: E402
 from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: E402
 from planner.methods.topp import raw_retime, retime  # noqa: E402
 from planner.model import Crane  # noqa: E402
@@ -57,6 +73,10 @@ SEED = 15
 TOPP_MOVES, RUCKIG_MOVES = 4, 6     # per machine
 SAMPLE_RATE = 500.0                 # [Hz] both TOPP-RA sides
 KINDS = ("velocity", "acceleration", "pump_flow")
+NLP_MOVE = ("umea-lab", (2.65, 2.2, 0.2), (3.2, 1.6, -0.4))   # as benchmarks/bench_nlp_cache.py
+NLP_MACHINES = ("umea-lab", "s100f")
+JOINT_MOVES, TIP_MOVES = 8, 10      # per machine
+TOL = 1e-3                          # evaluate(): largest relative limit excess that passes
 
 
 def configs(crane, n, seed, margin=0.1):
@@ -167,6 +187,182 @@ def ruckig_rows(repeat, quick):
     return rows
 
 
+# ---------------------------------------------------------------------------- NLP
+def judged(crane, traj, kinds):
+    """evaluate()'s largest relative limit excess over ``kinds`` (NaN without a trajectory)."""
+    return float("nan") if traj is None else evaluate(crane, traj, kinds=kinds).max_limit_violation
+
+
+def nlp_timing(repeat):
+    """The NLP's solve against the plain Opti baseline on umea-lab's tip move, interleaved."""
+    cid, a, b = NLP_MOVE
+    crane = Crane.from_id(cid)
+    lb = lower_bound(crane, a, b)
+    q0, q1 = crane.ik(a, lb.tele_start), crane.ik(b, lb.tele_goal)
+    nlp = {(p, s): MoveNLP(crane, "time", N=40, pump=p, cache="off", solver=s)
+           for p in (True, False) for s in ("ipopt", "fatrop")}
+    opti = {p: PlainOpti(crane, q0, q1, 40, pump=p, guess_T=lb.combined_s)
+            for p in (True, False)}
+    rows = []
+    for solver in ("ipopt", "fatrop"):
+        for pump, base in ((True, False), (False, False), (True, True)):
+            rows.append(nlp_timing_row(crane, a, b, nlp[pump, solver], opti[base], pump, base,
+                                       repeat))
+    return rows
+
+
+def nlp_timing_row(crane, a, b, nlp, opti, pump, base, repeat):
+    """One interleaved comparison of :func:`nlp_timing`."""
+    t_nlp, t_opti = interleaved(lambda: nlp.solve(a, b), opti.solve, repeat)
+    r = nlp.solve(a, b)
+    T_opti, it_opti = opti.solve()
+    kinds = ("position", "velocity", "acceleration", "jerk") + (("pump_flow",) if pump else ())
+    return dict(solver=nlp.solver_name, pump=pump, baseline_pump=base, nlp_ms=1e3 * t_nlp,
+                opti_ms=1e3 * t_opti, ratio=t_nlp / t_opti, nlp_s=r.duration_s,
+                nlp_own_s=r.stats.get("nlp_duration_s", r.duration_s),
+                winner=r.stats.get("winner", "nlp"), nlp_iterations=r.iterations,
+                nlp_variables=nlp.nw, nlp_constraints=len(nlp.lbg),
+                opti_s=T_opti, opti_iterations=it_opti, opti_variables=opti.variables,
+                opti_constraints=opti.constraints,
+                nlp_violation=judged(crane, r.trajectory, kinds),
+                opti_violation=judged(crane, opti.trajectory(crane), kinds))
+
+
+def nlp_joint_rows(quick):
+    """Joint-space ends, no pump: the NLP against the Ruckig optimum."""
+    rows = []
+    kinds = ("position", "velocity", "acceleration", "jerk")
+    for cid in NLP_MACHINES:
+        crane = Crane.from_id(cid)
+        m = MoveNLP(crane, "time", N=40, pump=False, cache="off")
+        k_moves = 2 if quick else JOINT_MOVES
+        qs = configs(crane, 2 * k_moves, SEED + 2)
+        for k in range(k_moves):
+            q0, q1 = qs[k], qs[k_moves + k]
+            opt = rest_to_rest(crane, q0, q1).duration_s
+            r = m.solve(q_start=q0, q_goal=q1)
+            own = r.stats.get("nlp_duration_s", r.duration_s)
+            rows.append(dict(machine=cid, solver=r.stats.get("solver") or m.solver_name,
+                             status=r.status, ruckig_s=opt,
+                             nlp_s=r.duration_s,
+                             nlp_own_s=own, winner=r.stats.get("winner", "nlp"),
+                             excess=r.duration_s / opt - 1, own_excess=own / opt - 1,
+                             solve_s=r.solve_time_s,
+                             violation=judged(crane, r.trajectory, kinds)))
+    return rows
+
+
+def nlp_tip_rows(quick):
+    """Tip ends with the pump: the NLP against the analytic lower bound."""
+    rows = []
+    for cid in NLP_MACHINES:
+        crane = Crane.from_id(cid)
+        m = MoveNLP(crane, "time", N=40, pump=True, cache="off")
+        k_moves = 2 if quick else TIP_MOVES
+        qs = configs(crane, 2 * k_moves, SEED + 3)
+        for k in range(k_moves):
+            a, b = (tuple(float(x) for x in np.round(crane.tip(q), 3))
+                    for q in (qs[k], qs[k_moves + k]))
+            lb = lower_bound(crane, a, b)
+            r = m.solve(a, b)
+            ev = evaluate(crane, r.trajectory) if r.ok else None
+            rows.append(dict(machine=cid, solver=r.stats.get("solver") or m.solver_name,
+                             start=list(a), goal=list(b),
+                             status=r.status,
+                             bound_s=lb.combined_s, pump_bound_s=lb.pump_s,
+                             nlp_s=r.duration_s,
+                             nlp_own_s=r.stats.get("nlp_duration_s", r.duration_s),
+                             winner=r.stats.get("winner", "nlp"),
+                             excess=r.duration_s / lb.combined_s - 1, solve_s=r.solve_time_s,
+                             violation=ev.max_limit_violation if ev else float("nan"),
+                             peak_pump=(ev.peak_pump_flow / crane.spec.pump.max_flow
+                                        if ev else float("nan"))))
+    return rows
+
+
+def nlp_summary(timing, joint, tip):
+    out = {}
+    for r in timing:
+        key = ("pump_on" if r["pump"] else "pump_off") + ("_vs_pump_opti" if r["baseline_pump"]
+                                                          else "")
+        out[f"{r['solver']}_{key}"] = r["ratio"]
+    out["joint_excess"] = summary([r["excess"] for r in joint])
+    out["joint_own_excess"] = summary([r["own_excess"] for r in joint])
+    for cid in NLP_MACHINES:
+        ex = [r["excess"] for r in tip if r["machine"] == cid and r["status"] == "ok"]
+        out[f"tip_{cid}"] = dict(summary(ex), p90=float(np.percentile(ex, 90)) if ex else
+                                 float("nan"), failed=sum(r["machine"] == cid and
+                                                          r["status"] != "ok" for r in tip))
+    out["worst_violation"] = float(np.nanmax([r["nlp_violation"] for r in timing]
+                                             + [r["violation"] for r in joint + tip]))
+    return out
+
+
+def nlp_report(nl) -> list:
+    """The NLP section of the markdown."""
+    m, s = nl["machine"], nl["summary"]
+    pc = lambda v: f"{100 * v:+.2f} %"  # noqa: E731
+    lines = ["", "## NLP", "",
+             f"{m['date']}, load {m['load']}, casadi {m['casadi']}, {nl['repeat']} interleaved "
+             "rounds, medians (`python benchmarks/bench_peers.py --only nlp`). Ours: "
+             "`MoveNLP(crane, 'time', N=40, pump=…, solver=…).solve(start, goal)` built once "
+             "(cache off), "
+             "the whole call timed (default guess, IPOPT, the exact-Ruckig check). Baseline: "
+             "benchmarks/opti_baseline.py (`PlainOpti`, built once, `opti.solve()` timed) "
+             "between the joint configurations at the lower bound's telescopes. Violation: "
+             "`evaluate()` at 1 kHz (position, velocity, acceleration, jerk, pump).", "",
+             "| solver | NLP pump | baseline | ours ms | Opti ms | ratio | target | ours s (NLP's own) | "
+             "winner | ours it. | ours vars/cons | Opti s | Opti it. | Opti vars/cons | "
+             "ours violation | Opti violation |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | "
+             "--- | --- | --- |"]
+    for r in nl["timing"]:
+        target = "" if r["baseline_pump"] else ("≤ 2×" if r["pump"] else "≤ 1.2×")
+        base = "pump at nodes" if r["baseline_pump"] else "no pump"
+        lines.append(
+            f"| {r.get('solver', 'ipopt')} | {'on' if r['pump'] else 'off'} | {base} | "
+            f"{r['nlp_ms']:.0f} | {r['opti_ms']:.0f} | {r['ratio']:.2f}× | {target} | "
+            f"{r['nlp_s']:.4f} ({r['nlp_own_s']:.4f}) | {r['winner']} | {r['nlp_iterations']} | "
+            f"{r['nlp_variables']}/{r['nlp_constraints']} | {r['opti_s']:.4f} | "
+            f"{r['opti_iterations']} | {r['opti_variables']}/{r['opti_constraints']} | "
+            f"{100 * r['nlp_violation']:.3f} % | {100 * r['opti_violation']:.2f} % |")
+    j, jo = s["joint_excess"], s["joint_own_excess"]
+    lines += ["", "Joint-space ends, no pump (solved by: "
+              f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['joint']}))}), "
+              "against the Ruckig optimum (`rest_to_rest`): "
+              f"returned median {pc(j['median'])}, max {pc(j['max'])} (target ≤ 1 %); the "
+              f"NLP's own solution before the exact-Ruckig swap median {pc(jo['median'])}, "
+              f"max {pc(jo['max'])}, min {pc(jo['min'])}.", "",
+              "| machine | status | Ruckig s | returned s | winner | above | NLP's own s | above "
+              "| solve s | violation |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- "
+              "| --- |"]
+    for r in nl["joint"]:
+        lines.append(f"| {r['machine']} | {r['status']} | {r['ruckig_s']:.4f} | "
+                     f"{r['nlp_s']:.4f} | {r['winner']} | {pc(r['excess'])} | "
+                     f"{r['nlp_own_s']:.4f} | {pc(r['own_excess'])} | {r['solve_s']:.3f} | "
+                     f"{100 * r['violation']:.4f} % |")
+    lines += ["", "Tip ends with the pump (solved by: "
+              f"{', '.join(sorted({r.get('solver', 'ipopt') for r in nl['tip']}))}) "
+              "against the analytic lower bound "
+              "(`lower_bound(...).combined_s`; target p90 ≤ 3 %, never below): " + "; ".join(
+                  f"{cid} median {pc(s['tip_' + cid]['median'])}, p90 "
+                  f"{pc(s['tip_' + cid]['p90'])}, max {pc(s['tip_' + cid]['max'])}, min "
+                  f"{pc(s['tip_' + cid]['min'])}, failed {s['tip_' + cid]['failed']}"
+                  for cid in NLP_MACHINES) + ".", "",
+              "| machine | start | goal | status | bound s (pump) | returned s | winner | "
+              "above | NLP's own s | solve s | peak pump / Q_max | violation |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in nl["tip"]:
+        lines.append(f"| {r['machine']} | {r['start']} | {r['goal']} | {r['status']} | "
+                     f"{r['bound_s']:.3f} ({r['pump_bound_s']:.3f}) | {r['nlp_s']:.3f} | "
+                     f"{r['winner']} | {pc(r['excess'])} | {r['nlp_own_s']:.3f} | "
+                     f"{r['solve_s']:.3f} | {r['peak_pump']:.4f} | "
+                     f"{100 * r['violation']:.4f} % |")
+    lines.append(f"\nWorst `evaluate()` violation of every NLP result above: "
+                 f"{100 * s['worst_violation']:.4f} % (passes at ≤ {100 * TOL:.1f} %).")
+    return lines
+
+
 # ---------------------------------------------------------------------------- report
 def summary(values):
     v = [x for x in values if np.isfinite(x)]
@@ -230,7 +426,10 @@ def report(res) -> str:
                      f"{r['ratio_calc']:.1f}× | {r['raw_user_us']:.1f} | "
                      f"{r['ours_switch2_us']:.1f} | {r['ratio_user']:.2f}× | "
                      f"{r['ours_200hz_us']:.1f} | {r['ratio_200hz_user']:.2f}× |")
-    lines += ["", "The NLP against a plain CasADi Opti problem: benchmarks/results/nlp_cache.md."]
+    if res.get("nlp"):
+        lines += nlp_report(res["nlp"])
+    lines += ["", "The NLP's one-off call (build + solve, fresh process) against the same Opti "
+              "baseline: benchmarks/results/nlp_cache.md."]
     return "\n".join(lines) + "\n"
 
 
@@ -239,23 +438,39 @@ def main(argv=None):
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--repeat", type=int, default=15, help="interleaved rounds per case")
     ap.add_argument("--quick", action="store_true", help="one move per machine, 3 rounds")
+    ap.add_argument("--only", default="topp,ruckig,nlp",
+                    help="comma-separated sections to run (topp, ruckig, nlp); the others are "
+                         "kept from the existing peers.json")
     a = ap.parse_args(argv)
+    only = {x.strip() for x in a.only.split(",") if x.strip()}
+    if only - {"topp", "ruckig", "nlp"}:
+        raise SystemExit(f"--only {a.only!r}: allowed topp, ruckig, nlp")
     repeat = 3 if a.quick else a.repeat
     machine = dict(date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
                    platform=platform.platform(), python=platform.python_version(),
                    cpus=os.cpu_count(), load=" ".join(f"{x:.1f}" for x in os.getloadavg()),
                    numpy=np.__version__, toppra=metadata.version("toppra"),
-                   ruckig=metadata.version("ruckig"))
-    tp = topp_rows(repeat, a.quick)
-    rk = ruckig_rows(repeat, a.quick)
-    res = dict(machine=machine, repeat=repeat, topp=tp, ruckig=rk,
-               summary=dict(topp_ratio=summary([r["ratio"] for r in tp]),
-                            topp_coarse=summary([r["coarse_excess"] for r in tp]),
-                            topp_raw_violation=summary([r["raw_violation"] for r in tp]),
-                            ruckig_calc=summary([r["ratio_calc"] for r in rk]),
-                            ruckig_user=summary([r["ratio_user"] for r in rk]),
-                            ruckig_200hz=summary([r["ratio_200hz_user"] for r in rk])))
+                   ruckig=metadata.version("ruckig"), casadi=metadata.version("casadi"))
     out = Path(a.out)
+    old = json.loads((out / "peers.json").read_text()) if (out / "peers.json").exists() else {}
+    if not {"topp", "ruckig"} <= only and not {"topp", "ruckig"} <= set(old):
+        raise SystemExit("no earlier peers.json with the TOPP-RA and Ruckig sections: run "
+                         "them too (leave out --only)")
+    res = dict(old)
+    if {"topp", "ruckig"} & only:
+        tp = topp_rows(repeat, a.quick) if "topp" in only else old["topp"]
+        rk = ruckig_rows(repeat, a.quick) if "ruckig" in only else old["ruckig"]
+        res.update(machine=machine, repeat=repeat, topp=tp, ruckig=rk,
+                   summary=dict(topp_ratio=summary([r["ratio"] for r in tp]),
+                                topp_coarse=summary([r["coarse_excess"] for r in tp]),
+                                topp_raw_violation=summary([r["raw_violation"] for r in tp]),
+                                ruckig_calc=summary([r["ratio_calc"] for r in rk]),
+                                ruckig_user=summary([r["ratio_user"] for r in rk]),
+                                ruckig_200hz=summary([r["ratio_200hz_user"] for r in rk])))
+    if "nlp" in only:
+        timing, joint, tip = nlp_timing(repeat), nlp_joint_rows(a.quick), nlp_tip_rows(a.quick)
+        res["nlp"] = dict(machine=machine, repeat=repeat, timing=timing, joint=joint, tip=tip,
+                          summary=nlp_summary(timing, joint, tip))
     out.mkdir(parents=True, exist_ok=True)
     md = report(res)
     atomic_write_text(out / "peers.json", dumps(res))

@@ -74,6 +74,21 @@ def test_the_key_separates_machines_and_formulations(umea_lab, s100f, cache_dir)
     assert MoveNLP(umea_lab, "time", "line", N=N, cache="use").cache_status == "miss"
     assert MoveNLP(umea_lab, "time", "free", N=N + 1, cache="use").cache_status == "miss"
     assert MoveNLP(umea_lab, "time", "free", N=N, cache="off").cache_status == "off"
+    assert MoveNLP(umea_lab, "time", "free", N=N, cache="use",
+                   solver="fatrop").cache_status == "miss"
+
+
+@pytest.mark.slow   # a FATROP compile (~10 s)
+def test_a_stored_fatrop_solver_gives_the_same_numbers(umea_lab, cache_dir):
+    ref, w_ref = _own_solution(MoveNLP(umea_lab, "time", "free", N=N, cache="off",
+                                       solver="fatrop"))
+    built = MoveNLP(umea_lab, "time", "free", N=N, cache="build", solver="fatrop")
+    assert built.cache_status == "stored", built.cache_error
+    loaded = MoveNLP(umea_lab, "time", "free", N=N, cache="use", solver="fatrop")
+    assert loaded.cache_status == "hit"
+    res, w = _own_solution(loaded)
+    np.testing.assert_allclose(w, w_ref, rtol=1e-9, atol=1e-12)
+    assert res.duration_s == pytest.approx(ref.duration_s, rel=1e-9)
 
 
 @pytest.mark.slow   # two compiles at once (~20 s); benchmarks/bench_nlp_cache.py runs it too

@@ -5,6 +5,10 @@
   (:class:`Layout`) and IPOPT's status as a result code;
 - :mod:`~planner.methods.nlp.move`: :class:`MoveNLP` (minimum time, least energy or a blend;
   free path, tip line or a curve; obstacles; the exact-Ruckig swap-in);
+- :mod:`~planner.methods.nlp.limits`: its velocity check with each interval's own jerk and
+  the smooth conservative pump draw; :mod:`~planner.methods.nlp.tip`: its tip constraints
+  (obstacles, line, curve); :mod:`~planner.methods.nlp.stagewise`: the FATROP solver on the
+  stage-ordered problem (``MoveNLP(solver="auto" | "ipopt" | "fatrop")``);
 - :mod:`~planner.methods.nlp.guess`: its warm starts (and :func:`stretch`);
 - :mod:`~planner.methods.nlp.energy`: :func:`energy_optimal`, :func:`pareto_front`;
 - :mod:`~planner.methods.nlp.kinematic`: :func:`kinematic_line_nlp` (seed 000's setting).

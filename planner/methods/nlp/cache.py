@@ -43,6 +43,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from planner.methods.nlp.stagewise import StagewiseSolver, fatrop_options
 from planner.model.numeric import cache_root, compiler, file_digest
 
 __all__ = ["MODES", "cache_root", "entry_key", "load_entry", "store_entry", "build_or_load",
@@ -52,7 +53,9 @@ MODES = ("off", "use", "build")
 ENV_MODE = "CRANE_PLANNER_NLP_CACHE"
 FORMAT = 1
 # the modules whose source writes the NLP's expressions: a change to any invalidates every key
-_SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "model/__init__.py",
+_SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "methods/nlp/limits.py",
+            "methods/nlp/tip.py", "methods/nlp/stagewise.py",
+            "model/__init__.py",
             "model/kinematics.py", "model/actuators.py", "model/dynamics.py",
             "model/hydraulics.py", "model/spec.py", "geometry/obstacles.py")
 
@@ -91,7 +94,9 @@ def _folder(key: str) -> Path:
 
 def load_entry(key: str, ipopt_opts: dict):
     """(solver, energy function, structure dict) of a stored entry, or None when there is none
-    or it does not load (a broken entry is removed so that it is rebuilt)."""
+    or it does not load (a broken entry is removed so that it is rebuilt). A FATROP entry
+    (structure "stages": its permutations and equality rows) comes back wrapped as a
+    :class:`~planner.methods.nlp.stagewise.StagewiseSolver`."""
     d = _folder(key)
     if not (d / "meta.json").exists():
         return None
@@ -102,11 +107,17 @@ def load_entry(key: str, ipopt_opts: dict):
         for name, digest in meta["files"].items():   # a truncated library must never be
             if file_digest(d / name) != digest:          # mapped: that crashes the process
                 raise ValueError(f"{name}: checksum mismatch")
-        solver = ca.nlpsol("move", "ipopt", str(d / "nlp.so"),
-                           {"print_time": False, "ipopt": dict(ipopt_opts)})
         energy = ca.Function.load(str(d / "energy.casadi"))
         with open(d / "structure.pkl", "rb") as f:
             structure = pickle.load(f)
+        stages = structure.get("stages")
+        if stages is None:
+            solver = ca.nlpsol("move", "ipopt", str(d / "nlp.so"),
+                               {"print_time": False, "ipopt": dict(ipopt_opts)})
+        else:
+            solver = StagewiseSolver(ca.nlpsol("move_fatrop", "fatrop", str(d / "nlp.so"),
+                                               fatrop_options(stages["equality"], ipopt_opts)),
+                                     stages["wperm"], stages["gperm"])
         return solver, energy, structure
     except Exception:   # truncated, corrupt or foreign: never trusted, rebuilt by the caller
         shutil.rmtree(d, ignore_errors=True)
@@ -127,9 +138,10 @@ def store_entry(key: str, desc: dict, solver: ca.Function, energy: ca.Function,
     try:
         # the oracle "nlp" (x, p -> f, g) and the derivatives IPOPT calls, as one C file
         cg = ca.CodeGenerator("nlp.c", {"with_header": False})
-        cg.add(solver.oracle())
-        for name in solver.get_function():
-            cg.add(solver.get_function(name))
+        inner = getattr(solver, "solver", solver)   # a StagewiseSolver wraps its FATROP solver
+        cg.add(inner.oracle())
+        for name in inner.get_function():
+            cg.add(inner.get_function(name))
         cg.generate(str(tmp) + os.sep)
         r = subprocess.run([cc, "-fPIC", "-shared", *flags, "nlp.c", "-o", "nlp.so", "-lm"],
                            cwd=tmp, capture_output=True, text=True)
@@ -179,6 +191,9 @@ def build_or_load(nlp, mode: str | None, formulation: dict, build) -> str:
     if mode == "use":
         return "miss"
     structure = dict(layout=nlp.layout, lbw=nlp.lbw, ubw=nlp.ubw, lbg=nlp.lbg, ubg=nlp.ubg)
+    if isinstance(nlp.solver, StagewiseSolver):
+        structure["stages"] = dict(wperm=nlp.solver.wperm, gperm=nlp.solver.gperm,
+                                   equality=nlp.solver.equality)
     try:
         store_entry(key, desc, nlp.solver, nlp._energy_fn, structure)
     except RuntimeError as e:

@@ -7,18 +7,27 @@
 - :func:`over_obstacles_guess`: Ruckig segments through a via point above every obstacle the
   move meets (a guess through a wall leaves IPOPT in a poor local optimum);
 - :func:`path_guess`: a coarse DP along a tip path retimed by TOPP-RA (line and curve modes);
-- :func:`stretch`: any trajectory slowed uniformly to a longer duration.
+- :func:`stretch`: any trajectory slowed uniformly to a longer duration;
+- :class:`Guesses`: the move NLP's guess methods (``guess_from``, ``default_guess``, the Ruckig
+  move it shares with the exact-move check), mixed into :class:`~planner.methods.nlp.move.MoveNLP`.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from planner.bounds import lower_bound
+from planner.geometry.paths import Line
 from planner.methods.dp import dp
 from planner.methods.ruckig import rest_to_rest
 from planner.methods.topp import retime
 from planner.trajectory import Trajectory
 
-__all__ = ["stretch", "ruckig_guess", "vias", "over_obstacles_guess", "path_guess"]
+__all__ = ["stretch", "ruckig_guess", "vias", "over_obstacles_guess", "path_guess", "Guesses",
+           "GUESS_BOUND"]
+
+# the lower bound the default guess is taken at: a coarser telescope search than the reported
+# bound's (≈ 2.5× cheaper; only the guess's telescopes and slowing depend on it)
+GUESS_BOUND = dict(n_grid=41, refine=2, starts=2)
 
 
 def stretch(traj: Trajectory, T: float) -> Trajectory:
@@ -30,13 +39,14 @@ def stretch(traj: Trajectory, T: float) -> Trajectory:
                       limits=traj.limits, meta=dict(traj.meta, stretched_by=k))
 
 
-def ruckig_guess(crane, start, goal, lb) -> tuple:
+def ruckig_guess(crane, start, goal, lb, q_start=None, q_goal=None) -> tuple:
     """(the guess: the Ruckig rest-to-rest move slowed to 1.05 × the combined bound when
     faster, the Ruckig move itself) between tips ``start`` and ``goal`` at the telescopes of
-    the lower bound ``lb`` (:func:`~planner.bounds.lower_bound`). ValueError when an end is
-    unreachable."""
-    tr = rest_to_rest(crane, crane.ik(start, lb.tele_start),
-                      crane.ik(goal, lb.tele_goal)).trajectory
+    the lower bound ``lb`` (:func:`~planner.bounds.lower_bound`), or between the joint
+    configurations ``q_start``/``q_goal`` when given. ValueError when an end is unreachable."""
+    q0 = crane.ik(start, lb.tele_start) if q_start is None else np.asarray(q_start, float)
+    q1 = crane.ik(goal, lb.tele_goal) if q_goal is None else np.asarray(q_goal, float)
+    tr = rest_to_rest(crane, q0, q1).trajectory
     slow = stretch(tr, 1.05 * lb.combined_s) if 1.05 * lb.combined_s > tr.duration else tr
     return slow, tr
 
@@ -80,3 +90,64 @@ def path_guess(crane, path) -> Trajectory:
     if not t.ok:
         raise ValueError(t.reason)
     return t.trajectory
+
+
+class Guesses:
+    """The move NLP's primal guesses (a mixin of :class:`~planner.methods.nlp.move.MoveNLP`:
+    uses its crane, N, layout, bounds, path and curve)."""
+
+    def guess_from(self, traj) -> np.ndarray:
+        """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
+        N, lay = self.N, self.layout
+        t = np.linspace(traj.t[0], traj.t[-1], N + 1)
+        q, qd, qdd, _ = traj.sample(t)
+        h = (t[-1] - t[0]) / N
+        w0 = np.zeros(self.nw)
+        lay.pack(w0, "X", np.vstack([q.T, qd.T, qdd.T]))
+        lay.pack(w0, "U", np.diff(qdd, axis=0).T / h)
+        lay.pack(w0, "T", traj.duration)
+        rest = lay.slice("T").stop
+        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
+        if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
+            u = np.linspace(*self.curve.u_range, 4001)
+            P = np.asarray(self.curve.p(u))
+            tips = self.crane.fk(q)
+            k = np.argmin(((tips[:, None, :] - P[None, :, :]) ** 2).sum(-1), axis=1)
+            th = np.maximum.accumulate(u[k]) if u[-1] > u[0] else np.minimum.accumulate(u[k])
+            th[0], th[-1] = u[0], u[-1]
+            lay.pack(w0, "TH", th)
+        return w0
+
+    def default_guess(self, start, goal, q_ends=(None, None)):
+        """Free path: Ruckig rest-to-rest between the ends (``q_ends``: joint configurations,
+        else the tips at the best telescope values of a coarse lower bound,
+        :data:`GUESS_BOUND`), slowed to the pump bound when the pump limits. Line: a coarse DP
+        along the line retimed by TOPP-RA (velocity, acceleration, pump)."""
+        crane = self.crane
+        if self.path in ("line", "curve"):
+            lb = lower_bound(crane, start, goal, **GUESS_BOUND)
+            geo = self.curve if self.path == "curve" else Line(start, goal)
+            return self.guess_from(path_guess(crane, geo)), lb
+        lb = self._bound(start, goal, q_ends)
+        return self._plain_guess(start, goal, lb, q_ends), lb
+
+    def _bound(self, start, goal, q_ends=(None, None)):
+        """The coarse lower bound the guess is taken at (fixed joint ends when given)."""
+        qs, qg = q_ends
+        return lower_bound(self.crane, None if qs is not None else start,
+                           None if qg is not None else goal, q_start=qs, q_goal=qg,
+                           **GUESS_BOUND)
+
+    def _plain_guess(self, start, goal, lb, q_ends=(None, None)):
+        """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
+        return self.guess_from(self._plain_traj(start, goal, lb, q_ends)[0])
+
+    def _plain_traj(self, start, goal, lb, q_ends=(None, None)):
+        """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
+        Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
+        qk = tuple(None if q is None else tuple(map(float, q)) for q in q_ends)
+        key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
+               lb.combined_s, qk)
+        if self._plain[0] != key:
+            self._plain = (key, ruckig_guess(self.crane, start, goal, lb, *q_ends))
+        return self._plain[1]

@@ -1,19 +1,21 @@
-"""MoveNLP: a point-to-point move as one CasADi NLP (IPOPT), built once and solved many times.
+"""MoveNLP: a point-to-point move as one CasADi NLP (IPOPT or FATROP), built once and solved
+many times.
 
 Transcription: N intervals of equal length h = T/N; every joint is a triple integrator with
 piecewise-constant jerk, integrated exactly (q, q̇, q̈ at the nodes), so acceleration and jerk
 limits hold everywhere by construction; velocity, position, the pump flow and (path mode) the
-tip path are imposed at the nodes and the interval midpoints. Velocity is quadratic on an
-interval, so its extremum lies at most h/4 from a check point and exceeds it by at most
-j_max·h²/32: the checked velocity is tightened by exactly that, and the limit holds everywhere.
-Ends: tip positions (the redundancy is free at both ends) at rest (q̇ = q̈ = 0).
+tip path are imposed at the nodes and the interval midpoints, the velocity with each
+interval's own jerk bound and the pump as one smooth conservative inequality per check point
+(minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits` (the curve mode,
+fragile under IPOPT, keeps the earlier uniform velocity tightening and the flow slacks); the 0.5 %
+default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
+positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
+The duration is a state copied per node (chained equal), so every row lies inside one interval:
+the stage structure FATROP exploits (:mod:`planner.methods.nlp.stagewise`; ``solver="auto"``
+uses it for minimum time without the pump, where it was measured faster, IPOPT elsewhere).
 
-Pump flow without abs/max (anchors.md): per check point and actuator a slack s ≥ A_a·ẋ,
-s ≥ −A_b·ẋ (single-acting: s ≥ A_a·ẋ), s ≥ 0, and Σ s ≤ (1 − pump_margin)·Q_max; the flow is
-nonlinear in q between check points, the 0.5 % default margin covers that (measured overshoot
-≤ 0.15 % at N = 30).
-
-Energy (load sensing) without max/abs: flows split by direction (s⁺ piston side extending, s⁻
+Energy (load sensing) without max/abs: flow slacks per check point and actuator split by
+direction (s⁺ piston side extending, s⁻
 annulus retracting, as fractions of Q_max); per node a pump-pressure variable p [MPa] ≥ standby
 with p ≥ margin + p_meter-in for every function marked active at that node — the activity mask
 is an NLP parameter (inactive ones relaxed by a big M, so all constraints are smooth), taken
@@ -43,9 +45,12 @@ import casadi as ca
 import numpy as np
 
 from planner.bounds import lower_bound
-from planner.geometry.paths import Line, tip_to_xyz, xyz_to_tip
+from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.cache import build_or_load
-from planner.methods.nlp.guess import over_obstacles_guess, path_guess, ruckig_guess, vias
+from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
+from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
+from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
+from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.model.flows import actuator_table
 from planner.model.hydraulics import ACTIVE_FLOW
@@ -56,26 +61,24 @@ __all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
 IPOPT_DEFAULTS = {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
                   "acceptable_tol": 1e-5, "mu_strategy": "adaptive", "max_wall_time": 60.0}
 BIG_T = 1e3  # [s] upper bound of the duration
+AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IPOPT)
 
 
-def _step(q, v, a, j, h):
-    """The exact triple-integrator step: (q, q̇, q̈) after time h under constant jerk j."""
-    return (q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j, v + h * a + h ** 2 / 2 * j, a + h * j)
-
-
-class MoveNLP:
+class MoveNLP(Guesses):
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
     face (:func:`planner.geometry.paths.circle` / :func:`~planner.geometry.paths.parabola`);
-    N intervals. ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
-    jerk per interval, "T", per check point the flow slacks "sp<k>"/"sm<k>" and the pump
-    pressure "p<k>", curve mode "TH") and the constraint blocks."""
+    N intervals; ``solver``: "auto" | "ipopt" | "fatrop" (:data:`~planner.methods.nlp.stagewise.
+    SOLVERS`). ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
+    jerk per interval, "T" the duration per node, energy objectives per check point the flow
+    slacks "sp<k>"/"sm<k>" and the pump pressure "p<k>", curve mode "TH") and the constraint
+    blocks."""
 
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float = 0.005,
                  obstacles: tuple = (), ipopt_options: dict | None = None,
-                 cache: str | None = None):
+                 cache: str | None = None, solver: str = "auto"):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
         self.curve = None
@@ -90,13 +93,29 @@ class MoveNLP:
         self.obstacles = tuple(obstacles)
         n = crane.n
         self.L = crane.limit_arrays()
-        acts = actuator_table(crane.spec)   # the model's hydraulic constants (planner.model.flows)
+        acts = self._acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
         self._Aa, self._Ab, self._dbl = acts.area_a, acts.area_b, ~acts.single
         self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
         ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
         t0 = _time.perf_counter()
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")
+        # FATROP (stage-wise) serves minimum time on a free path or the tip line; the other
+        # formulations (slacks, curve parameters) have no stage structure: IPOPT
+        # FATROP serves minimum time on a free path or the tip line ("auto": without the pump,
+        # where it won; with the pump its solves had a failure tail, see SOLVERS)
+        stagewise = objective == "time" and path != "curve"
+        self.solver_name = ("fatrop" if stagewise and (solver == "fatrop" or (
+            solver == "auto" and not pump)) else "ipopt")
+        self.fallback = solver == "auto" and self.solver_name == "fatrop"
+        if self.fallback:   # fail fast: its solves take ~20–40 iterations
+            ipopt["max_iter"] = min(ipopt["max_iter"], AUTO_FATROP_ITER)
+        self._twin_args = (crane, objective, path, N, pump, reg, pump_margin, obstacles,
+                           ipopt_options, cache)
+        self._twin = None
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
-                           pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt)
+                           pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
+                           solver=self.solver_name)
         self.cache_status = build_or_load(
             self, "off" if path == "curve" else cache, formulation,
             lambda: self._build(reg, pump_margin, ipopt))
@@ -116,34 +135,45 @@ class MoveNLP:
         xlo = np.concatenate([L["q_min"], L["qd_min"], -L["qdd_max"]])
         xhi = np.concatenate([L["q_max"], L["qd_max"], L["qdd_max"]])
         X = lay.add_var("X", (3 * n, N + 1), np.tile(xlo[:, None], (1, N + 1)),
-                        np.tile(xhi[:, None], (1, N + 1)))
+                        np.tile(xhi[:, None], (1, N + 1)), stage=0)
         U = lay.add_var("U", (n, N), np.tile(-jmax[:, None], (1, N)),
-                        np.tile(jmax[:, None], (1, N)))
-        T = lay.add_var("T", 1, 1e-3, BIG_T)
-        h = T / N
+                        np.tile(jmax[:, None], (1, N)), stage=1)
+        # the duration as one copy per node, chained equal (a state of every stage): each row
+        # then involves one interval's variables only, as a stage-wise solver needs
+        TT = lay.add_var("T", (1, N + 1), 1e-3, BIG_T, stage=0)
+        T, hs = TT[0], [TT[k] / N for k in range(N + 1)]
         for k in range(N):
-            lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*self._at(X, U, k, h)), 0.0, 0.0)
+            lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*self._at(X, U, k, hs[k])), 0.0,
+                        0.0, stage=(k, 0))
+        for k in range(N):
+            lay.add_con("duration_chain", TT[k + 1] - TT[k], 0.0, 0.0, stage=(k, 0))
         # ---- ends: the tips given, at rest
         fk = crane.f_fk
-        lay.add_con("start", fk(X[:n, 0])[0] - par["start"], 0.0, 0.0)
-        lay.add_con("goal", fk(X[:n, N])[0] - par["goal"], 0.0, 0.0)
-        lay.add_con("start_at_rest", X[n:, 0], 0.0, 0.0)
-        lay.add_con("goal_at_rest", X[n:, N], 0.0, 0.0)
-        # ---- check points: nodes and interval midpoints
+        lay.add_con("start", fk(X[:n, 0])[0] - par["start"], 0.0, 0.0, stage=(0, 1))
+        lay.add_con("goal", fk(X[:n, N])[0] - par["goal"], 0.0, 0.0, stage=(N, 1))
+        lay.add_con("start_at_rest", X[n:, 0], 0.0, 0.0, stage=(0, 1))
+        lay.add_con("goal_at_rest", X[n:, N], 0.0, 0.0, stage=(N, 1))
+        # ---- check points: nodes and interval midpoints (and each interval's end, in terms
+        # of its own variables: the velocity rows stay inside one stage)
         pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
-        mids = [self._at(X, U, k, h / 2) for k in range(N)]
-        self._add_joint_limits(pts, mids, jmax * h ** 2 / 32)
+        mids = [self._at(X, U, k, hs[k] / 2) for k in range(N)]
+        ends = [self._at(X, U, k, hs[k]) for k in range(N)]
+        for k, (q, _, _) in enumerate(mids):
+            lay.add_con("position", q, L["q_min"], L["q_max"], stage=(k, 1))
+        add_velocity_limits(lay, L, jmax, pts, mids, ends, U, hs, uniform=path == "curve")
         if self.obstacles:
-            self._add_obstacles(pts + mids + [self._at(X, U, k, hh)
-                                              for k in range(N) for hh in (h / 4, 3 * h / 4)])
-        TH = self._add_curve(X) if path == "curve" else None
+            add_obstacles(lay, crane.f_fk, self.obstacles,
+                          [(k, c) for k in range(N + 1) for c in
+                           ([pts[k]] + ([mids[k]] + [self._at(X, U, k, f * hs[k])
+                                                     for f in (0.25, 0.75)] if k < N else []))])
+        TH = add_curve(lay, crane.f_fk, self.curve, X, n, N) if path == "curve" else None
         if path == "line":
-            self._add_line(pts, par["start"], par["goal"])
-        energy = self._add_pump_and_energy(pts, mids, h, par["payload"], par["activity"],
+            add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
+        energy = self._add_pump_and_energy(pts, mids, hs[0], par["payload"], par["activity"],
                                            pump_margin)
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
         # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
-        smooth = reg * h * ca.sumsqr(U)
+        smooth = reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
         if objective == "time":
             f = T + smooth
         elif objective == "energy":
@@ -152,14 +182,28 @@ class MoveNLP:
         else:
             f = T + par["lam"] * energy + smooth
         if TH is not None:
-            lay.add_var("TH", TH, *self._th_bounds())  # last block: θ per node
+            u0, u1 = self.curve.u_range
+            lay.add_var("TH", TH, min(u0, u1), max(u0, u1))  # last block: θ per node
         wv = lay.w
         self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
-        opts = {"expand": True, "print_time": False, "ipopt": ipopt}
-        self.solver = ca.nlpsol("move", "ipopt", {"x": wv, "p": lay.P, "f": f, "g": lay.g},
-                                opts)
         self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
+        problem = {"x": wv, "p": lay.P, "f": f, "g": lay.g}
+        self.solver = None
+        if self.solver_name == "fatrop":
+            self.solver = stagewise_solver(problem, lay, self.lbg == self.ubg, ipopt)
+        if self.solver is None:
+            self.solver = ca.nlpsol("move", "ipopt", problem,
+                                    {"expand": True, "print_time": False, "ipopt": ipopt})
         self.nw = lay.nw
+
+    def _ipopt_twin(self):
+        """The same formulation solved by IPOPT (built on first use): the fallback of
+        ``solver="auto"`` when FATROP fails (its variables and rows are the same)."""
+        if self._twin is None:
+            c, o, p, N, pump, reg, pm, obs, io, cache = self._twin_args
+            self._twin = MoveNLP(c, o, p, N=N, pump=pump, reg=reg, pump_margin=pm,
+                                 obstacles=obs, ipopt_options=io, cache=cache, solver="ipopt")
+        return self._twin.solver
 
     @property
     def _nx(self) -> int:
@@ -171,61 +215,7 @@ class MoveNLP:
     def _at(self, X, U, k, hh):
         """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
         n = self.crane.n
-        return _step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
-
-    def _add_joint_limits(self, pts, mids, gap):
-        """Positions at the midpoints (the nodes are bounded as variables); velocities at every
-        check point, tightened by ``gap`` = j_max·h²/32, the largest overshoot between them."""
-        L, lay = self.L, self.layout
-        for q, v, a in mids:
-            lay.add_con("position", q, L["q_min"], L["q_max"])
-        for q, v, a in pts + mids:
-            lay.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
-            lay.add_con("velocity", v - gap, L["qd_min"], ca.inf)
-
-    def _add_obstacles(self, checks):
-        """Clearance from every obstacle at the nodes, midpoints and quarter points (q is a
-        cubic per interval: the tip moves a quarter interval between checks)."""
-        for q, _, _ in checks:
-            xyz, cyl = self.crane.f_fk(q)
-            for ob in self.obstacles:
-                for expr, lo in ob.constraints(xyz, cyl):
-                    self.layout.add_con("obstacle", expr, lo, ca.inf)
-
-    def _th_bounds(self):
-        u0, u1 = self.curve.u_range
-        return min(u0, u1), max(u0, u1)
-
-    def _add_curve(self, X):
-        """One path parameter per node (returned; added as the last variable block),
-        monotone, fixed at the ends; the tip on p(θ_k) at the nodes: per interval n jerks + 1 θ
-        − 3 equations leave n − 2 free directions."""
-        n, N, lay = self.crane.n, self.N, self.layout
-        u0, u1 = self.curve.u_range
-        TH = ca.SX.sym("TH", N + 1)
-        for k in range(N + 1):
-            lay.add_con("curve", self.crane.f_fk(X[:n, k])[0] - self.curve.p_sym(TH[k]), 0.0, 0.0)
-        lay.add_con("curve_ends", TH[0] - u0, 0.0, 0.0)
-        lay.add_con("curve_ends", TH[N] - u1, 0.0, 0.0)
-        sgn = 1.0 if u1 >= u0 else -1.0
-        lay.add_con("curve_monotone", sgn * (TH[1:] - TH[:-1]), 0.0, ca.inf)
-        return TH
-
-    def _add_line(self, pts, pa, pb):
-        """The tip on the straight line pa → pb at the interior nodes only: per interval the n
-        jerks leave n − 2 free directions (progress and redundancy); also imposing the
-        midpoints would fix the motion completely."""
-        d = pb - pa
-        dn = d / ca.norm_2(d)
-        # two unit vectors perpendicular to the line (robust for any direction)
-        helper = ca.if_else(ca.fabs(dn[2]) < 0.9, ca.DM([0, 0, 1]), ca.DM([1, 0, 0]))
-        e1 = ca.cross(dn, helper)
-        e1 = e1 / ca.norm_2(e1)
-        e2 = ca.cross(dn, e1)
-        for q, _, _ in pts[1:-1]:
-            r = self.crane.f_fk(q)[0] - pa
-            self.layout.add_con("line", ca.vertcat(ca.dot(r, e1), ca.dot(r, e2)), 0.0, 0.0)
-            self.layout.add_con("line_progress", ca.dot(r, dn) / ca.norm_2(d), -0.02, 1.02)
+        return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
 
     def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
         """Pump flow slacks and limit at every check point; for the energy objectives the
@@ -237,6 +227,18 @@ class MoveNLP:
         Qm = spec.pump.max_flow
         need_energy = self.objective in ("energy", "blend")
         if not (self.pump or need_energy):
+            return 0
+        if not need_energy and self.path != "curve":   # one smooth inequality per check point
+            # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
+            # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
+            # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
+            # (FATROP: a row may only use its own stage's variables, so the midpoint's own)
+            J = [crane.f_stroke(q)[1] for q, _, _ in pts]
+            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.solver_name == "fatrop"
+                  else [(J[k] + J[k + 1]) / 2 for k in range(N)])
+            for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
+                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin,
+                            stage=(k % (N + 1), 1))
             return 0
         checks = pts + mids if self.pump else pts
         powers = []
@@ -282,54 +284,7 @@ class MoveNLP:
             return 0
         return h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
 
-    # ------------------------------------------------------------------------ guesses
-    def guess_from(self, traj) -> np.ndarray:
-        """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
-        N, lay = self.N, self.layout
-        t = np.linspace(traj.t[0], traj.t[-1], N + 1)
-        q, qd, qdd, _ = traj.sample(t)
-        h = (t[-1] - t[0]) / N
-        w0 = np.zeros(self.nw)
-        lay.pack(w0, "X", np.vstack([q.T, qd.T, qdd.T]))
-        lay.pack(w0, "U", np.diff(qdd, axis=0).T / h)
-        lay.pack(w0, "T", traj.duration)
-        rest = lay.slice("T").stop
-        w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
-        if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
-            u = np.linspace(*self.curve.u_range, 4001)
-            P = np.asarray(self.curve.p(u))
-            tips = self.crane.fk(q)
-            k = np.argmin(((tips[:, None, :] - P[None, :, :]) ** 2).sum(-1), axis=1)
-            th = np.maximum.accumulate(u[k]) if u[-1] > u[0] else np.minimum.accumulate(u[k])
-            th[0], th[-1] = u[0], u[-1]
-            lay.pack(w0, "TH", th)
-        return w0
-
-    def default_guess(self, start, goal):
-        """Free path: Ruckig rest-to-rest between the ends at the lower bound's best telescope
-        values, slowed to the pump bound when the pump limits. Line: a coarse DP along the line
-        retimed by TOPP-RA (velocity, acceleration, pump)."""
-        crane = self.crane
-        lb = lower_bound(crane, start, goal)
-        if self.path in ("line", "curve"):
-            geo = self.curve if self.path == "curve" else Line(start, goal)
-            return self.guess_from(path_guess(crane, geo)), lb
-        return self._plain_guess(start, goal, lb), lb
-
-    def _plain_guess(self, start, goal, lb):
-        """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
-        return self.guess_from(self._plain_traj(start, goal, lb)[0])
-
-    def _plain_traj(self, start, goal, lb):
-        """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
-        Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
-        key = (tuple(map(float, start)), tuple(map(float, goal)), lb.tele_start, lb.tele_goal,
-               lb.combined_s)
-        if self._plain[0] != key:
-            self._plain = (key, ruckig_guess(self.crane, start, goal, lb))
-        return self._plain[1]
-
-    def _prefer_exact(self, res, start, goal, lb, t0):
+    def _prefer_exact(self, res, start, goal, lb, t0, q_ends=(None, None)):
         """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes
         from, when it is faster than the NLP's solution and itself feasible — every limit of
         the NLP (the pump too) on a 1 kHz resampling, clear of the obstacles. N equal intervals
@@ -338,7 +293,7 @@ class MoveNLP:
         its switch times only: between them every joint is a cubic, which the quintic
         interpolation reproduces exactly."""
         try:
-            exact = self._plain_traj(start, goal, lb)[1]
+            exact = self._plain_traj(start, goal, lb, q_ends)[1]
         except ValueError:
             return res
         if res.ok and exact.duration >= res.duration_s * (1 - 1e-6):
@@ -355,7 +310,9 @@ class MoveNLP:
         if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
             return res
         return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
-                          ipopt_status=res.ipopt_status, stats=dict(winner="ruckig"),
+                          ipopt_status=res.ipopt_status,
+                          stats=dict(winner="ruckig", solver=res.stats.get("solver"),
+                                     nlp_duration_s=res.duration_s if res.ok else float("nan")),
                           solve_time_s=_time.perf_counter() - t0)
 
     def _activity(self, w) -> np.ndarray:
@@ -372,11 +329,20 @@ class MoveNLP:
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
-              payload: float | None = None, w0=None):
-        """Solve for tips ``start``/``goal`` (r, z, slew). ``T_max`` [s] (energy), ``lam``
-        [s/J] (blend), ``w0`` a primal guess (default: :meth:`default_guess`). Returns a
-        :class:`~planner.methods.base.PlanResult`."""
+              payload: float | None = None, w0=None, q_start=None, q_goal=None):
+        """Solve for tips ``start``/``goal`` (r, z, slew), or joint configurations
+        ``q_start``/``q_goal`` [rad, m] (free path: the end joints fixed by their bounds, the
+        tips follow). ``T_max`` [s] (energy), ``lam`` [s/J] (blend), ``w0`` a primal guess
+        (default: :meth:`default_guess`). Returns a :class:`~planner.methods.base.PlanResult`."""
         t0 = _time.perf_counter()
+        q_ends = (q_start, q_goal)
+        if q_start is not None or q_goal is not None:
+            if self.path != "free" or self.obstacles:
+                raise ValueError("joint ends (q_start/q_goal) need path 'free' without obstacles")
+            q_ends = tuple(None if q is None else self._joint_end(q, name)
+                           for q, name in ((q_start, "q_start"), (q_goal, "q_goal")))
+            start = self.crane.tip(q_ends[0]) if q_ends[0] is not None else start
+            goal = self.crane.tip(q_ends[1]) if q_ends[1] is not None else goal
         if self.curve is not None and start is None:  # curve mode: the curve's ends
             ends = np.asarray(self.curve.p(np.array(self.curve.u_range)))
             start, goal = xyz_to_tip(ends[0]), xyz_to_tip(ends[1])
@@ -387,13 +353,22 @@ class MoveNLP:
         if w0 is None and self.obstacles and self.path == "free":
             return self._solve_among_obstacles(start, goal, T_max, lam, payload, t0)
         try:
-            guess, lb = self.default_guess(start, goal) if w0 is None else (w0, None)
+            guess, lb = self.default_guess(start, goal, q_ends) if w0 is None else (w0, None)
         except ValueError as e:  # unreachable end
             return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
-        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0)
+        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
-            res = self._prefer_exact(res, start, goal, lb, t0)
+            res = self._prefer_exact(res, start, goal, lb, t0, q_ends)
         return res
+
+    def _joint_end(self, q, name):
+        """A joint end as an array inside the position limits, else ValueError naming it."""
+        q = np.asarray(q, float).ravel()
+        L = self.L
+        if q.shape != (self.crane.n,) or np.any(q < L["q_min"]) or np.any(q > L["q_max"]):
+            raise ValueError(f"{name} = {q.tolist()}: {self.crane.n} joint values within "
+                             f"[{L['q_min'].tolist()}, {L['q_max'].tolist()}] expected")
+        return q
 
     def _solve_among_obstacles(self, start, goal, T_max, lam, payload, t0):
         """Obstacle problems are multimodal: try the plain and (when the move meets an
@@ -448,7 +423,7 @@ class MoveNLP:
         lay.pack(g, "T", T_max)
         return g
 
-    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0):
+    def _solve_from(self, guess, start, goal, T_max, lam, payload, t0, q_ends=(None, None)):
         crane, lay = self.crane, self.layout
         if T_max is not None and self.objective == "energy":
             guess = self._slowed_to(guess, T_max)  # start from the guess slowed to the budget
@@ -457,18 +432,32 @@ class MoveNLP:
                     goal=tip_to_xyz(np.asarray(goal, float)),
                     T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
         mask = self._activity(guess)
+        lbw, ubw = self.lbw.copy(), self.ubw.copy()
+        X0 = self.layout.slice("X").start
+        for k, q in zip((0, self.N), q_ends):   # joint ends: fixed by their bounds
+            if q is not None:
+                i = X0 + 3 * crane.n * k
+                lbw[i:i + crane.n] = ubw[i:i + crane.n] = q
         iters = 0
         for _round in range(4 if self.objective != "time" else 1):
             P = lay.param_vector(**pars, activity=mask)
-            try:
-                sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
-                                  ubg=self.ubg)
-            except RuntimeError as e:
-                return nlp_result("error", f"IPOPT failed: {e}",
-                                  solve_time_s=_time.perf_counter() - t0)
-            st = self.solver.stats()
-            iters += st.get("iter_count", 0)
-            ist = st.get("return_status", "")
+            # FATROP takes no fixed end joints (it counts them as end equalities): IPOPT
+            fixed = self.solver_name == "fatrop" and any(q is not None for q in q_ends)
+            tries = (True,) if fixed else (False, True) if self.fallback else (False,)
+            for twin in tries:
+                solver = self._ipopt_twin() if twin else self.solver   # auto: IPOPT 2nd
+                try:
+                    sol = solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg, ubg=self.ubg)
+                except RuntimeError as e:
+                    if not twin and self.fallback:
+                        continue
+                    return nlp_result("error", f"{'IPOPT' if twin else self.solver_name} "
+                                      f"failed: {e}", solve_time_s=_time.perf_counter() - t0)
+                st = solver.stats()
+                iters += st.get("iter_count", 0)
+                ist = st.get("return_status", "")
+                if ist in STATUS_OK:
+                    break
             w = np.array(sol["x"]).ravel()
             if ist not in STATUS_OK or self.objective == "time":
                 break
@@ -477,7 +466,8 @@ class MoveNLP:
                 break
             mask, guess = np.maximum(mask, new), w  # keep functions once seen active
         if ist not in STATUS_OK:
-            return nlp_result(ipopt_code(ist), f"IPOPT: {ist}", iterations=iters,
+            return nlp_result(ipopt_code(ist), ist if ist.startswith("FATROP") else
+                              f"IPOPT: {ist}", iterations=iters,
                               ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
         n, N = crane.n, self.N
         X, U = lay.unpack(w, "X"), lay.unpack(w, "U")
@@ -485,7 +475,7 @@ class MoveNLP:
         t = np.linspace(0.0, T, N + 1)
         h = T / N
         for k in range(N):  # re-integrate exactly: node states consistent with the jerks
-            X[:n, k + 1], X[n:2 * n, k + 1], X[2 * n:, k + 1] = _step(
+            X[:n, k + 1], X[n:2 * n, k + 1], X[2 * n:, k + 1] = step(
                 X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], h)
         traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
                           method="nlp", objective=self.objective,
@@ -496,4 +486,5 @@ class MoveNLP:
         E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
         return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
                           iterations=iters, ipopt_status=ist,
+                          solver="ipopt" if twin else self.solver_name,
                           solve_time_s=_time.perf_counter() - t0)

@@ -59,6 +59,7 @@ class Layout:
         self._vars: dict[str, tuple[int, tuple]] = {}   # name -> (offset, shape)
         self._cons: dict[str, list[range]] = {}
         self._nw = self._ng = 0
+        self._wstage, self._gstage = [], []   # per entry: (stage, kind) or None (no stage)
         self._pars: dict[str, slice] = {}
         self.P = None
 
@@ -70,10 +71,11 @@ class Layout:
         state.update(_w=None, _g=None, P=None)
         return state
 
-    def add_var(self, name: str, var, lo, hi) -> ca.SX:
+    def add_var(self, name: str, var, lo, hi, stage: int | None = None) -> ca.SX:
         """Add a variable block: ``var`` a shape (int or (rows, cols): a new SX symbol named
-        ``name``) or an existing SX symbol; ``lo``/``hi`` broadcast to its shape. Returns the
-        symbol."""
+        ``name``) or an existing SX symbol; ``lo``/``hi`` broadcast to its shape. ``stage``
+        (optimal-control structure, :meth:`stage_order`): 0 — column k is a state of stage k,
+        1 — column k is a control of stage k. Returns the symbol."""
         if name in self._vars:
             raise ValueError(f"variable block {name!r} exists already")
         if not isinstance(var, ca.SX):
@@ -83,6 +85,8 @@ class Layout:
         self._lbw.extend(np.broadcast_to(lo, shape).ravel(order="F").tolist())
         self._ubw.extend(np.broadcast_to(hi, shape).ravel(order="F").tolist())
         self._vars[name] = (self._nw, shape)
+        self._wstage.extend([None] * (shape[0] * shape[1]) if stage is None else
+                            [(k, stage) for k in range(shape[1]) for _ in range(shape[0])])
         self._nw += shape[0] * shape[1]
         return var
 
@@ -101,7 +105,8 @@ class Layout:
 
     def pack(self, w, name: str, value) -> None:
         """Write ``value`` (the block's shape, or flat) into block ``name`` of ``w``."""
-        w[self.slice(name)] = np.asarray(value, float).ravel(order="F")
+        sl = self.slice(name)   # a scalar fills the whole block
+        w[sl] = np.broadcast_to(np.asarray(value, float).ravel(order="F"), (sl.stop - sl.start,))
 
     def _var(self, name):
         try:
@@ -111,10 +116,13 @@ class Layout:
                            f"{', '.join(self._vars) or 'none'}") from None
 
     # ------------------------------------------------------------------ constraints
-    def add_con(self, name: str, expr, lo, hi) -> None:
-        """Add constraint rows lo ≤ vec(expr) ≤ hi (``lo``/``hi`` broadcast) under ``name``."""
+    def add_con(self, name: str, expr, lo, hi, stage: tuple | None = None) -> None:
+        """Add constraint rows lo ≤ vec(expr) ≤ hi (``lo``/``hi`` broadcast) under ``name``;
+        ``stage`` = (k, kind) orders them for :meth:`stage_order` (kind 0: the dynamics of
+        stage k, 1: its path constraints)."""
         e = ca.vec(expr)
         m = e.shape[0]
+        self._gstage.extend([stage] * m)
         self._g.append(e)
         self._lbg.extend(np.broadcast_to(lo, (m,)).tolist())
         self._ubg.extend(np.broadcast_to(hi, (m,)).tolist())
@@ -126,6 +134,16 @@ class Layout:
         if name not in self._cons:
             raise KeyError(f"no constraint block {name!r}: known {', '.join(self._cons)}")
         return np.concatenate([np.arange(r.start, r.stop) for r in self._cons[name]])
+
+    def stage_order(self) -> tuple:
+        """(variable permutation, constraint permutation) that order the NLP stage by stage —
+        per stage its states, then its controls; its dynamics, then its path constraints — as
+        a structure-exploiting solver (FATROP) needs; ValueError when an entry has no stage."""
+        if None in self._wstage or None in self._gstage:
+            raise ValueError("every variable and constraint needs a stage for stage_order()")
+        order = lambda keys: np.array(sorted(range(len(keys)), key=lambda i: keys[i]),  # noqa
+                                      dtype=int)
+        return order(self._wstage), order(self._gstage)
 
     # ------------------------------------------------------------------ parameters
     def parameters(self, **sizes: int) -> dict:

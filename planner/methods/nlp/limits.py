@@ -1,0 +1,77 @@
+"""The move NLP's limits between its check points, written once for
+:class:`~planner.methods.nlp.move.MoveNLP` (a change here changes the compiled-cache key:
+:mod:`planner.methods.nlp.cache` hashes this module's source).
+
+- :func:`step`: the exact triple-integrator step under constant jerk;
+- :func:`add_velocity_limits`: the velocity limit checked with each interval's own jerk;
+- :func:`pump_draw`: the direction-dependent pump draw as one smooth, conservative
+  expression (no slack variables).
+
+Velocity. In an interval of length h under constant jerk j the velocity is a quadratic with
+second derivative j: between two check points h/2 apart it exceeds the larger of them by at most
+|j|·(h/2)²/8 = |j|·h²/32. Each interval's three check points (its ends and its midpoint) are
+tightened by that interval's own bound, with |j|
+over-estimated smoothly by √(j² + ε²) (ε = 10⁻³·j_max): the limit holds everywhere, and a
+cruise at the limit (j = 0) is checked at the limit itself. The earlier uniform tightening
+j_max·h²/32 held a long move's cruise that far below the limit (up to +9.7 % duration against
+the Ruckig optimum on joint-space ends).
+
+Pump. An actuator draws A_a·ẋ extending and A_b·|ẋ| retracting (a single-acting one nothing
+retracting): c₁·ẋ + c₂·|ẋ| with c₁ = (A_a − A_b)/2, c₂ = (A_a + A_b)/2 (single-acting: A_b = 0).
+|ẋ| is over-estimated by √(ẋ² + ε²) ≤ |ẋ| + ε, ε chosen per actuator so that the whole draw is
+over-estimated by at most :data:`PUMP_SMOOTH` (1 %) of Q_max, only with every actuator at rest
+(ε²/2|ẋ| for a moving one): one inequality per check point, never below the exact draw. A smaller
+ε (0.1 %) curved the rows so sharply near ẋ = 0 that IPOPT hit max_iter on a umea-lab move
+(0.3 % took 211 iterations, 1 % 49). The slack form it replaces (per check point and actuator
+s ≥ A_a·ẋ, s ≥ −A_b·ẋ, Σ s ≤ Q_max) doubled the variables (1301 vs 653 at N = 40 on umea-lab).
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["step", "add_velocity_limits", "pump_draw", "PUMP_SMOOTH", "JERK_SMOOTH"]
+
+PUMP_SMOOTH = 1e-2   # largest over-estimate of the smooth pump draw, a fraction of Q_max
+JERK_SMOOTH = 1e-3   # ε of the smooth |j| in the velocity check, a fraction of j_max
+
+
+def step(q, v, a, j, h):
+    """The exact triple-integrator step: (q, q̇, q̈) after time h under constant jerk j."""
+    return (q + h * v + h ** 2 / 2 * a + h ** 3 / 6 * j, v + h * a + h ** 2 / 2 * j, a + h * j)
+
+
+def add_velocity_limits(layout, L, jmax, pts, mids, ends, U, h, uniform: bool = False) -> None:
+    """Velocity rows ("velocity") into ``layout``: every interval k's start ``pts[k]``,
+    midpoint ``mids[k]`` and end ``ends[k]`` (each a (q, q̇, q̈) triple; the end written in the
+    interval's own variables) within the limits of ``L`` (qd_min, qd_max) tightened by
+    √(U_k² + ε²)·h_k²/32, ε = JERK_SMOOTH·``jmax`` — every row inside stage k. ``h`` the
+    interval lengths (N + 1 equal expressions: the duration's copies). ``uniform``: every node
+    and midpoint tightened by ``jmax``·h²/32 instead (the earlier form, kept for the curve
+    mode: its jerk-coupled rows left IPOPT at max_iter on seed 003's circle, where the uniform
+    rows solve in 365 iterations)."""
+    N = len(mids)
+    if uniform:
+        for k, (_, v, _) in enumerate(pts + mids):
+            gap = np.asarray(jmax, float) * h[k % (N + 1)] ** 2 / 32
+            layout.add_con("velocity", v + gap, -ca.inf, L["qd_max"])
+            layout.add_con("velocity", v - gap, L["qd_min"], ca.inf)
+        return
+    eps2 = (JERK_SMOOTH * np.asarray(jmax, float)) ** 2
+    for k in range(N):
+        gap = ca.sqrt(U[:, k] ** 2 + eps2) * h[k] ** 2 / 32
+        for _, v, _ in (pts[k], mids[k], ends[k]):
+            layout.add_con("velocity", v + gap, -ca.inf, L["qd_max"], stage=(k, 1))
+            layout.add_con("velocity", v - gap, L["qd_min"], ca.inf, stage=(k, 1))
+
+
+def pump_draw(dxdq, v, acts, max_flow: float):
+    """The pump draw at joint rates ``v`` with stroke Jacobian (diagonal) ``dxdq`` as a fraction
+    of ``max_flow``: smooth, never below the exact draw, at most PUMP_SMOOTH above it. ``acts``
+    the actuator table (:func:`planner.model.flows.actuator_table`: area_a, area_b, single)."""
+    Aa = np.asarray(acts.area_a, float)
+    Ab = np.where(acts.single, 0.0, np.asarray(acts.area_b, float))
+    c1, c2 = (Aa - Ab) / 2, (Aa + Ab) / 2
+    eps = PUMP_SMOOTH * max_flow / (len(Aa) * c2)
+    xd = dxdq * v
+    return ca.sum1(c1 * xd + c2 * ca.sqrt(xd ** 2 + eps ** 2)) / max_flow

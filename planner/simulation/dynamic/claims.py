@@ -131,7 +131,8 @@ class ReplayMeasures:
     """One open-loop replay: per plant ("exudyn", "fast") the largest tip tracking error during
     the move ``max_track_m``, the tip error at the planned arrival ``arrival_m``, the residual
     oscillation after arrival (:class:`ResidualOscillation` as a dict) and, for the Exudyn
-    plant, its pump energy at the shaft ``pump_J`` and energy-balance residual; ``status`` of
+    plant, its pump energy at the shaft ``pump_J`` and energy-balance residual,
+    ``joint_final_error`` the joints' end positions minus the plan's (rad | m); ``status`` of
     the Exudyn run ("ok" | "diverged" | "timeout") with ``t_fail`` and ``reason``; ``step_s``
     the integration step of the run reported (halved after an integrator failure); ``wall_s``
     (all attempts)."""
@@ -167,7 +168,8 @@ def _measures(crane, t, q, q_at, t_arrive, goal_tip, tol):
     k = min(int(np.searchsorted(t, t_arrive - 1e-9)), len(t) - 1)
     res = residual_oscillation(t, crane.fk(q), goal_tip, t_arrive, tol)
     return dict(max_track_m=float(err[during].max()), arrival_m=float(err[k]),
-                final_m=float(err[-1]), **res.as_dict())
+                final_m=float(err[-1]), joint_final_error=(q[-1] - q_at(t[-1:])[0]).tolist(),
+                **res.as_dict())
 
 
 def replay_move(crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: float = 0.005,

@@ -67,7 +67,7 @@ class ResidualOscillation:
 
 
 def residual_oscillation(t, tip, goal, t_arrive: float, tol: float = 0.005,
-                         rest_window: float = 0.5) -> ResidualOscillation:
+                         rest_window: float = 1.5) -> ResidualOscillation:
     """Residual motion of the tip positions ``tip`` (K, 3) [m, Cartesian] sampled at ``t`` (K,)
     after ``t_arrive`` with respect to the commanded ``goal`` (3,) (see
     :class:`ResidualOscillation`)."""
@@ -132,7 +132,8 @@ class ReplayMeasures:
     the move ``max_track_m``, the tip error at the planned arrival ``arrival_m``, the residual
     oscillation after arrival (:class:`ResidualOscillation` as a dict) and, for the Exudyn
     plant, its pump energy at the shaft ``pump_J`` and energy-balance residual,
-    ``joint_final_error`` the joints' end positions minus the plan's (rad | m); ``status`` of
+    ``joint_final_error`` the joints' end positions minus the plan's and ``joint_osc`` their
+    largest excursion from rest after arrival (rad | m); ``status`` of
     the Exudyn run ("ok" | "diverged" | "timeout") with ``t_fail`` and ``reason``; ``step_s``
     the integration step of the run reported (halved after an integrator failure); ``wall_s``
     (all attempts)."""
@@ -167,9 +168,11 @@ def _measures(crane, t, q, q_at, t_arrive, goal_tip, tol):
     during = t <= t_arrive + 1e-9
     k = min(int(np.searchsorted(t, t_arrive - 1e-9)), len(t) - 1)
     res = residual_oscillation(t, crane.fk(q), goal_tip, t_arrive, tol)
+    after = q[t >= t_arrive - 1e-12]
+    rest = after[t[t >= t_arrive - 1e-12] >= t[-1] - 1.5].mean(axis=0)
     return dict(max_track_m=float(err[during].max()), arrival_m=float(err[k]),
                 final_m=float(err[-1]), joint_final_error=(q[-1] - q_at(t[-1:])[0]).tolist(),
-                **res.as_dict())
+                joint_osc=np.abs(after - rest).max(axis=0).tolist(), **res.as_dict())
 
 
 def replay_move(crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: float = 0.005,

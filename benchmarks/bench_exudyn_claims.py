@@ -536,8 +536,7 @@ def figures(crane, out, ctx, move):
     for name, key, style in (("nlp, jerk limits × 0.5", "nlp (jerk ×0.5)", "C2-"),
                              ("nlp, the spec's jerk limits", "nlp", "C0-"),
                              ("nlp, jerk limits × 20", "nlp (jerk ×20)", "C3-"),
-                             ("topp:dp (no jerk limit)", "topp:dp", "C1--"),
-                             ("law:jla (no acceleration limit)", "law:jla", "C7:")):
+                             ("topp:dp (no jerk limit)", "topp:dp", "C1--")):
         o = runners[key][0](ctx, move)
         if not o.ok:
             continue
@@ -549,8 +548,9 @@ def figures(crane, out, ctx, move):
         rest = crane.fk(run.q[run.t >= run.t[-1] - 1.5]).mean(axis=0)
         axs[0].plot(run.t[k] - tr.t[-1], 1000 * np.linalg.norm(tip - goal, axis=1), style,
                     lw=1.2, label=f"{name}: T = {tr.duration:.2f} s")
-        axs[1].plot(run.t[k] - tr.t[-1], 1000 * np.linalg.norm(tip - rest, axis=1), style,
-                    lw=1.2, label=f"{name}: peak {mm(m.exudyn['peak_osc_m'])} mm")
+        a = run.t >= tr.t[-1]
+        axs[1].plot(run.t[a] - tr.t[-1], 1000 * np.linalg.norm(crane.fk(run.q[a]) - rest, axis=1),
+                    style, lw=1.2, label=f"{name}: peak {mm(m.exudyn['peak_osc_m'])} mm")
         made[name] = dict(duration_s=tr.duration, **{k2: m.exudyn[k2] for k2 in (
             "peak_osc_m", "offset_m", "settle_rest_s", "arrival_m")})
     for ax, yl in zip(axs, ("tip distance from the goal [mm]",

@@ -69,16 +69,10 @@ class StrokeTable:
         self._last = points - 1
         self._x = [self.X[:, i].tolist() for i in range(self.n)]
         self._d = [self.D[:, i].tolist() for i in range(self.n)]
-        self._memo = (None, None)
 
     def __call__(self, q):
         """(x, dx/dq) at one configuration q (n floats) as lists (the grid is uniform per
-        joint; plain Python: called inside the integrator's Newton iterations, where most calls
-        repeat the last configuration — the pressure columns of the numerical Jacobian — so the
-        last result is kept; callers must not modify the returned lists)."""
-        key = tuple(q)
-        if key == self._memo[0]:
-            return self._memo[1]
+        joint; plain Python: called inside the integrator's Newton iterations)."""
         xs, ds = [], []
         for i in range(self.n):
             z = (q[i] - self._q0[i]) / self._h[i]
@@ -87,7 +81,6 @@ class StrokeTable:
             X, D = self._x[i], self._d[i]
             xs.append(X[k] + w * (X[k + 1] - X[k]))
             ds.append(D[k] + min(max(w, 0.0), 1.0) * (D[k + 1] - D[k]))
-        self._memo = (key, (xs, ds))
         return xs, ds
 
     def batch(self, q):

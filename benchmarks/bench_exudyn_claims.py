@@ -527,44 +527,66 @@ def cycle_table(rows):
 
 
 # ------------------------------------------------------------------------------ figures
-def figures(crane, out, ctx, move):
-    """Residual oscillation (plans of one move with and without a jerk limit) and a pressure
-    overlay (the quasi-static pressures of the plan vs the Exudyn chamber pressures)."""
+def pick_moves(m_rows):
+    """Per direction the move with the median residual ratio (jerk × 20 / the spec's jerk):
+    typical moves, not the most telling ones."""
+    a = {r["move"]: r for r in m_rows if r["method"] == "nlp" and r.get("exudyn")}
+    b = {r["move"]: r for r in m_rows if r["method"] == "nlp (jerk ×20)" and r.get("exudyn")}
+    out = []
+    for first in ("p", "d"):
+        ratio = sorted((b[k]["exudyn"]["peak_osc_m"] / max(a[k]["exudyn"]["peak_osc_m"], 1e-6), k)
+                       for k in set(a) & set(b) if k.startswith(first))
+        if ratio:
+            out.append(ratio[(len(ratio) - 1) // 2][1])
+    return out
+
+
+def figures(crane, out, ctx, moves):
+    """Residual oscillation (plans of each of ``moves`` with and without a jerk limit) and a
+    pressure overlay (the quasi-static pressures of the plan vs the Exudyn chamber
+    pressures)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     made = {}
     runners = method_runners(ctx)
-    fig, axs = plt.subplots(1, 2, figsize=(10, 3.8))
-    for name, key, style in (("nlp, jerk limits × 0.5", "nlp (jerk ×0.5)", "C2-"),
-                             ("nlp, the spec's jerk limits", "nlp", "C0-"),
-                             ("nlp, jerk limits × 20", "nlp (jerk ×20)", "C3-"),
-                             ("topp:dp (no jerk limit)", "topp:dp", "C1--")):
-        o = runners[key][0](ctx, move)
-        if not o.ok:
-            continue
-        tr = o.pieces[0][1]
-        m, run, _ = replay_move(crane, tr, settle=SETTLE_S, tol=TOL_M, keep_runs=True)
-        goal = crane.fk(tr.q[-1:])[0]
-        k = run.t >= tr.t[-1] - 0.5
-        tip = crane.fk(run.q[k])
-        rest = crane.fk(run.q[run.t >= run.t[-1] - 1.5]).mean(axis=0)
-        axs[0].plot(run.t[k] - tr.t[-1], 1000 * np.linalg.norm(tip - goal, axis=1), style,
-                    lw=1.2, label=f"{name}: T = {tr.duration:.2f} s")
-        a = run.t >= tr.t[-1]
-        axs[1].plot(run.t[a] - tr.t[-1], 1000 * np.linalg.norm(crane.fk(run.q[a]) - rest, axis=1),
-                    style, lw=1.2, label=f"{name}: peak {mm(m.exudyn['peak_osc_m'])} mm")
-        made[name] = dict(duration_s=tr.duration, **{k2: m.exudyn[k2] for k2 in (
-            "peak_osc_m", "offset_m", "settle_rest_s", "arrival_m")})
-    for ax, yl in zip(axs, ("tip distance from the goal [mm]",
-                            "tip distance from where it comes to rest [mm]")):
-        ax.axvline(0, color="k", lw=0.8)
-        ax.set_xlabel("time after the planned arrival [s]")
-        ax.set_ylabel(yl)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=6.5)
-    axs[1].axhline(1000 * TOL_M, color="k", lw=0.6, ls=":")
-    fig.suptitle(f"s100f, forwarder move {move.id}, open-loop replay on the Exudyn plant",
+    fig, axes = plt.subplots(len(moves), 2, figsize=(10, 3.6 * len(moves)), squeeze=False)
+    for move, axs in zip(moves, axes):
+        for name, key, style in (("nlp, jerk limits × 0.5", "nlp (jerk ×0.5)", "C2-"),
+                                 ("nlp, the spec's jerk limits", "nlp", "C0-"),
+                                 ("nlp, jerk limits × 20", "nlp (jerk ×20)", "C3-"),
+                                 ("topp:dp (no jerk limit)", "topp:dp", "C1--")):
+            o = runners[key][0](ctx, move)
+            if not o.ok:
+                continue
+            tr = o.pieces[0][1]
+            m, run, _ = replay_move(crane, tr, settle=SETTLE_S, tol=TOL_M, keep_runs=True)
+            goal = crane.fk(tr.q[-1:])[0]
+            k = run.t >= tr.t[-1] - 0.5
+            tip = crane.fk(run.q[k])
+            rest = crane.fk(run.q[run.t >= run.t[-1] - 1.5]).mean(axis=0)
+            axs[0].plot(run.t[k] - tr.t[-1], 1000 * np.linalg.norm(tip - goal, axis=1), style,
+                        lw=1.2, label=f"{name}: T = {tr.duration:.2f} s")
+            a = run.t >= tr.t[-1]
+            axs[1].plot(run.t[a] - tr.t[-1],
+                        1000 * np.linalg.norm(crane.fk(run.q[a]) - rest, axis=1), style,
+                        lw=1.2, label=f"{name}: peak {mm(m.exudyn['peak_osc_m'])} mm")
+            made[f"{move.id}: {name}"] = dict(duration_s=tr.duration, **{
+                k2: m.exudyn[k2] for k2 in ("peak_osc_m", "offset_m", "settle_rest_s",
+                                             "arrival_m")})
+        for ax, yl in zip(axs, ("tip distance from the goal [mm]",
+                                "from where it comes to rest [mm]")):
+            ax.axvline(0, color="k", lw=0.8)
+            ax.set_xlabel("time after the planned arrival [s]")
+            ax.set_ylabel(yl)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=6.5)
+            ax.set_title(f"move {move.id} ("
+                         + ("pick-up → drop" if move.id.startswith("p") else "drop → pick-up")
+                         + ")", fontsize=8)
+        axs[1].axhline(1000 * TOL_M, color="k", lw=0.6, ls=":")
+    fig.suptitle("s100f forwarder moves, open-loop replay on the Exudyn plant (each the "
+                 "median move of its direction by the jerk × 20 / × 1 residual ratio)",
                  fontsize=9)
     fig.tight_layout()
     fig.savefig(out / "exudyn_residual.png", dpi=120)
@@ -606,6 +628,8 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--render", type=Path, metavar="JSON",
                     help="only rewrite the markdown from a run's JSON (no simulation)")
+    ap.add_argument("--figures", action="store_true",
+                    help="with --render: also redraw the figures (re-plans the figure moves)")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
                     / "exudyn-claims", help="where the library is built")
     args = ap.parse_args(argv)
@@ -670,15 +694,9 @@ def main(argv=None):
 
     if not args.quick:
         log("figures")
-        # the move with the median residual ratio (jerk × 20 / the spec's jerk): typical,
-        # not the most telling
-        a = {r["move"]: r for r in m_rows if r["method"] == "nlp" and r.get("exudyn")}
-        b = {r["move"]: r for r in m_rows if r["method"] == "nlp (jerk ×20)" and r.get("exudyn")}
-        ratio = sorted((b[k]["exudyn"]["peak_osc_m"] / max(a[k]["exudyn"]["peak_osc_m"], 1e-6), k)
-                       for k in set(a) & set(b))
-        pick = ratio[len(ratio) // 2][1] if ratio else moves[0].id
+        picks = pick_moves(m_rows)
         try:
-            res["figures"] = figures(crane, args.out, ctx, next(m for m in moves if m.id == pick))
+            res["figures"] = figures(crane, args.out, ctx, [m for m in moves if m.id in picks])
         except Exception as e:          # the tables are the result; a figure is not worth them
             log(f"figures failed: {type(e).__name__}: {e}")
     write(args, res, t_start, lib_e_lines, cyc_lines)
@@ -708,6 +726,14 @@ def render(args, t_start):
                 if r.get(plant) and r[plant].get(k) is None:
                     r[plant][k] = float("inf")
     lib_e, cyc = _summaries(res)
+    if args.figures:
+        crane = Crane.from_id("s100f")
+        st = Settings(forwarder_moves=10 ** 6)
+        args.work.mkdir(parents=True, exist_ok=True)
+        suite = build_suite(str(subset_suite(args.work / "forwarder-cycle-claims.toml")), st)
+        picks = pick_moves(res["methods"]["rows"])
+        res["figures"] = figures(crane, args.out, Ctx(crane, st, suite),
+                                 [m for m in suite.moves if m.id in picks])
     if "header" not in res:
         old = (args.out / "exudyn_claims.md").read_text(encoding="utf-8").splitlines()
         res["header"] = [old[2] + " Tables re-rendered from its JSON by `--render`.", "",

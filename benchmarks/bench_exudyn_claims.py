@@ -152,7 +152,8 @@ def plan_and_replay(ctx, moves, settle):
                            violation=ev.max_limit_violation, pump_excess=pump, **m.as_dict())
             rows.append(row)
             log(f"  {name:22s} {mv.id:30s} {o.status:8s}"
-                + (f" T={row['duration_s']:.2f} s osc={1000 * row['exudyn'].get('peak_osc_m', np.nan):.1f} mm"
+                + (f" T={row['duration_s']:.2f} s "
+                   f"osc={mm(row['exudyn'].get('peak_osc_m', np.nan))} mm"
                    if o.ok and row.get("exudyn") else ""))
     return rows
 
@@ -654,7 +655,8 @@ def main(argv=None):
         lib_rows = []
         for k, eid in enumerate(ids):
             lib_rows.append(entry_row(crane, store, eid, SETTLE_S))
-            log(f"  {k + 1}/{len(ids)} {eid}: osc {mm(lib_rows[-1]['exudyn'].get('peak_osc_m'))} mm")
+            osc = lib_rows[-1]["exudyn"].get("peak_osc_m")
+            log(f"  {k + 1}/{len(ids)} {eid}: osc {mm(osc)} mm")
     res["library"]["rows"] = lib_rows
     res["library"]["summary"] = summary(lib_rows, "objective")
     res["library"]["by_direction"] = summary(lib_rows, "group")
@@ -780,12 +782,15 @@ def write(args, res, t_start, lib_e_lines, cyc_lines):
     L += group_table(m["summary"], "method")
     over = sorted({r["method"] for r in m["rows"] if r.get("pump_excess", 0) > 1e-3})
     if over:
+        parts = []
+        for k in over:
+            ex = [r.get("pump_excess", 0) for r in m["rows"] if r["method"] == k
+                  and r["status"] == "ok"]
+            parts.append(f"{k} {sum(e > 1e-3 for e in ex)}/{len(ex)} (up to "
+                         f"{100 * max(ex):.1f} %)")
         L += ["", "Plans that ask more pump flow than the pump gives (a limit these methods do "
               "not claim; the fast plant then shares the flow and leaves the plan too): "
-              + "; ".join(f"{k} {sum(1 for r in m['rows'] if r['method'] == k and r.get('pump_excess', 0) > 1e-3)}"
-                          f"/{sum(1 for r in m['rows'] if r['method'] == k and r['status'] == 'ok')} "
-                          f"(up to {100 * max(r.get('pump_excess', 0) for r in m['rows'] if r['method'] == k):.1f} %)"
-                          for k in over) + "."]
+              + "; ".join(parts) + "."]
     L += ["", "Paired with the jerk-limited time NLP on the same moves (median over moves of "
           "method / nlp):", "",
           "| method | moves | residual oscillation ratio (moves calmer than nlp) | settled to 5 mm "

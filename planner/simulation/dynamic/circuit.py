@@ -24,7 +24,8 @@ Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
   ``pump_time_constant``; when the valves draw more than Q_max the pump line (volume V_p) loses
   pressure at β/V_p per unit excess flow. Constant-pressure pumps hold their set pressure.
 * actuator force F = p_a·A_a − p_b·A_b − F_c·tanh(ẋ/v_s) − d·ẋ (Coulomb smoothed over 1 % of
-  the full-command speed), plus stiff end stops at the strokes of the joint limits.
+  the full-command speed), plus stiff end stops at the strokes of the joint limits (their
+  damping ramped in over the first millimetre, so the force is continuous at contact).
 
 Orifice roots are regularised below 0.2 bar (linear through zero) so that Newton's method of
 the implicit integrator sees finite slopes.
@@ -42,6 +43,10 @@ __all__ = ["Circuit", "root"]
 
 _DP_REG = 2.0e4          # [Pa] orifice laminar region
 _STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)
+_STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
+_STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
+#                          a damping force that jumps on at contact stalls the Newton iteration
+#                          of a start on a stop)
 
 
 def root(dp):
@@ -145,7 +150,8 @@ class Circuit:
         """End-stop force (..., n) pushing back into [x_lo, x_hi] (cylinders and racks)."""
         over = np.maximum(x - self.x_hi, 0.0) - np.maximum(self.x_lo - x, 0.0)
         k = _STOP_STIFFNESS * np.where(self.motor, 0.0, 1.0)
-        return -k * over - np.where(over != 0, 0.05 * k * xd, 0.0)
+        ramp = np.minimum(np.abs(over) / _STOP_RAMP, 1.0)
+        return -k * over - _STOP_DAMPING * k * ramp * xd
 
     def force(self, p_a, p_b, x, xd):
         """Net actuator force [N | N·m] along +x."""
@@ -264,7 +270,8 @@ class Circuit:
                 if not motor[i]:
                     over = max(x[i] - hi[i], 0.0) - max(lo[i] - x[i], 0.0)
                     if over != 0.0:
-                        F -= _STOP_STIFFNESS * (over + 0.05 * xd[i])
+                        F -= _STOP_STIFFNESS * (over + _STOP_DAMPING * min(
+                            abs(over) / _STOP_RAMP, 1.0) * xd[i])
                 out.append(F)
             return out
 

@@ -280,10 +280,15 @@ class ExudynPlant:
 
     # ------------------------------------------------------------------ running
     def run(self, t_u, u, q0, t_end: float | None = None, max_wall_s: float = 600.0,
-            spectral_radius: float = 0.9) -> DynamicRun:
+            spectral_radius: float = 0.9, controller=None) -> DynamicRun:
         """Replay commands ``u`` (M, n), each held from ``t_u[k]`` (zero-order hold), from
         rest at ``q0`` (start effects applied) until ``t_end`` (default t_u[-1]). Returns a
-        :class:`DynamicRun` (its status says whether it finished)."""
+        :class:`DynamicRun` (its status says whether it finished).
+
+        ``controller(t, q, qd, p_a, p_b) -> u`` (n,): closed loop instead — called at every
+        control instant ``t_u[k]`` with the plant's state (true joints, chamber pressures) and
+        its command held until the next instant (``u`` then only gives the shape; the
+        commands-stage effects do not apply)."""
         crane, n, h = self.crane, self.crane.n, self.step
         t_u = np.asarray(t_u, float).ravel()
         u = np.atleast_2d(np.asarray(u, float))
@@ -341,11 +346,17 @@ class ExudynPlant:
             t = t0 + k * h
             q, qd, p = record(k)
             j = max(int(np.searchsorted(t_u, t + 1e-9 * h, side="right")) - 1, 0)
-            rec["u"][k] = u[j]
+            if controller is not None and state.get("j") != j:
+                state["j"] = j
+                state["u"] = np.asarray(controller(t, np.array(q), np.array(qd),
+                                                   np.array(p[:n]), np.array(p[n:2 * n])),
+                                        float).reshape(n)
+            cmd = u_valves[j] if controller is None else state["u"]
+            rec["u"][k] = u[j] if controller is None else cmd
             rec["spool"][k] = spool
             bad = None
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
-                    and np.all(np.isfinite(p))):
+                    and np.all(np.isfinite(p)) and np.all(np.isfinite(cmd))):
                 bad = "non-finite state"
             elif np.max(np.abs(p)) > p_cap:
                 bad = f"pressure {np.max(np.abs(p)):.3g} Pa above 10× relief"
@@ -358,7 +369,7 @@ class ExudynPlant:
                 fail.update(status="diverged", t=t, reason=bad)
                 return False
             # spool: first-order lag towards the held (delayed, lagged) command, exact step
-            target = np.clip(u_valves[j], -1.0, 1.0)
+            target = np.clip(cmd, -1.0, 1.0)
             spool = target + (spool - target) * decay
             state["o"] = C.opening(spool).tolist()
             return True

@@ -156,7 +156,9 @@ def executors_md(e) -> list:
     rows += ["", f"Ratio of medians, Dask / processes: wall **{e['ratio_dask_over_processes']:.3f}** "
              "(target ≤ 1.1)" + (f" (before the change: {e['ratio_before_over_processes']:.3f})"
                                  if "ratio_before_over_processes" in e else "")
-             + f"; CPU {e['cpu_ratio_dask_over_processes']:.3f}.", ""]
+             + f"; CPU {e['cpu_ratio_dask_over_processes']:.3f} (the Dask workers are forked by "
+             "a fork server that the build's process does not reap: their CPU is missing from "
+             "the Dask rows' CPU column, so read the wall times).", ""]
     return rows
 
 

@@ -16,6 +16,10 @@ Where the Dask path used to lose time, and what is done here:
   set-up (the machine model, the method's solvers for every objective) once in every worker,
   including workers that join later; the driver waits for it on the workers there are and
   collects each one's seconds.
+- **Start-up.** A spawned worker imports Dask, CasADi and the planner itself (~2.5 s of CPU
+  each, where a forked local worker inherits them): the LocalCluster's workers are forked from
+  a fork server that imported them once (:func:`forkserver_with_planner`); its statistical
+  profiler is off (it samples every thread every 10 ms).
 - **Threads.** One thread per worker: the solvers hold the GIL, a second thread only contends.
 - **Payloads and order.** Tasks carry the move and the options (the worker has the rest);
   results are taken with ``as_completed``; a task's failure comes back as a status (the task
@@ -32,6 +36,25 @@ from dask.distributed import Client, LocalCluster, WorkerPlugin, as_completed
 from planner.library.workers import run_setup, tune_malloc
 
 SETUP_ATTR = "crane_planner_setup"  # where a worker keeps its set-up report
+#: the LocalCluster's workers: no statistical profiler (it samples every thread's stack every
+#: 10 ms, CPU the planning never uses; a remote cluster keeps its own setting)
+LOCAL_CONFIG = {"distributed.worker.profile.enabled": False,
+                "distributed.worker.multiprocessing-method": "forkserver"}
+#: what the forkserver imports once, so that every worker forked from it starts with them
+PRELOAD = ("planner.library.build", "planner.methods.nlp", "planner.simulation.replay",
+           "planner.feedforward", "planner.trajectory")
+
+
+def forkserver_with_planner() -> None:
+    """Start the LocalCluster's workers from a fork server that has imported Dask and the
+    planner once (a spawned worker imports them itself: ~2.5 s of CPU per worker)."""
+    import multiprocessing
+    from distributed.utils import get_mp_context
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        get_mp_context()     # Dask's own preload list (set once per process)
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(dict.fromkeys(
+        ["distributed", "dask", "numpy", "casadi", *PRELOAD])))
 
 
 class SetupPlugin(WorkerPlugin):
@@ -77,13 +100,15 @@ class DaskPool:
         self.cluster = None
         self.client = None
         self.setup_info: list = []
-        self._futures: list = []
+        self._futures: set = set()
 
     def start(self) -> "DaskPool":
         try:
             if self.scheduler.startswith("local:"):
                 n = int(self.scheduler.split(":", 1)[1])
-                with dask.config.set({"distributed.nanny.pre-spawn-environ": worker_environ()}):
+                forkserver_with_planner()
+                with dask.config.set({"distributed.nanny.pre-spawn-environ": worker_environ(),
+                                      **LOCAL_CONFIG}):
                     self.cluster = LocalCluster(n_workers=n, threads_per_worker=1,
                                                 processes=True, dashboard_address=None)
                 self.client = Client(self.cluster)
@@ -98,17 +123,21 @@ class DaskPool:
         return self
 
     def imap_unordered(self, fn, arglist):
-        """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order."""
-        self._futures = [self.client.submit(fn, *a, pure=False) for a in arglist]
-        for f in as_completed(self._futures):
-            yield f.result()
+        """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order. A
+        result is released on its worker as soon as the driver has it (flat memory)."""
+        self._futures = {self.client.submit(fn, *a, pure=False) for a in arglist}
+        for f in as_completed(list(self._futures)):
+            r = f.result()
+            self._futures.discard(f)
+            f.release()
+            yield r
 
     def close(self) -> None:
         """Cancel what is still queued, disconnect, stop a cluster started here."""
         if self.client is not None:
             try:
                 if self._futures:
-                    self.client.cancel(self._futures)
+                    self.client.cancel(list(self._futures))
             finally:
                 self.client.close()
                 self.client = None

@@ -26,7 +26,7 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
@@ -163,12 +163,15 @@ class WorkerPool:
         return self
 
     def imap_unordered(self, fn, arglist):
-        """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order."""
-        futs = [self._ex.submit(fn, *args) for args in arglist]
+        """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order. A
+        result is held only until it is yielded (a long build's memory stays flat)."""
+        pending = {self._ex.submit(fn, *args) for args in arglist}
         # no cancel() on the way out: after terminate() the executor fails the pending futures
         # itself (cancelling them as well races with that: InvalidStateError on Python 3.11)
-        for f in as_completed(futs):
-            yield f.result()
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            while done:
+                yield done.pop().result()
 
     def terminate(self) -> None:
         """End the workers now: SIGTERM, SIGKILL after GRACE_S; then shut the executor down."""

@@ -4,7 +4,8 @@ The population the acceptance is about is the trials where the *default* excitat
 ambiguous, so the default here is made to be weak, as the issue's confusions were: a short,
 slow, small test sequence (:func:`planner.calibration.trials.excitation` with poses in the
 middle ``1 − 2·margin`` of every joint range, speed fractions ``--speed`` and no full-speed
-first move) and the hidden effect at ``--magnitude`` × its trial magnitude. For each pair the
+first move) and the hidden effect at a factor of its trial magnitude drawn log-uniformly in
+``--magnitude LO HI`` (weak effects are where names tie). For each pair the
 issue found confused (viscous vs Coulomb friction, payload vs telescope actuator mass,
 pressure offset vs actuator mass) and sensor_gain vs flow_gain, on several machines and
 seeds, one effect of the pair is hidden in the plant (the first for even seeds, the second for
@@ -17,7 +18,7 @@ name or not. Where the default names the wrong effect, the pair (truth, named) i
 for the same way and counted apart. The judge is the fast plant (the recordings are made with
 it): nothing here speaks for unmodelled dynamics.
 
-    python benchmarks/bench_discrepancy_excite.py [--seeds 2] [--workers 1] [--budget 20]
+    python benchmarks/bench_discrepancy_excite.py [--seeds 2] [--workers 2] [--budget 12]
 """
 from __future__ import annotations
 
@@ -67,12 +68,14 @@ def trial(machine, first, second, joint, seed, args):
     j = joint if CATALOGUE[hidden].per_joint else None
     plan, ff = weak_default(crane, seed, args.default_duration, tuple(args.speed))
     rng = np.random.default_rng(seed + 7919)
-    truth = scaled(draw(crane, hidden, rng, j, TrialSequence(crane, plan, ff)), args.magnitude)
+    truth = draw(crane, hidden, rng, j, TrialSequence(crane, plan, ff))
+    factor = float(np.exp(rng.uniform(*np.log(args.magnitude))))
+    truth = scaled(truth, factor)
     res = Discrepancy(crane).fit(record(crane, plan, ff, (truth,), seed=seed))
     key = (truth.name, truth.joint)
     named_right = res.verdict == "named" and (res.effect, res.joint) == key
     out = dict(machine=machine, hidden=hidden, other=other, joint=joint, seed=seed,
-               truth=truth.to_dict(), default_verdict=res.verdict, default_named=res.effect,
+               truth=truth.to_dict(), factor=factor, default_verdict=res.verdict, default_named=res.effect,
                default_joint=res.joint, default_right=bool(named_right),
                default_candidates=[(c["effect"], c["joint"]) for c in res.candidates],
                suggest=res.suggest, default_s=res.runtime_s)
@@ -115,12 +118,14 @@ def report(rows, args, wall):
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
          f"{os.cpu_count()} CPUs shared with other jobs (load ≈ 3–4), niced. `python "
          f"benchmarks/bench_discrepancy_excite.py --seeds {args.seeds} --magnitude "
-         f"{args.magnitude:g} --default-duration {args.default_duration:g} --speed "
+         f"{args.magnitude[0]:g} {args.magnitude[1]:g} --workers {args.workers} "
+         f"--default-duration {args.default_duration:g} --speed "
          f"{args.speed[0]:g} {args.speed[1]:g} --duration {args.duration:g} --starts "
          f"{args.starts} --budget {args.budget}` ({len(rows)} trials, {wall / 60:.1f} min). "
          f"Default: a {args.default_duration:g} s sequence of small moves (poses in the middle "
          f"30 % of every range, {args.speed[0]:g}–{args.speed[1]:g} of the speed limits), the "
-         f"hidden effect at {args.magnitude:g} × its trial magnitude. Designs: "
+         f"hidden effect at {args.magnitude[0]:g}–{args.magnitude[1]:g} × its trial magnitude "
+         "(log-uniform). Designs: "
          f"{args.duration:g} s, {args.starts} random starts + Nelder–Mead for {args.budget} "
          "evaluations; the candidates are the ambiguous verdict's `--separate` list. Judge: "
          "the fast plant (recordings made with it), seed 001's sensor noise.", "",
@@ -157,7 +162,8 @@ def report(rows, args, wall):
         else:
             des, sepn, dsg = "–", "–", "–"
         L.append(f"| {r['machine']} | {r['hidden']}{'@' + r['joint'] if r['truth'].get('joint') else ''}"
-                 f" | {r['other']} | {r['seed']} | {dflt} | {des} | {sepn} | {dsg} |")
+                 f" ×{r['factor']:.2f} | {r['other']} | {r['seed']} | {dflt} | {des} | {sepn} | "
+                 f"{dsg} |")
     uns = [(r, u) for r in rows for u in r.get("unseparated", [])]
     if uns:
         L += ["", "## Pairs the best design found still does not separate", ""]
@@ -168,13 +174,13 @@ def report(rows, args, wall):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=2)
-    ap.add_argument("--magnitude", type=float, default=0.5,
-                    help="hidden effect: × its trial magnitude (0.5)")
+    ap.add_argument("--magnitude", type=float, nargs=2, default=(0.2, 1.0),
+                    help="hidden effect: × its trial magnitude, drawn in LO HI (0.2 1)")
     ap.add_argument("--default-duration", type=float, default=15.0)
     ap.add_argument("--speed", type=float, nargs=2, default=(0.15, 0.35))
     ap.add_argument("--duration", type=float, default=20.0, help="designed sequence [s]")
-    ap.add_argument("--starts", type=int, default=3)
-    ap.add_argument("--budget", type=int, default=20)
+    ap.add_argument("--starts", type=int, default=2)
+    ap.add_argument("--budget", type=int, default=12)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()

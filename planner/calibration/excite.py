@@ -146,7 +146,8 @@ def separation(crane, plan, ff, effects, seed: int = 0) -> dict:
 class Family:
     """Periodic test sequences parametrised by z ∈ [0, 1]^d (module doc): ``moves`` poses of
     the ``joints`` (names; the others hold mid-range), each with a speed fraction and a hold.
-    ``build(z)`` -> (plan, feed-forward) at least ``duration`` [s] long."""
+    ``build(z)`` -> (plan, feed-forward) at least ``duration`` [s] long and at least one
+    whole period."""
 
     SPEED = (0.15, 1.0)
     HOLD = (0.3, 3.0)        # [s]
@@ -182,7 +183,7 @@ class Family:
         b = SequenceBuilder(self.crane, steps[-1][0], self.rate)
         b.hold(0.5)
         k = 0
-        while b.t_now < self.duration:
+        while b.t_now < self.duration or k < self.moves:     # at least one whole period
             q, s, h = steps[k % self.moves]
             b.move(q, s)
             b.hold(h)

@@ -32,6 +32,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+import numpy as np
+
 PAIRS = (("cat215b", "viscous_friction", "coulomb_friction", "swing"),
          ("s100f", "viscous_friction", "coulomb_friction", "boom"),
          ("umea-lab", "coulomb_friction", "viscous_friction", "jib"),
@@ -50,14 +52,14 @@ def weak_default(crane, seed, duration, speed):
     return excitation(crane, duration, seed=seed, margin=0.35, speed=speed, first_full=False)
 
 
-def scaled(e, f):
-    """Effect ``e`` with every parameter × ``f``."""
-    return type(e)(e.joint, **{k: v * f for k, v in e.values.items()})
+def scaled(crane, e, f):
+    """Effect ``e`` with its departure from the neutral values × ``f``."""
+    v0 = e.neutral_vector(crane)
+    return e.with_vector(v0 + f * (np.asarray(e.vector(), float) - v0))
 
 
 def trial(machine, first, second, joint, seed, args):
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import numpy as np
     from planner import Crane, evaluate
     from planner.calibration.discrepancy import Discrepancy
     from planner.calibration.excite import design_excitation, parse_candidates
@@ -70,7 +72,7 @@ def trial(machine, first, second, joint, seed, args):
     rng = np.random.default_rng(seed + 7919)
     truth = draw(crane, hidden, rng, j, TrialSequence(crane, plan, ff))
     factor = float(np.exp(rng.uniform(*np.log(args.magnitude))))
-    truth = scaled(truth, factor)
+    truth = scaled(crane, truth, factor)
     res = Discrepancy(crane).fit(record(crane, plan, ff, (truth,), seed=seed))
     key = (truth.name, truth.joint)
     named_right = res.verdict == "named" and (res.effect, res.joint) == key
@@ -117,7 +119,8 @@ def report(rows, args, wall):
     L = ["# Discrepancy workflow: designed excitations on confusable pairs", "",
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
          f"{os.cpu_count()} CPUs shared with other jobs (load ≈ 3–4), niced. `python "
-         f"benchmarks/bench_discrepancy_excite.py --seeds {args.seeds} --magnitude "
+         f"benchmarks/bench_discrepancy_excite.py --seeds {args.seeds} --seed-base "
+         f"{args.seed_base}{' --pairs ' + args.pairs if args.pairs else ''} --magnitude "
          f"{args.magnitude[0]:g} {args.magnitude[1]:g} --workers {args.workers} "
          f"--default-duration {args.default_duration:g} --speed "
          f"{args.speed[0]:g} {args.speed[1]:g} --duration {args.duration:g} --starts "
@@ -182,6 +185,10 @@ def main():
     ap.add_argument("--starts", type=int, default=2)
     ap.add_argument("--budget", type=int, default=12)
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed-base", type=int, default=600)
+    ap.add_argument("--pairs", default=None,
+                    help="comma-separated indices into PAIRS (default: all)")
+    ap.add_argument("--name", default="discrepancy_excite", help="results file name")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
     from planner.io import atomic_write_text
@@ -189,8 +196,9 @@ def main():
     rows = []
     out = Path(args.out)
     with ProcessPoolExecutor(args.workers) as ex:
-        futs = [ex.submit(trial, m, a, b, j, 600 + 10 * k + s, args)
-                for k, (m, a, b, j) in enumerate(PAIRS) for s in range(args.seeds)]
+        pick = [int(x) for x in args.pairs.split(",")] if args.pairs else range(len(PAIRS))
+        futs = [ex.submit(trial, *PAIRS[k], args.seed_base + 10 * k + s, args)
+                for k in pick for s in range(args.seeds)]
         for i, f in enumerate(as_completed(futs)):
             r = f.result()
             rows.append(r)
@@ -200,11 +208,11 @@ def main():
                      f"({r['design_s']:.0f} s)" if 'designed_verdict' in r else ""),
                   file=sys.stderr)
             rows.sort(key=lambda r: (r["machine"], r["hidden"], r["seed"]))
-            atomic_write_text(out / "discrepancy_excite.md",
+            atomic_write_text(out / f"{args.name}.md",
                               report(rows, args, time.perf_counter() - t0))
-            atomic_write_text(out / "discrepancy_excite.json",
+            atomic_write_text(out / f"{args.name}.json",
                               json.dumps(rows, indent=1, default=float))
-    print((out / "discrepancy_excite.md").read_text())
+    print((out / f"{args.name}.md").read_text())
 
 
 if __name__ == "__main__":

@@ -148,7 +148,14 @@ def run_case(case):
             rec = upsampled(rec, 4)
         elif jitter:
             with tempfile.TemporaryDirectory() as d:
-                rec = jittered_csv_roundtrip(crane, rec, rng, Path(d) / "j.csv", seed)
+                try:
+                    rec = jittered_csv_roundtrip(crane, rec, rng, Path(d) / "j.csv", seed)
+                except ValueError as e:     # the reader refused the file: not explained
+                    out = dict(case, truth={}, verdict="refused", effect=None, joint=None,
+                               candidates=[], signature=[], runtime_s=0.0, samples=0,
+                               message=str(e)[:300], notes=[], top=[])
+                    out.update(judge(out))
+                    return out
     t0 = time.perf_counter()
     res = Discrepancy(crane).fit(rec)
     rt = time.perf_counter() - t0
@@ -220,10 +227,14 @@ CLEAN_COUNTS = {20.0: 20, 50.0: 25, 100.0: 20, 200.0: 15, 500.0: 4}
 CLEAN_VARIANTS = {"upsampled": 8, "jitter": 8}
 
 
-def clean_cases(scale: float, duration: float):
-    """The clean-only population (module doc): machines in turn, seeds 21000 + …."""
+def clean_cases(scale: float, duration: float, variants_only: bool = False):
+    """The clean-only population (module doc): machines in turn, seeds 21000 + …
+    (``variants_only``: the upsampled and jittered ones only, with the same seeds)."""
     out, k = [], 0
     for r, n in CLEAN_COUNTS.items():
+        if variants_only:
+            k += max(1, round(n * scale))
+            continue
         for s in range(max(1, round(n * scale))):
             out.append(dict(group="clean", machine=MACHINES[k % len(MACHINES)], rate=r,
                             seed=21000 + k, duration=duration, variant="plain"))
@@ -242,11 +253,16 @@ def upper95(k: int, n: int) -> float:
     return 1.0 if k >= n else float(beta.ppf(0.95, k + 1, n - k))
 
 
+def clean_name(args) -> str:
+    return "discrepancy_clean_variants" if args.variants_only else "discrepancy_clean"
+
+
 def clean_report(rows, args, wall, planned=None):
     L = ["# Discrepancy workflow: false alarms on clean recordings", "",
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
          f"{os.cpu_count()} CPUs (shared with other jobs: load ≈ 3), {args.workers} workers, "
-         "niced. `python benchmarks/bench_discrepancy_open.py --clean-only --scale "
+         "niced. `python benchmarks/bench_discrepancy_open.py "
+         f"{'--variants-only' if args.variants_only else '--clean-only'} --scale "
          f"{args.scale:g} --duration {args.duration:g}` ({len(rows)} recordings"
          + (f" of {planned} so far: a partial report" if planned and planned > len(rows) else "")
          + ", "
@@ -267,7 +283,9 @@ def clean_report(rows, args, wall, planned=None):
                  f"{100.0 * k / len(sub):.1f} % | {100.0 * upper95(k, len(sub)):.1f} % | "
                  "≤ 2 % |")
     L += ["", "Verdicts: " + ", ".join(f"{v} {sum(r['verdict'] == v for r in rows)}" for v in
-                                       ("explained", "named", "ambiguous", "unexplained")),
+                                       ("explained", "named", "ambiguous", "unexplained",
+                                        "refused")) + " (refused: the CSV reader refused the "
+          "file; counted as a false alarm)",
           "", "## False alarms", "", "| machine | seed | rate | variant | verdict | message |",
           "| --- | ---: | ---: | --- | --- | --- |"]
     for r in rows:
@@ -350,12 +368,15 @@ def main():
     ap.add_argument("--duration", type=float, default=25.0)
     ap.add_argument("--clean-only", action="store_true",
                     help="only clean recordings, for the false-alarm rate (module doc)")
+    ap.add_argument("--variants-only", action="store_true",
+                    help="--clean-only, only the upsampled and jittered logs")
     ap.add_argument("--scale", type=float, default=1.0,
                     help="--clean-only: multiply the number of recordings per rate")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
     from planner.io import atomic_write_text
-    todo = clean_cases(args.scale, args.duration) if args.clean_only else \
+    args.clean_only = args.clean_only or args.variants_only
+    todo = clean_cases(args.scale, args.duration, args.variants_only) if args.clean_only else \
         cases(args.quick, args.duration)
     t0 = time.perf_counter()
     rows = []
@@ -369,7 +390,7 @@ def main():
                   f"{'ok' if r['ok'] else 'MISS'} ({r['runtime_s']:.1f} s)", file=sys.stderr)
             if args.clean_only:     # the report so far (a long run can be read while it runs)
                 Path(args.out).mkdir(parents=True, exist_ok=True)
-                atomic_write_text(Path(args.out) / "discrepancy_clean.md", clean_report(
+                atomic_write_text(Path(args.out) / f"{clean_name(args)}.md", clean_report(
                     sorted(rows, key=lambda r: r["seed"]), args, time.perf_counter() - t0,
                     len(todo)))
     out = Path(args.out)
@@ -377,10 +398,10 @@ def main():
     if args.clean_only:
         rows.sort(key=lambda r: r["seed"])
         wall = time.perf_counter() - t0
-        atomic_write_text(out / "discrepancy_clean.md", clean_report(rows, args, wall))
-        atomic_write_text(out / "discrepancy_clean.json", json.dumps(rows, indent=1,
-                                                                     default=float))
-        print((out / "discrepancy_clean.md").read_text())
+        atomic_write_text(out / f"{clean_name(args)}.md", clean_report(rows, args, wall))
+        atomic_write_text(out / f"{clean_name(args)}.json", json.dumps(rows, indent=1,
+                                                                       default=float))
+        print((out / f"{clean_name(args)}.md").read_text())
         return
     timing = [run_case(c) for c in runtime_cases(args.quick)]     # one at a time
     wall = time.perf_counter() - t0

@@ -24,9 +24,13 @@ speed, acceleration and jerk limit holds by construction (checked by ``evaluate`
 
 Optimiser (``method="optimise"``, the default): ``candidates`` members drawn at random
 (seeded) and the best of them polished by bounded Nelder–Mead (scipy) for ``budget``
-criterion evaluations. The default sequence of the trials (:func:`planner.calibration.trials.
-excitation`) is evaluated too: its value is reported, and it is returned instead only if no
-member of the family beats it. ``method="random"`` is the earlier best-of-K search over the
+criterion evaluations. The objective is the mean over the ordered pairs of D capped at
+:data:`CAP` (a pair that no design separates does not freeze the search), tie-broken by the
+smallest D. Members that would ask more of the pump's flow or the pressures than allowed
+(limits Ruckig does not see) are slowed until ``evaluate`` passes. The default sequence of
+the trials (:func:`planner.calibration.trials.excitation`) is evaluated too: its value is
+reported, and it is returned instead only if no member of the family beats it and it keeps
+every limit (its first move drives the pump to saturation, which ``evaluate`` may flag). ``method="random"`` is the earlier best-of-K search over the
 trials' random sequences.
 
 Where the best design found still leaves a pair below the verdict's tie floor (D < 16 σ²:

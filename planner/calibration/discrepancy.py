@@ -179,6 +179,10 @@ class Discrepancy:
         """Fit one effect (from its neutral values) to the prepared recording."""
         return self._fit((), effect)
 
+    def held_out_misfit(self, effects=()) -> float:
+        """Σ ((y − ŷ)/σ)² over the held-out blocks of the prepared recording, ``effects`` on."""
+        return self._J(self.predict(effects), self._test)
+
     # ------------------------------------------------------------------ data
     def _prepare(self, rec: Recording):
         crane = self.crane
@@ -353,13 +357,11 @@ class Discrepancy:
         nominal = Candidate((), 0, self._J(Y0, self._train), self._J(Y0, self._test))
         n_test = int(self._test.sum())
         pen = math.log(n_test)
-        cands = []
-        todo = candidates(crane, self.names)
-        it = todo
+        cands, todo = [], candidates(crane, self.names)
         if progress:
             from tqdm import tqdm
-            it = tqdm(todo, desc="effects", unit="fit")
-        for c in it:
+            todo = tqdm(todo, desc="effects", unit="fit")
+        for c in todo:
             f = self._fit((), c)
             f.score = nominal.J_test - f.J_test - pen * f.k
             cands.append(f)
@@ -398,13 +400,10 @@ class Discrepancy:
         if v["verdict"] == "unexplained":
             final = chosen = second = None
         Yf = self.predict(final.effects) if final else Y0
-        res = self._report(Y0, Yf, final, chosen, second, ranking, t0, v, conds)
-        return res
+        return self._report(Y0, Yf, final, chosen, second, ranking, t0, v, conds)
 
     def _report(self, Y0, Yf, final, chosen, second, ranking, t0, v, conds):
-        te = self._test
-        cols = self._cols
-        sig = self._sig
+        te, cols, sig = self._test, self._cols, self._sig
         E0 = (self._Y - Y0)[te]
         E1 = (self._Y - Yf)[te]
         Yt = self._Y[te]

@@ -28,7 +28,7 @@ from planner.simulation.recording import Recording
 from planner.simulation.replay import stroke_rates
 from planner.trajectory import Trajectory
 
-__all__ = ["excitation", "TrialSequence", "record", "hidden_trial", "trackable", "draw",
+__all__ = ["excitation", "SequenceBuilder", "TrialSequence", "record", "hidden_trial", "trackable", "draw",
            "observable_joints", "TRIAL_MAGNITUDES"]
 
 
@@ -75,11 +75,59 @@ class TrialSequence:
             self.crane.spec.pump.max_flow
 
 
+class SequenceBuilder:
+    """A test sequence assembled from holds and Ruckig rest-to-rest moves (every position,
+    speed, acceleration and jerk limit holds by construction), sampled at ``rate`` [Hz]:
+    ``hold(T)``, ``move(goal, scale)``, ``t_now``, ``q`` (the current pose), ``finish(meta)``
+    -> (plan, feed-forward)."""
+
+    def __init__(self, crane, q0, rate: float = 50.0):
+        self.crane, self.rate, self.q = crane, float(rate), np.asarray(q0, float)
+        n = crane.n
+        self._t, self._q = [np.zeros(1)], [self.q[None]]
+        self._qd, self._qdd = [np.zeros((1, n))], [np.zeros((1, n))]
+        self.t_now = 0.0
+
+    def hold(self, T: float) -> None:
+        """Stay at rest for ``T`` [s] (at least one sample)."""
+        k = max(1, int(round(T * self.rate)))
+        tt = self.t_now + np.arange(1, k + 1) / self.rate
+        self._t.append(tt)
+        self._q.append(np.repeat(self._q[-1][-1:], k, axis=0))
+        self._qd.append(np.zeros((k, self.crane.n)))
+        self._qdd.append(np.zeros((k, self.crane.n)))
+        self.t_now = float(tt[-1])
+
+    def move(self, goal, scale: float = 1.0) -> None:
+        """Rest-to-rest to ``goal`` at ``scale`` of every speed/acceleration limit (nothing
+        when already there)."""
+        goal = np.asarray(goal, float)
+        if np.max(np.abs(goal - self.q)) < 1e-9:
+            return
+        seg = rest_to_rest(self.crane, self.q, goal, scale=scale).trajectory
+        self._t.append(self.t_now + seg.t[1:] - seg.t[0])
+        self._q.append(seg.q[1:])
+        self._qd.append(seg.qd[1:])
+        self._qdd.append(seg.qdd[1:])
+        self.t_now = float(self._t[-1][-1])
+        self.q = goal
+
+    def finish(self, meta=None, method: str = "excitation") -> tuple[Trajectory, object]:
+        plan = Trajectory(np.concatenate(self._t), np.vstack(self._q), np.vstack(self._qd),
+                          np.vstack(self._qdd), joint_names=tuple(self.crane.names),
+                          method=method, meta=dict(meta or {}))
+        return plan, commands(self.crane, plan, self.rate)
+
+
 def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
-               margin: float = 0.15, joints=None) -> tuple[Trajectory, object]:
+               margin: float = 0.15, joints=None, speed=(0.3, 1.0),
+               first_full: bool = True) -> tuple[Trajectory, object]:
     """(plan, feed-forward) of a test sequence at least ``duration`` [s] long (see module doc).
     Poses are drawn in [margin, 1 − margin] of every joint range; ``joints`` (names): only
-    these move, the others hold mid-range (default: all move)."""
+    these move, the others hold mid-range (default: all move); ``speed``: the range of the
+    speed fractions of the moves after the first; ``first_full``: the first move crosses the
+    whole inner range at full speed (False: it is drawn like the others — a slow, small
+    sequence with a large ``margin`` and a low ``speed``)."""
     still = (np.zeros(crane.n, bool) if joints is None else
              ~np.isin(np.asarray(crane.names), list(joints)))
     rng = np.random.default_rng(seed)
@@ -87,42 +135,20 @@ def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
     lo = L["q_min"] + margin * (L["q_max"] - L["q_min"])
     hi = L["q_max"] - margin * (L["q_max"] - L["q_min"])
     q = 0.5 * (lo + hi)
-    ts, qs, qds, qdds = [np.zeros(1)], [q[None]], [np.zeros((1, crane.n))], \
-        [np.zeros((1, crane.n))]
-    t_now = 0.0
-
-    def hold(T):
-        nonlocal t_now
-        k = max(1, int(round(T * rate)))
-        tt = t_now + np.arange(1, k + 1) / rate
-        ts.append(tt)
-        qs.append(np.repeat(qs[-1][-1:], k, axis=0))
-        qds.append(np.zeros((k, crane.n)))
-        qdds.append(np.zeros((k, crane.n)))
-        t_now = float(tt[-1])
-
-    hold(rng.uniform(0.5, 1.0))
-    first = True
-    while t_now < duration:
+    b = SequenceBuilder(crane, q, rate)
+    b.hold(rng.uniform(0.5, 1.0))
+    first = first_full
+    while b.t_now < duration:
         if first:   # one long full-speed move of every joint: the pump gets to its limit
             side = rng.uniform(size=crane.n) < 0.5
             goal, scale = np.where(side, lo, hi), 1.0
             first = False
         else:
-            goal, scale = rng.uniform(lo, hi), float(rng.uniform(0.3, 1.0))
+            goal, scale = rng.uniform(lo, hi), float(rng.uniform(*speed))
         goal = np.where(still, q, goal)
-        seg = rest_to_rest(crane, q, goal, scale=scale).trajectory
-        ts.append(t_now + seg.t[1:] - seg.t[0])
-        qs.append(seg.q[1:])
-        qds.append(seg.qd[1:])
-        qdds.append(seg.qdd[1:])
-        t_now = float(ts[-1][-1])
-        q = goal
-        hold(rng.uniform(0.5, 2.0))
-    plan = Trajectory(np.concatenate(ts), np.vstack(qs), np.vstack(qds), np.vstack(qdds),
-                      joint_names=tuple(crane.names), method="excitation",
-                      meta=dict(seed=seed, duration=duration))
-    return plan, commands(crane, plan, rate)
+        b.move(goal, scale)
+        b.hold(rng.uniform(0.5, 2.0))
+    return b.finish(dict(seed=seed, duration=duration))
 
 
 def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) -> Trajectory:

@@ -8,7 +8,7 @@ from planner.model import Crane
 
 
 def cmd_excite(args):
-    """Design (random search over the trials' feasible test sequences), then write."""
+    """Design (optimised over a family of feasible test sequences), then write."""
     # scipy and the planners: only when the command runs
     from planner.calibration.excite import design_excitation, parse_candidates
     crane = Crane.from_id(args.crane)
@@ -17,22 +17,32 @@ def cmd_excite(args):
         raise ValueError(f"--duration {args.duration:g}: allowed 10 ... 600 s")
     if not 1 <= args.candidates <= 100:
         raise ValueError(f"--candidates {args.candidates}: allowed 1 ... 100")
+    if not 0 <= args.budget <= 2000:
+        raise ValueError(f"--budget {args.budget}: allowed 0 ... 2000")
+    say = None if args.json == "-" else (lambda s: print(s, flush=True))
     d = design_excitation(crane, effects, duration=args.duration, rate=args.rate,
-                          candidates=args.candidates, seed=args.seed)
+                          candidates=args.candidates, seed=args.seed, budget=args.budget,
+                          method=args.method, moves=args.moves, progress=say)
     # everything computed: now write
     d.ff.to_csv(args.out, d.plan)
     info = dict(status="ok", out=args.out, crane=crane.spec.id, seed=d.seed,
                 duration_s=float(d.plan.duration), separation=d.separation,
                 default_separation=d.default_separation, pairs=d.pairs,
                 effects=[e.to_dict() for e in d.effects],
-                tried={str(k): v for k, v in d.tried.items()})
+                tried={str(k): v for k, v in d.tried.items()}, method=d.method,
+                source=d.source, optimised_separation=d.optimised_separation,
+                evaluations=d.evaluations, runtime_s=d.runtime_s, design_vector=d.z,
+                signal=d.signal, unseparated=d.unseparated)
     emit(args, info)
     if not args.json:
-        print(f"{args.out}: {d.plan.duration:.1f} s test sequence (seed {d.seed}); smallest "
+        print(f"{args.out}: {d.plan.duration:.1f} s test sequence ({d.source}, "
+              f"{d.evaluations} designs evaluated in {d.runtime_s:.0f} s); smallest "
               f"separation of the candidates {d.separation:.1f} σ² (default sequence: "
               f"{d.default_separation:.1f} σ²)")
         for k, v in d.pairs.items():
             print(f"  {k}: {v:.1f}")
+        for u in d.unseparated:
+            print(f"  not separated: {u['why']}")
     return 0
 
 
@@ -46,7 +56,12 @@ def add_parsers(sub) -> None:
     p.add_argument("--duration", type=float, default=60.0, help="seconds (60)")
     p.add_argument("--rate", type=float, default=50.0, help="command rate in Hz (50)")
     p.add_argument("--candidates", type=int, default=6,
-                   help="test sequences tried besides the default one (6)")
+                   help="random starting designs (6)")
+    p.add_argument("--budget", type=int, default=40,
+                   help="Nelder-Mead evaluations of the criterion after the starts (40)")
+    p.add_argument("--method", choices=("optimise", "random"), default="optimise",
+                   help="optimise (default) or random: best of the trials' random sequences")
+    p.add_argument("--moves", type=int, default=3, help="poses of the periodic sequence (3)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, metavar="FILE.csv",
                    help="the trajectory CSV (t, q_*, qd_*, qdd_*, u_*)")

@@ -105,7 +105,7 @@ def test_excite_designs_within_limits_and_refuses_bad_input(tmp_path, capsys):
     from planner.cli.common import read_trajectory
     out = tmp_path / "exc.csv"
     assert main(["excite", "cat215b", "--separate", "viscous_friction,coulomb_friction",
-                 "--joint", "swing", "--duration", "12", "--candidates", "1",
+                 "--joint", "swing", "--duration", "12", "--candidates", "1", "--budget", "0",
                  "--out", str(out), "--json", "-"]) == 0
     js = json.loads(capsys.readouterr().out)
     assert js["separation"] >= js["default_separation"] > 0      # never worse than the default
@@ -114,7 +114,7 @@ def test_excite_designs_within_limits_and_refuses_bad_input(tmp_path, capsys):
     assert read_trajectory(crane, str(out)).duration >= 12
     # the API: the design's plan keeps every limit of the machine (the independent evaluator)
     effects = parse_candidates(crane, "viscous_friction@swing,coulomb_friction@swing")
-    d = design_excitation(crane, effects, duration=12, candidates=1)
+    d = design_excitation(crane, effects, duration=12, candidates=1, budget=0)
     assert evaluate(crane, d.plan).ok() and d.separation == min(d.pairs.values())
     assert main(["excite", "cat215b", "--separate", "viscous_friction", "--out",
                  str(tmp_path / "x.csv")]) == 2

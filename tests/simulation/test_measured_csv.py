@@ -288,6 +288,26 @@ def test_timestamp_jitter_is_resampled_onto_the_mean_rate(tmp_path):
     assert len(r["notes"]) == 1 and "jitter" in r["notes"][0] and "50 Hz" in r["notes"][0]
 
 
+def test_jitter_of_almost_ten_percent_on_every_stamp_is_accepted(tmp_path):
+    """Issue 14: stamps jittered by up to ±10 % of the step (here ±9.9 %, every one of them,
+    two neighbours at opposite extremes) are resampled, not refused: the step test is against
+    the mean step, which jitter leaves as it is (against the median, 2 of 8 such logs failed)."""
+    p = _good(tmp_path / "t.csv", n=200)
+    lines = _lines(p)
+    rng = np.random.default_rng(3)
+    e = rng.uniform(-0.099, 0.099, 200)
+    e[100], e[101] = 0.099, -0.099                  # a step of 0.802 × the nominal one
+    e[150], e[151] = -0.099, 0.099                  # … and one of 1.198 ×
+    for i in range(1, 199):                         # first and last stamps as logged
+        cells = lines[i + 1].split(",")
+        cells[0] = f"{(i + e[i]) * 0.02:.10g}"
+        lines[i + 1] = ",".join(cells)
+    p.write_text("\n".join(lines))
+    r = read_measured_csv(p, JOINTS)
+    np.testing.assert_allclose(r["t"], np.arange(200) * 0.02, rtol=0, atol=1e-12)
+    assert any("jitter" in n for n in r["notes"])
+
+
 def test_dropped_sample_is_a_non_uniform_step(tmp_path):
     p = _good(tmp_path / "t.csv")
     lines = _lines(p)

@@ -102,7 +102,12 @@ def test_check_flags_a_stale_notebook_and_sync_rewrites_it(tmp_path):
     assert run.main(["--check"]) == 0                        # the repository's own pairs
 
 
-@pytest.mark.parametrize("name", NAMES)
+# the calibration notebook (16 s) runs with the slow studies: its workflow is what
+# tests/calibration covers in the default run
+RUN = [pytest.param(n, marks=pytest.mark.slow) if n == "d_calibration" else n for n in NAMES]
+
+
+@pytest.mark.parametrize("name", RUN)
 def test_notebook_runs_with_the_small_settings(name, tmp_path):
     run = _runner()
     before = (NB_DIR / f"{name}.ipynb").read_bytes()

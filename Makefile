@@ -23,15 +23,24 @@ bench: install
 	$(BIN)/python benchmarks/bench_model.py
 	$(BIN)/python benchmarks/bench_dp_laws.py
 	$(BIN)/python benchmarks/seed000_tables.py
-	$(BIN)/python benchmarks/bench_nlp.py
+	$(BIN)/python benchmarks/bench_nlp.py --energy 60
 	$(BIN)/python benchmarks/seed002_table.py
 	$(BIN)/python benchmarks/seed003_paths.py
 	$(BIN)/python benchmarks/seed003_nlp.py
 	cd benchmarks && ../$(BIN)/python bench_pareto.py
 	$(BIN)/python benchmarks/bench_library.py
+	$(BIN)/python benchmarks/bench_library.py --skip-full --skip-scaling --executors
+	$(BIN)/python benchmarks/bench_library_warmstart.py
 	$(BIN)/python benchmarks/bench_discrepancy.py
+	$(BIN)/python benchmarks/bench_discrepancy_open.py
+	$(BIN)/python benchmarks/bench_discrepancy_open.py --clean-only --scale 1 --duration 12
+	$(BIN)/python benchmarks/bench_discrepancy_excite.py --seeds 3 --seed-base 600 --magnitude 0.2 1 --workers 2 --default-duration 15 --speed 0.15 0.35 --duration 20 --starts 2 --budget 12
+	$(BIN)/python benchmarks/bench_discrepancy_structure.py --states 4000
+	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --seeds 1 --duration 20
 	$(BIN)/python benchmarks/bench_scaling.py
 	$(BIN)/python benchmarks/bench_exudyn.py
+	$(BIN)/python benchmarks/bench_exudyn_claims.py
+	$(BIN)/python benchmarks/bench_exudyn_speed.py --repeat 3
 	$(BIN)/python benchmarks/bench_faults.py
 	$(BIN)/python benchmarks/dp_memory.py
 	$(BIN)/python benchmarks/urdf_round_trip.py

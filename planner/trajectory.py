@@ -24,9 +24,12 @@ from planner.model.flows import actuator_table
 LIMIT_KINDS = ("position", "velocity", "acceleration", "jerk", "pump_flow", "pressure", "tension")
 
 
-def _arr(name, a, shape_hint):
+def _arr(name, a, two_d: bool = False):
+    """``a`` as a float array (2-D when ``two_d``), refused when any value is not finite."""
     a = np.asarray(a, dtype=float)
-    if not np.all(np.isfinite(a)):
+    if two_d and a.ndim != 2:
+        a = np.atleast_2d(a)
+    if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f"Trajectory.{name}: non-finite value at index {tuple(bad)}")
     return a
@@ -51,16 +54,16 @@ class Trajectory:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.t = _arr("t", self.t, None).ravel()
-        self.q = np.atleast_2d(_arr("q", self.q, None))
+        self.t = _arr("t", self.t).ravel()
+        self.q = _arr("q", self.q, True)
         N, n = self.q.shape
         if self.t.shape[0] != N:
             raise ValueError(f"Trajectory: t has {self.t.shape[0]} samples but q has {N} rows")
         if N < 2:
             raise ValueError("Trajectory: at least two samples are needed")
-        dt = np.diff(self.t)
-        if np.any(dt <= 0):
-            k = int(np.argmax(dt <= 0))
+        dt = self.t[1:] - self.t[:-1]
+        if not (dt > 0).all():
+            k = int(np.argmax(~(dt > 0)))
             raise ValueError(f"Trajectory.t must be strictly increasing; t[{k}] = {self.t[k]} "
                              f">= t[{k + 1}] = {self.t[k + 1]}")
         if self.interpolation not in ("quintic", "linear"):
@@ -76,12 +79,12 @@ class Trajectory:
             a = getattr(self, name)
             if a is None:
                 raise ValueError(f"Trajectory.{name} is required for quintic interpolation")
-            a = np.atleast_2d(_arr(name, a, None))
+            a = _arr(name, a, True)
             if a.shape != (N, n):
                 raise ValueError(f"Trajectory.{name} has shape {a.shape}, expected {(N, n)}")
             setattr(self, name, a)
         if self.u is not None:
-            self.u = np.atleast_2d(_arr("u", self.u, None))
+            self.u = _arr("u", self.u, True)
             if self.u.shape != (N, n):
                 raise ValueError(f"Trajectory.u has shape {self.u.shape}, expected {(N, n)}")
         if not self.joint_names:

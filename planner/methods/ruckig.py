@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import time as _time
+import weakref
 
 import numpy as np
 import ruckig
@@ -39,6 +41,32 @@ __all__ = ["NO_JERK", "MIN_GAP", "state_to_state", "state_to_state_relaxed", "Je
 NO_JERK = 1e6   # stands for "no jerk limit" (Ruckig needs a finite value) [unit/s³]
 MIN_GAP = 1e-4  # [s] shortest interval :func:`sample` keeps between samples (jerk ∝ 1/h³)
 
+_local = threading.local()  # one Ruckig calculator per DOF count and thread, made once
+
+
+_RUCKIG_LIMITS = weakref.WeakKeyDictionary()  # crane -> {scale: limit lists}, see below
+
+
+def _ruckig_limits(crane, scale: float) -> tuple:
+    """(vmax, vmin, amax, jmax) lists of the crane's joint limits times ``scale`` (jerk: the
+    crane's, or :data:`NO_JERK` where it has none), made once per crane and scale."""
+    per = _RUCKIG_LIMITS.setdefault(crane, {})
+    if scale not in per:
+        L = crane.limit_arrays()
+        per[scale] = ((scale * L["qd_max"]).tolist(), (scale * L["qd_min"]).tolist(),
+                      (scale * L["qdd_max"]).tolist(),
+                      np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK).tolist())
+    return per[scale]
+
+
+def _calculator(n: int) -> ruckig.Ruckig:
+    otg = getattr(_local, "otg", None)
+    if otg is None:
+        otg = _local.otg = {}
+    if n not in otg:
+        otg[n] = ruckig.Ruckig(n)
+    return otg[n]
+
 
 def state_to_state(current, target, vmax, vmin, amax, jmax) -> ruckig.Trajectory:
     """Time-optimal synchronised jerk-limited move from ``current`` to ``target``, each a
@@ -46,7 +74,7 @@ def state_to_state(current, target, vmax, vmin, amax, jmax) -> ruckig.Trajectory
     (≤ 0), ``amax``, ``jmax`` per DOF. Returns the Ruckig trajectory; raises RuntimeError
     ("Ruckig: …") when the input is invalid or no profile exists."""
     def vec(x):  # one C-level conversion per vector, no per-element Python
-        return np.asarray(x, float).tolist()
+        return x if type(x) is list else np.asarray(x, float).tolist()
     n = len(current[0])
     inp = ruckig.InputParameter(n)
     inp.current_position, inp.current_velocity, inp.current_acceleration = map(vec, current)
@@ -57,7 +85,7 @@ def state_to_state(current, target, vmax, vmin, amax, jmax) -> ruckig.Trajectory
     inp.max_jerk = vec(jmax)
     tr = ruckig.Trajectory(n)
     try:
-        res = ruckig.Ruckig(n).calculate(inp, tr)
+        res = _calculator(n).calculate(inp, tr)
     except (RuntimeError, ruckig.RuckigError) as e:  # invalid input or no profile found
         raise RuntimeError(f"Ruckig: {str(e).strip().splitlines()[0]}") from None
     if res not in (ruckig.Result.Working, ruckig.Result.Finished):
@@ -216,9 +244,12 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
     L = crane.limit_arrays()
     lo, hi = L["q_min"] - 1e-9, L["q_max"] + 1e-9
-    for name, q in (("start", q0), ("goal", q1)):
-        if q.shape != (crane.n,) or ((q < lo) | (q > hi)).any():
-            bad = np.flatnonzero((q < lo) | (q > hi)) if q.shape == (crane.n,) else None
+    if q0.shape != (crane.n,) or q1.shape != (crane.n,) or not (
+            (q0 >= lo) & (q0 <= hi) & (q1 >= lo) & (q1 <= hi)).all():
+        for name, q in (("start", q0), ("goal", q1)):   # name the first bad value
+            bad = (np.flatnonzero(~((q >= lo) & (q <= hi))) if q.shape == (crane.n,) else None)
+            if bad is not None and not bad.size:
+                continue
             what = (f"needs {crane.n} joint values" if bad is None else
                     f"{crane.names[bad[0]]} = {q[bad[0]]:.4f} is outside "
                     f"[{L['q_min'][bad[0]]:.4f}, {L['q_max'][bad[0]]:.4f}]")
@@ -227,11 +258,9 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     if sample_rate is not None and not sample_rate > 0:
         raise ValueError(f"rest_to_rest: sample_rate = {sample_rate!r}; allowed: a rate > 0 "
                          "[Hz], or None for the switching times only")
-    z = np.zeros(crane.n)
+    z = [0.0] * crane.n
     try:
-        traj = state_to_state((q0, z, z), (q1, z, z), scale * L["qd_max"], scale * L["qd_min"],
-                              scale * L["qdd_max"],
-                              np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK))
+        traj = state_to_state((q0, z, z), (q1, z, z), *_ruckig_limits(crane, float(scale)))
     except RuntimeError as e:
         return PlanResult("failed", str(e), solve_time_s=_time.perf_counter() - t0)
     prof = JerkProfile(traj)

@@ -278,14 +278,20 @@ class Crane:
 
     # ------------------------------------------------------------------ limits as arrays
     def limit_arrays(self):
-        """Dict of arrays: q_min, q_max, qd_min, qd_max, qdd_max, qddd_max (inf if none)."""
-        J = self.spec.joints
-        return dict(q_min=np.array([j.limits.q[0] for j in J]),
-                    q_max=np.array([j.limits.q[1] for j in J]),
-                    qd_min=np.array([j.limits.qd[0] for j in J]),
-                    qd_max=np.array([j.limits.qd[1] for j in J]),
-                    qdd_max=np.array([j.limits.qdd for j in J]),
-                    qddd_max=np.array([j.limits.qddd if j.limits.qddd else np.inf for j in J]))
+        """Dict of arrays: q_min, q_max, qd_min, qd_max, qdd_max, qddd_max (inf if none).
+        The arrays are built once per crane and read-only (copy one before changing it)."""
+        cached = self.__dict__.get("_limits")
+        if cached is None:
+            J = self.spec.joints
+            cached = dict(q_min=[j.limits.q[0] for j in J], q_max=[j.limits.q[1] for j in J],
+                          qd_min=[j.limits.qd[0] for j in J], qd_max=[j.limits.qd[1] for j in J],
+                          qdd_max=[j.limits.qdd for j in J],
+                          qddd_max=[j.limits.qddd if j.limits.qddd else np.inf for j in J])
+            for k, v in cached.items():
+                cached[k] = a = np.array(v, dtype=float)
+                a.flags.writeable = False
+            self._limits = cached
+        return dict(cached)
 
     def __repr__(self):
         return f"Crane({self.spec.id!r}, joints={self.names})"

@@ -114,6 +114,31 @@ def test_local_cluster_workers_keep_dasks_thread_settings_but_not_the_malloc_tri
         assert worker_environ() == {"OMP_NUM_THREADS": 1}
 
 
+def test_dask_chunks_cover_every_argument_once_and_start_with_single_tasks():
+    """The Dask tasks carry chunks of moves (fewer tasks, less scheduler work per entry): every
+    argument exactly once, in order; each worker's first task a single move (the first entry
+    as early as before); none bigger than asked; the last ones single again."""
+    from planner.library.cluster import chunk_sizes
+    for n, w in [(0, 2), (1, 2), (3, 2), (200, 2), (401, 16), (57, 3)]:
+        s = chunk_sizes(n, w, 4)
+        assert sum(s) == n and all(1 <= k <= 4 for k in s)
+        assert s[:min(n, w)] == [1] * min(n, w)
+        assert s[w:] == sorted(s[w:], reverse=True)     # guided: shrinking towards the end
+        if n > 8 * w:
+            assert s[-1] == 1 and max(s) == 4
+
+
+def test_dask_pool_with_chunks_returns_each_result_once():
+    pytest.importorskip("dask.distributed")
+    import operator
+    from planner.library.cluster import DaskPool
+    args = [(i, i + 1) for i in range(23)]
+    with DaskPool("local:2", None, chunk=4) as pool:
+        got = sorted(pool.imap_unordered(operator.mul, args))
+        assert len(pool.setup_info) == 2
+    assert got == sorted(a * b for a, b in args)
+
+
 @pytest.mark.slow   # SIGKILL mid-build (~25 s); test_faults covers the signals in the default run
 @pytest.mark.parametrize("kill_after", [2])
 def test_kill_and_resume_equals_a_clean_build(tmp_path, kill_after):

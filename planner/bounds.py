@@ -165,7 +165,7 @@ def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
                 n_grid: int = 121, refine: int = 3, starts: int = 8,
-                jerk: bool = True) -> LowerBound:
+                jerk: bool = True, combined_only: bool = False) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
     configurations ``q_start``/``q_goal``.
 
@@ -175,7 +175,9 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
     The refinements of all starting pairs run together (one IK call per end and level).
     ``jerk=False`` leaves the spec's jerk limits out of the rest-to-rest (and combined) bound:
     the bound of a method that does not plan with jerk limits (TOPP-RA, the DP, the laws),
-    which may legitimately be faster than the jerk-limited bound."""
+    which may legitimately be faster than the jerk-limited bound. ``combined_only`` refines
+    only the combined bound (and its telescopes; the other fields keep their ``n_grid``
+    values, which a refinement could only lower): what a guess taken at the bound needs."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
@@ -191,7 +193,8 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
         # every reported bound is minimised on its own: refine around the best grid pairs of
         # each (the combined one gets ``starts`` of them, the others 3)
         step = (tr[1] - tr[0]) / (n_grid - 1)
-        metrics = dict(comb=comb, vel=Tv, r2r=Tr, pump=Tp, E=E)
+        metrics = dict(comb=comb) if combined_only else dict(comb=comb, vel=Tv, r2r=Tr,
+                                                             pump=Tp, E=E)
         seeds = [(key, flat) for key, m in metrics.items()
                  for flat in np.argsort(m, axis=None)[:starts if key == "comb" else 3]]
         keys = [key for key, _ in seeds]

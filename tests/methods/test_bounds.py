@@ -127,3 +127,19 @@ def test_batched_refinement_equals_pair_by_pair():
         for m_b, m_1 in zip(batch, _pair_bounds(crane, qs, qg)):
             assert np.all(np.isinf(m_b[s][~A[2][s]])) and np.all(np.isinf(m_b[s][:, ~B[2][s]]))
             np.testing.assert_array_equal(m_b[s][np.ix_(A[2][s], B[2][s])], m_1)
+
+
+def test_combined_only_refines_the_combined_bound_and_leaves_the_rest_at_the_grid():
+    """The NLP guess's cheaper bound: the combined bound refined like the full search (never
+    above the unrefined grid's), the other fields exactly the unrefined grid's values."""
+    c = Crane.from_id("s100f")
+    a, b = (6.0, -1.0, 0.0), (3.0, 2.5, 1.5)
+    grid = lower_bound(c, a, b, n_grid=41, refine=0)
+    full = lower_bound(c, a, b, n_grid=41, refine=2, starts=4)
+    only = lower_bound(c, a, b, n_grid=41, refine=2, starts=4, combined_only=True)
+    assert only.combined_s <= grid.combined_s
+    assert only.combined_s == pytest.approx(full.combined_s, rel=1e-9)
+    assert (only.tele_start, only.tele_goal) == pytest.approx((full.tele_start, full.tele_goal))
+    for f in ("velocity_s", "rest_to_rest_s", "pump_s", "energy_J"):
+        assert getattr(only, f) == getattr(grid, f)
+        assert getattr(full, f) <= getattr(grid, f)

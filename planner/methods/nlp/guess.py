@@ -26,8 +26,9 @@ __all__ = ["stretch", "ruckig_guess", "vias", "over_obstacles_guess", "path_gues
            "GUESS_BOUND"]
 
 # the lower bound the default guess is taken at: a coarser telescope search than the reported
-# bound's (≈ 2.5× cheaper; only the guess's telescopes and slowing depend on it)
-GUESS_BOUND = dict(n_grid=41, refine=2, starts=2)
+# bound's, refining the combined bound only (only the guess's telescopes and its slowing
+# depend on it)
+GUESS_BOUND = dict(n_grid=41, refine=2, starts=4, combined_only=True)
 
 
 def stretch(traj: Trajectory, T: float) -> Trajectory:

@@ -1,7 +1,8 @@
 """Build a library of ready-to-replay moves for a machine's work cycle.
 
 A task suite (problems/tasks/<name>.toml) expands to moves (id, start tip, goal tip). For every
-move and objective a worker plans the move with a registered method (default ``nlp``; ``time``:
+move (one task, :func:`plan_move`: the minimum-time solve shared by its objectives) and
+objective a worker plans the move with a registered method (default ``nlp``; ``time``:
 the minimum-time move; ``energy``: the least pump energy within 1.2 × the minimum time, for the
 NLP :func:`~planner.methods.nlp.energy_optimal`),
 judges it with :func:`~planner.trajectory.evaluate`, attaches 50 Hz valve feed-forward, and
@@ -93,59 +94,83 @@ def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
     """Plan one library entry with the registered ``method`` (runs in a worker): ``time`` the
     minimum-time move, ``energy`` the least pump energy within ENERGY_BUDGET × that time. Never
     raises for planning failures: they come back as a status with a reason."""
-    from planner.feedforward import commands
+    return plan_move(crane_id, move, (objective,), N, robustness, obstacles, method)[0]
+
+
+def plan_move(crane_id: str, move: Move, objectives, N: int = 40, robustness: bool = True,
+              obstacles: tuple = (), method: str = "nlp") -> list:
+    """The entries of one move for each of ``objectives`` (a list of :func:`plan_entry`
+    results, in that order). The minimum-time move is solved once and serves every objective:
+    the time entry is it, the energy entry's budget and warm start come from it (a move with
+    both entries used to solve it twice). ``solve_s`` and ``cpu_s`` of each entry count from
+    the move's start, so the shared minimum-time solve is in each."""
     from planner.model import Crane
-    from planner.trajectory import evaluate
     t0, c0 = _time.perf_counter(), _time.process_time()
-    out = dict(id=f"{move.id}:{objective}", start=move.start, goal=move.goal,
-               objective=objective, method=method)
+    outs = [dict(id=f"{move.id}:{o}", start=move.start, goal=move.goal, objective=o,
+                 method=method) for o in objectives]
     try:
         crane = Crane.from_id(crane_id)
         rt = plan(crane, _request(move, "time", N, obstacles), method)
-        res = rt
-        if rt.ok and objective == "energy":
-            res = plan(crane, _request(move, "energy", N, obstacles,
-                                       duration=ENERGY_BUDGET * rt.duration_s, time_result=rt),
-                       method)
-            out["energy_winner"] = res.stats.get("energy_winner")
-        if not res.ok:
-            return dict(out, status=res.status, reason=res.reason,
-                        solve_s=_time.perf_counter() - t0)
-        traj = res.trajectory
-        verdict = evaluate(crane, traj)  # the judge sees the plan itself
-        if verdict.max_limit_violation > 1e-3:
-            worst = max(verdict.violations, key=verdict.violations.get)
-            return dict(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
-                        f"{100 * verdict.max_limit_violation:.2f} %",
-                        solve_s=_time.perf_counter() - t0)
-        # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
-        # derived channels (strokes, pressures, pump) on those samples
-        clear = float("nan")
-        if obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
-            from planner.geometry.paths import tip_to_xyz
-            cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
-            clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
-        # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
-        # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
-        traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
-        ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
-        rob = float("nan")
-        if robustness:
-            from planner.simulation.replay import robustness as robust
-            rob = float(robust(crane, traj_u)["score_m"])
-        return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
-                    robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
-                    iterations=res.stats.get("iterations", 0),
-                    # CPU seconds of the worker process (its own threads included) and the
-                    # seconds spent building solvers (0: the worker's set-up had built them)
-                    cpu_s=_time.process_time() - c0,
-                    build_s=float(rt.stats.get("build_time_s", 0.0)
-                                  + (res.stats.get("build_time_s", 0.0) if res is not rt else 0)))
-    except UnsupportedRequest as e:
-        return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
     except Exception as e:  # a failed move must never stop the build: record why
-        return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
+        return [_failed(out, e, t0) for out in outs]
+    done = []
+    for out in outs:
+        try:
+            done.append(_entry(crane, move, out, rt, N, robustness, obstacles, method, t0, c0))
+        except Exception as e:
+            done.append(_failed(out, e, t0))
+    return done
+
+
+def _failed(out: dict, e: Exception, t0: float) -> dict:
+    if isinstance(e, UnsupportedRequest):
+        return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
+    return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
+                solve_s=_time.perf_counter() - t0)
+
+
+def _entry(crane, move: Move, out: dict, rt, N, robustness, obstacles, method, t0, c0) -> dict:
+    """One entry of :func:`plan_move` from the move's minimum-time result ``rt``."""
+    from planner.feedforward import commands
+    from planner.trajectory import evaluate
+    res = rt
+    if rt.ok and out["objective"] == "energy":
+        res = plan(crane, _request(move, "energy", N, obstacles,
+                                   duration=ENERGY_BUDGET * rt.duration_s, time_result=rt),
+                   method)
+        out["energy_winner"] = res.stats.get("energy_winner")
+    if not res.ok:
+        return dict(out, status=res.status, reason=res.reason, solve_s=_time.perf_counter() - t0)
+    traj = res.trajectory
+    verdict = evaluate(crane, traj)  # the judge sees the plan itself
+    if verdict.max_limit_violation > 1e-3:
+        worst = max(verdict.violations, key=verdict.violations.get)
+        return dict(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
+                    f"{100 * verdict.max_limit_violation:.2f} %",
                     solve_s=_time.perf_counter() - t0)
+    # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
+    # derived channels (strokes, pressures, pump) on those samples
+    clear = float("nan")
+    if obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
+        from planner.geometry.paths import tip_to_xyz
+        cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
+        clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
+    # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
+    # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
+    traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
+    ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
+    rob = float("nan")
+    if robustness:
+        from planner.simulation.replay import robustness as robust
+        rob = float(robust(crane, traj_u)["score_m"])
+    return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
+                robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
+                iterations=res.stats.get("iterations", 0),
+                # CPU seconds of the worker process (its own threads included) and the
+                # seconds spent building solvers (0: the worker's set-up had built them)
+                cpu_s=_time.process_time() - c0,
+                build_s=float(rt.stats.get("build_time_s", 0.0)
+                              + (res.stats.get("build_time_s", 0.0) if res is not rt else 0)))
 
 
 # ------------------------------------------------------------------------------ driver side
@@ -259,8 +284,12 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
     that an interrupted build can still say what it wrote)."""
     done = set(db.ids())
     todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
-    # the slow energy entries first (longest-first packing: less idle tail on the workers)
-    todo.sort(key=lambda mo: mo[1] != "energy")
+    # one task per move with all its missing objectives (the minimum-time solve shared); the
+    # slow moves with an energy entry first (longest-first packing: less idle tail)
+    per_move: dict = {}
+    for m, o in todo:
+        per_move.setdefault(m.id, (m, []))[1].append(o)
+    tasks = sorted(per_move.values(), key=lambda mo: "energy" not in mo[1])
     state["todo"] = todo
     state["skipped"] = len(moves) * len(objectives) - len(todo)
     bar = progress(len(todo), f"library {crane.spec.id}", "entry", enabled=show_progress)
@@ -284,7 +313,7 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
             counts[r["status"]] = counts.get(r["status"], 0) + 1
             bar.update(1)
 
-    args = [(crane_id, m, o, N, robustness, obstacles, method) for m, o in todo]
+    args = [(crane_id, m, tuple(objs), N, robustness, obstacles, method) for m, objs in tasks]
     if not args:
         bar.close()
         return
@@ -293,13 +322,15 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
             state["setup"] = [run_setup(setup)]
             state["setup_done_t"] = _time.perf_counter()
             for a in args:
-                write(plan_entry(*a))
+                for r in plan_move(*a):
+                    write(r)
         else:
-            for r in pool.imap_unordered(plan_entry, args):
-                write(r)
+            for rs in pool.imap_unordered(plan_move, args):
+                for r in rs:
+                    write(r)
     finally:
         bar.close()
 
 
-__all__ = ["plan_entry", "WorkerSetup", "build", "check_method", "check_scheduler", "clear_planner_caches",
+__all__ = ["plan_entry", "plan_move", "WorkerSetup", "build", "check_method", "check_scheduler", "clear_planner_caches",
            "BuildError", "OBJECTIVES"]

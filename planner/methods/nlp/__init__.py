@@ -82,6 +82,8 @@ class NLPPlanner(Planner):
         path = request.path if request.objective == "time" else "free"
         for o in objectives:
             self.built(crane, o, path, N, obs, cache, paid)
+        for n in paid:
+            n.build_twins()   # adds its seconds to the NLP's build_time_s
         return sum(n.build_time_s for n in paid)
 
     def clear(self) -> None:

@@ -52,6 +52,7 @@ from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
 from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
 from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
+from planner.methods.nlp.twins import SolverTwins, warm_rounds
 from planner.model.flows import actuator_table
 from planner.model.hydraulics import ACTIVE_FLOW
 from planner.trajectory import Trajectory, evaluate
@@ -64,7 +65,7 @@ BIG_T = 1e3  # [s] upper bound of the duration
 AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IPOPT)
 
 
-class MoveNLP(Guesses):
+class MoveNLP(Guesses, SolverTwins):
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
@@ -112,7 +113,7 @@ class MoveNLP(Guesses):
             ipopt["max_iter"] = min(ipopt["max_iter"], AUTO_FATROP_ITER)
         self._twin_args = (crane, objective, path, N, pump, reg, pump_margin, obstacles,
                            ipopt_options, cache)
-        self._twin = None
+        self._twin = self._warm = None
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
                            pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
                            solver=self.solver_name)
@@ -199,15 +200,6 @@ class MoveNLP(Guesses):
             self.solver = ca.nlpsol("move", "ipopt", problem,
                                     {"expand": True, "print_time": False, "ipopt": ipopt})
         self.nw = lay.nw
-
-    def _ipopt_twin(self):
-        """The same formulation solved by IPOPT (built on first use): the fallback of
-        ``solver="auto"`` when FATROP fails (its variables and rows are the same)."""
-        if self._twin is None:
-            c, o, p, N, pump, reg, pm, obs, io, cache = self._twin_args
-            self._twin = MoveNLP(c, o, p, N=N, pump=pump, reg=reg, pump_margin=pm,
-                                 obstacles=obs, ipopt_options=io, cache=cache, solver="ipopt")
-        return self._twin.solver
 
     @property
     def _nx(self) -> int:
@@ -448,15 +440,20 @@ class MoveNLP(Guesses):
             # FATROP takes no fixed end joints (it counts them as end equalities): IPOPT
             fixed = self.solver_name == "fatrop" and any(q is not None for q in q_ends)
             tries = (True,) if fixed else (False, True) if self.fallback else (False,)
-            for twin in tries:
-                solver = self._ipopt_twin() if twin else self.solver   # auto: IPOPT 2nd
+            # later energy rounds: warm from the last solution and multipliers, cold if that fails
+            attempts = ([(self._warm_twin, dict(lam_x0=sol["lam_x"], lam_g0=sol["lam_g"]))]
+                        if _round and warm_rounds() else [])   # solvers built on first use
+            attempts += [(self._ipopt_twin if twin else lambda: self.solver, {}) for twin in tries]
+            for k, (get_solver, warm) in enumerate(attempts):
+                solver = get_solver()
                 try:
-                    sol = solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg, ubg=self.ubg)
+                    sol = solver(x0=guess, p=P, lbx=lbw, ubx=ubw, lbg=self.lbg, ubg=self.ubg,
+                                 **warm)
                 except RuntimeError as e:
-                    if not twin and self.fallback:
+                    if k + 1 < len(attempts):
                         continue
-                    return nlp_result("error", f"{'IPOPT' if twin else self.solver_name} "
-                                      f"failed: {e}", solve_time_s=_time.perf_counter() - t0)
+                    return nlp_result("error", f"{self._name(solver)} failed: {e}",
+                                      solve_time_s=_time.perf_counter() - t0)
                 st = solver.stats()
                 iters += st.get("iter_count", 0)
                 ist = st.get("return_status", "")
@@ -490,5 +487,5 @@ class MoveNLP(Guesses):
         E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
         return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
                           iterations=iters, ipopt_status=ist,
-                          solver="ipopt" if twin else self.solver_name,
+                          solver=self._name(solver).lower(),
                           solve_time_s=_time.perf_counter() - t0)

@@ -31,6 +31,7 @@ bench: install
 	$(BIN)/python benchmarks/bench_library.py
 	$(BIN)/python benchmarks/bench_library.py --skip-full --skip-scaling --executors
 	$(BIN)/python benchmarks/bench_library_warmstart.py
+	$(BIN)/python benchmarks/bench_energy_rounds.py --moves 36
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_discrepancy_open.py
 	$(BIN)/python benchmarks/bench_discrepancy_open.py --clean-only --scale 1 --duration 12

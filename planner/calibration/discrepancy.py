@@ -49,7 +49,7 @@ from planner.calibration.noise import noise_floor, upsampling_factor
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
-from planner.model.effects import CATALOGUE, Effect
+from planner.model.effects import CATALOGUE, Effect, fittable, quasi_static
 from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
 
@@ -139,9 +139,9 @@ class DiscrepancyResult:
 
 def candidates(crane, names=None) -> list[Effect]:
     """The effects the search fits (at their neutral values): every catalogue effect named in
-    ``names`` (default: the whole catalogue, in its order), per-joint ones on every joint."""
+    ``names`` (default: :func:`fittable`, in catalogue order), per-joint ones on every joint."""
     out = []
-    for name in (names or CATALOGUE):
+    for name in (names or fittable()):
         cls = CATALOGUE[name]
         if cls.per_joint:
             out += [cls(j) for j in crane.names]
@@ -162,8 +162,9 @@ class Discrepancy:
         unknown = [c for c in (candidates or []) if c not in CATALOGUE]
         if unknown:
             raise ValueError(f"unknown effect(s) {unknown}; known: {', '.join(CATALOGUE)}")
+        quasi_static(CATALOGUE[c] for c in candidates or [])   # classes: name and stage
         self.crane = crane
-        self.names = list(candidates) if candidates else list(CATALOGUE)
+        self.names = list(candidates) if candidates else fittable()
         if not block_s > 0:
             raise ValueError(f"block_s must be > 0 s, got {block_s}")
         self.block_s = float(block_s)

@@ -44,6 +44,10 @@ def cmd_simulate(args):
             effects.append(parse_effect(text, crane))
         except ValueError as e:
             raise CLIError(f"--effect {text!r}: {e}") from None
+    dyn = [e.name for e in effects if e.stage == "dynamics"]
+    if dyn and args.plant != "exudyn":
+        raise CLIError(f"--effect {dyn[0]}: acts on the oil's dynamics, which only the dynamic "
+                       "plant has; add --plant exudyn")
     traj = read_trajectory(crane, args.trajectory)
     if args.plant == "exudyn":
         return _simulate_exudyn(args, crane, traj, effects)
@@ -85,7 +89,8 @@ def cmd_effects_list(args):
         for e in cat:
             ps = ", ".join(f"{k} {v if isinstance(v, str) else v}" for k, v in
                            e["parameters"].items())
-            print(f"{e['name']:18s} {e['description']}\n{'':18s} parameters: {ps}")
+            only = " (--plant exudyn only)" if e.get("stage") == "dynamics" else ""
+            print(f"{e['name']:18s} {e['description']}{only}\n{'':18s} parameters: {ps}")
     return 0
 
 

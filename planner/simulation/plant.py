@@ -35,7 +35,7 @@ from scipy.interpolate import CubicSpline
 
 from planner.feedforward import commands
 from planner.model import Crane, flows
-from planner.model.effects import as_effects, effect_from_dict
+from planner.model.effects import as_effects, effect_from_dict, quasi_static
 from planner.simulation.recording import Recording, noise_levels
 from planner.simulation.replay import Plant, describe_plant, differences, replay, stroke_stops
 from planner.trajectory import Trajectory
@@ -216,7 +216,7 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
     between calls that differ only in force/stroke/sensor effects (the fitting loop)."""
     # the spec's own (calibrated) effects are part of the model
     given = tuple(effect_from_dict(d) for d in crane.spec.effects) + as_effects(crane, effects)
-    effects = as_effects(crane, plant) + given
+    effects = quasi_static(as_effects(crane, plant) + given)
     t_u = np.asarray(t_u, float)
     u = np.atleast_2d(np.asarray(u, float))
     key = tuple(e for e in effects if e.replayed)

@@ -49,7 +49,7 @@ import numpy as np
 from planner.feedforward import commands
 from planner.model.valves import command_to_stroke_rate, draws_pump, metered_flow, valve_params
 from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
-                                        ValveDeadband, ValveSet, as_effects)
+                                        ValveDeadband, ValveSet, as_effects, quasi_static)
 from planner.trajectory import Trajectory
 
 __all__ = ["Plant", "describe_plant", "replay", "pressures", "valve_set", "plant_valves",
@@ -272,7 +272,7 @@ def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
         raise ValueError(f"replay: span {t_end - t0:g} s is shorter than one step of {dt:g} s")
     t = t0 + dt * np.arange(K + 1)
 
-    effects = as_effects(crane, plant)
+    effects = quasi_static(as_effects(crane, plant))
     # what the valves act on (delays, lags)
     u_valves = u
     for e in effects:

@@ -20,6 +20,8 @@ forces       extra actuator force or load (coulomb_friction, viscous_friction, p
 strokes      extra stroke motion driven by pressure (leakage)
 sensors      what the transducers report (joint_offset, pressure_offset, sensor_gain,
              sensor_drift, pressure_drift)
+dynamics     the oil's physical data, in the dynamic (Exudyn) plant only (bulk_modulus,
+             hose_volume; never drawn by trials nor fitted: the quasi-static model has no oil)
 ===========  ==================================================================================
 
 Adding an effect is one class: subclass :class:`Effect`, set its attributes, override its
@@ -30,7 +32,9 @@ catalogue with :func:`catalogue`.
 """
 from planner.model.effects.base import (CATALOGUE, STAGES, Effect, Parameter, ValveSet,
                                              as_effects, catalogue, effect_from_dict, make,
-                                             parse_effect, register, unregister)
+                                             fittable, parse_effect, quasi_static, register,
+                                             unregister)
+from planner.model.effects.dynamics import BulkModulus, HoseVolume
 from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleLoad,
                                               JointOffset, PayloadMass, PressureOffset,
                                               ViscousFriction)
@@ -43,10 +47,10 @@ __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register",
            "JointOffset", "FlowGain", "ValveDeadband", "ValveLag", "TimeDelay", "PumpFlowLimit",
            "Leakage", "CoulombFriction", "ViscousFriction", "PayloadMass", "ActuatorMass",
            "PressureOffset", "StartOffset", "GrappleLoad", "SensorGain", "SensorDrift",
-           "PressureDrift"]
+           "PressureDrift", "BulkModulus", "HoseVolume", "quasi_static", "fittable"]
 
 for _cls in (JointOffset, FlowGain, ValveDeadband, ValveLag, TimeDelay, PumpFlowLimit, Leakage,
              CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset,
-             SensorGain, SensorDrift, PressureDrift):
+             SensorGain, SensorDrift, PressureDrift, BulkModulus, HoseVolume):
     register(_cls)
 del _cls

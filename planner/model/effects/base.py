@@ -30,10 +30,12 @@ import numpy as np
 from planner.units import parse_angle
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",
-           "catalogue", "make", "effect_from_dict", "parse_effect", "as_effects"]
+           "catalogue", "make", "effect_from_dict", "parse_effect", "as_effects",
+           "quasi_static", "fittable"]
 
-# the stages of the plant, in the order the plant applies them
-STAGES = ("commands", "start", "valves", "forces", "strokes", "sensors")
+# the stages of the plant, in the order the plant applies them, then "dynamics": the oil's and
+# the hoses' physical data, which only the dynamic (Exudyn) plant has (set before it runs)
+STAGES = ("commands", "start", "valves", "forces", "strokes", "sensors", "dynamics")
 # the stages the open-loop replay itself applies (the rest are applied on its result)
 REPLAY_STAGES = ("commands", "start", "valves")
 
@@ -159,6 +161,11 @@ class Effect:
         out = np.zeros_like(like)
         out[:, i] = column_of(i)
         return out
+
+    def dynamics(self, crane, dyn):
+        """Dynamics stage: the dynamic plant's ``[dynamics]`` data (a
+        :class:`~planner.model.dynamics_spec.DynamicsSpec`) with this effect applied."""
+        return dyn
 
     @property
     def kinematic(self) -> bool:
@@ -400,6 +407,25 @@ def parse_effect(text: str, crane=None) -> Effect:
     if crane is not None and e.joint is not None:
         e.index(crane)
     return e
+
+
+def fittable() -> list:
+    """The catalogue names the quasi-static model can show, so fit (all but the dynamics
+    stage): the discrepancy search's default candidates."""
+    return [k for k, c in CATALOGUE.items() if c.stage != "dynamics"]
+
+
+def quasi_static(effects) -> tuple:
+    """``effects`` (a tuple), refused with a ValueError when one of them acts on the oil's
+    dynamics (the ``dynamics`` stage), which the quasi-static plant and model do not have."""
+    effects = tuple(effects)
+    for e in effects:
+        if e.stage == "dynamics":
+            raise ValueError(f"effect {e.name}: changes the oil's dynamics (stage 'dynamics'), "
+                             "which only the dynamic plant has; simulate with --plant exudyn "
+                             "(the quasi-static plant and model cannot show it, so the "
+                             f"quasi-static model cannot fit it; fittable: {', '.join(fittable())})")
+    return effects
 
 
 def as_effects(crane, plant) -> tuple:

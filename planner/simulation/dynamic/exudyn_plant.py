@@ -164,7 +164,8 @@ class ExudynPlant:
     """One machine as an Exudyn model (see the module doc), with the physical counterparts of
     ``effects`` (a sequence of :class:`planner.model.effects.Effect`, after the spec's own
     calibrated ones): payload and grapple load (tip mass), actuator mass (lumped links),
-    Coulomb and viscous friction (added to the ``[dynamics]`` friction), leakage (a flow out of
+    Coulomb and viscous friction (added to the ``[dynamics]`` friction), the oil's bulk modulus
+    and hose volumes (the dynamics stage, on ``[dynamics]``), leakage (a flow out of
     the loaded chamber), flow gain, dead band and pump limit (the valves stage), delay and spool
     lag (the commands stage, before the plant's own spool), start offsets; sensor offsets act
     on the output (:meth:`sense`). ``dynamics`` overrides the spec's ``[dynamics]``; ``step``
@@ -182,9 +183,12 @@ class ExudynPlant:
         if spec.transformer is not None and spec.transformer.enabled:
             raise ValueError(f"crane '{spec.id}': field 'transformer.enabled': true; the "
                              "dynamic plant does not model the hydraulic transformer")
-        self.crane, self.dyn, self.step = crane, dyn, float(step)
+        self.crane, self.step = crane, float(step)
         given = tuple(effect_from_dict(d) for d in spec.effects) + as_effects(crane, effects)
         self.effects = given
+        for e in given:   # the oil's own data: bulk modulus, hose volumes
+            dyn = e.dynamics(crane, dyn)
+        self.dyn = dyn
         n = spec.n
         payload = spec.payload.total
         extra_mass = np.zeros(n)

@@ -1,0 +1,94 @@
+"""A library's entries replayed open loop on the independent dynamic plant, on the build's
+executors (issue 13: "the library replay of 400 entries runs on the existing process pool / Dask
+executors").
+
+Each ok entry's stored 50 Hz valve commands drive the Exudyn plant
+(:func:`planner.simulation.dynamic.claims.replay_move`, valves closed for ``settle`` s after
+the plan's end) and, beside it, the fast quasi-static replay plant. Per entry: tip tracking
+error during the move and at arrival, the offset where the crane comes to rest, the residual
+oscillation after arrival and the settling time to ``tol`` (judge: Exudyn, and the fast plant
+for comparison), the pump energy of the run.
+
+The executors are the library build's: in-process, local processes
+(:class:`~planner.library.workers.WorkerPool`) or a Dask cluster
+(:class:`~planner.library.cluster.DaskPool`). A task carries the file, the entry id and the
+options; each worker opens the library read-only and builds the machine from the spec stored
+in it once. The driver only collects (nothing is written into the library).
+"""
+from __future__ import annotations
+
+import os
+import time as _time
+from contextlib import nullcontext
+
+from planner.library.workers import WorkerPool
+
+__all__ = ["replay_entry", "replay_library"]
+
+_CRANES: dict = {}   # per worker process: library path -> its crane (built once)
+
+
+def _crane_of(path: str, store):
+    from planner.library.query import library_crane
+    key = (os.path.abspath(path), os.path.getmtime(path))
+    if key not in _CRANES:
+        _CRANES[key] = library_crane(store.spec_toml)
+    return _CRANES[key]
+
+
+def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.005) -> dict:
+    """One entry of the library ``path`` replayed on the Exudyn and the fast plant (runs in a
+    worker). Never raises for a failed run: the status and reason come back."""
+    from planner.library.store import LibraryStore
+    from planner.simulation.dynamic.claims import replay_move, stored_commands
+    t0, c0 = _time.perf_counter(), _time.process_time()
+    out = dict(id=entry_id)
+    try:
+        with LibraryStore.open(path, "r") as store:
+            crane = _crane_of(path, store)
+            traj = store.trajectory(entry_id)
+            objective = store.entry_attrs(entry_id).get("objective")
+        cmd = stored_commands(traj)
+        if cmd is None:
+            return dict(out, status="no-commands", reason="the entry stores no 50 Hz commands",
+                        seconds=_time.perf_counter() - t0)
+        m = replay_move(crane, traj, t_u=cmd[0], u=cmd[1], settle=settle, tol=tol)
+        return dict(out, objective=objective, duration_s=float(traj.duration), **m.as_dict(),
+                    seconds=_time.perf_counter() - t0, cpu_s=_time.process_time() - c0)
+    except Exception as e:   # one bad entry must not stop the replay of the others
+        return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
+                    seconds=_time.perf_counter() - t0)
+
+
+def replay_library(path, *, workers: int = 1, scheduler: str | None = None,
+                   limit: int | None = None, settle: float = 3.0, tol: float = 0.005,
+                   on_result=None) -> dict:
+    """Replay the ok entries of the library ``path`` (the first ``limit``, in the file's
+    order) on ``workers`` local processes or the Dask ``scheduler`` (``local:N`` or an
+    address). ``on_result(row)`` is called as each entry completes. Returns dict(rows in
+    completion order, seconds, entries, executor)."""
+    from planner.library.store import LibraryStore
+    path = str(path)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    with LibraryStore.open(path, "r") as store:
+        ids = [r["id"] for r in store.index_rows() if r["status"] == "ok"]
+    ids = ids[:limit] if limit is not None else ids
+    args = [(path, i, settle, tol) for i in ids]
+    t0 = _time.perf_counter()
+    rows = []
+    if scheduler:
+        from planner.library.cluster import DaskPool
+        pool = DaskPool(scheduler)
+    else:
+        pool = WorkerPool(workers) if workers > 1 else None
+    with (pool or nullcontext()):
+        results = (pool.imap_unordered(replay_entry, args) if pool is not None
+                   else (replay_entry(*a) for a in args))
+        for r in results:
+            rows.append(r)
+            if on_result is not None:
+                on_result(r)
+    executor = scheduler or (f"processes:{workers}" if workers > 1 else "in-process")
+    return dict(rows=rows, seconds=_time.perf_counter() - t0, entries=len(ids),
+                executor=executor)

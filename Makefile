@@ -38,6 +38,8 @@ bench: install
 	$(BIN)/python benchmarks/bench_discrepancy_excite.py --seeds 3 --seed-base 600 --magnitude 0.2 1 --workers 2 --default-duration 15 --speed 0.15 0.35 --duration 20 --starts 2 --budget 12
 	$(BIN)/python benchmarks/bench_discrepancy_structure.py --states 4000
 	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --seeds 1 --duration 20
+	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --dynamic --seeds 2
+	$(BIN)/python benchmarks/bench_exudyn_library.py --executors processes:2,local:2
 	$(BIN)/python benchmarks/bench_scaling.py
 	$(BIN)/python benchmarks/bench_exudyn.py
 	$(BIN)/python benchmarks/bench_exudyn_claims.py

@@ -17,7 +17,12 @@ source = "…"
 hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
 coulomb = 1500.0                # N (N·m for rotary drives), seal friction at the actuator
 viscous = 2.0e4                 # N·s/m (N·m·s/rad)
+[dynamics.grapple]              # optional: the load hangs on a passive two-axis link
+link_length = 1.2               # m, pivot at the boom tip to the centre of mass of grapple + load
+damping = 800.0                 # N·m·s/rad about each of the two pins
+gyration = 0.3                  # m, radius of gyration of grapple + load about their centre
 ```
+Without ``[dynamics.grapple]`` the grapple and its load are a point mass fixed at the tip.
 """
 from __future__ import annotations
 
@@ -25,12 +30,16 @@ from dataclasses import dataclass, field
 
 from planner.model.reader import TableReader
 
-__all__ = ["JointDynamics", "DynamicsSpec", "parse_dynamics", "DYNAMICS_KEYS"]
+__all__ = ["JointDynamics", "GrappleLink", "DynamicsSpec", "parse_dynamics", "DYNAMICS_KEYS"]
 
 DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
                  "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
-                 "joint"}
+                 "joint", "grapple"}
 _JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "source"}
+_GRAPPLE_KEYS = {"link_length", "damping", "gyration", "source"}
+#: assumed radius of gyration [m] of grapple + load about their centre of mass: a forestry
+#: grapple with its rotator is about 1 m tall and its logs spread ~0.5 m around the axis
+GYRATION = 0.3
 
 
 @dataclass(frozen=True)
@@ -40,6 +49,18 @@ class JointDynamics:
     hose_volume: tuple[float, float]
     coulomb: float = 0.0
     viscous: float = 0.0
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class GrappleLink:
+    """The passive two-axis link the grapple hangs on: pivot-to-centre-of-mass ``length``
+    [m], viscous ``damping`` [N·m·s/rad] about each pin, radius of ``gyration`` [m] of grapple
+    + load about their centre of mass. One pin is parallel to the boom's pitch axis (swing in
+    the boom plane), the other perpendicular to it (swing out of the plane)."""
+    length: float
+    damping: float = 0.0
+    gyration: float = GYRATION
     source: str = ""
 
 
@@ -55,6 +76,7 @@ class DynamicsSpec:
     meter_out_margin: float
     joints: dict = field(default_factory=dict)      # joint name -> JointDynamics
     source: str = ""
+    grapple: GrappleLink | None = None               # None: the load fixed at the tip
 
 
 def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | None:
@@ -94,4 +116,12 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
                                      coulomb=R.num(t, "coulomb", jw, default=0.0, lo=0.0),
                                      viscous=R.num(t, "viscous", jw, default=0.0, lo=0.0),
                                      source=R.text(t, "source", jw, default=""))
-    return DynamicsSpec(joints=joints, **kw)
+    g = R.table(tbl, "grapple", w, required=False)
+    if g is not None:
+        gw = w + "grapple."
+        R.keys(g, _GRAPPLE_KEYS, gw)
+        g = GrappleLink(length=R.num(g, "link_length", gw, lo=0, lo_open=True, hi=5.0),
+                        damping=R.num(g, "damping", gw, default=0.0, lo=0.0, hi=1e6),
+                        gyration=R.num(g, "gyration", gw, default=GYRATION, lo=0.0, hi=2.0),
+                        source=R.text(g, "source", gw, default=""))
+    return DynamicsSpec(joints=joints, grapple=g, **kw)

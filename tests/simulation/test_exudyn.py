@@ -40,6 +40,8 @@ def _raw(cid):
     (("joint", "boom", "hose_volume"), [-1e-3, 1e-3], "dynamics.joint.boom.hose_volume"),
     (("spool_time_constant",), -0.02, "dynamics.spool_time_constant"),
     (("joint", "nope"), {"hose_volume": [1e-3, 1e-3]}, "dynamics.joint.nope"),
+    (("grapple",), {"link_length": -1.0}, "dynamics.grapple.link_length"),
+    (("grapple",), {"link_length": 1.0, "swing": 2.0}, "dynamics.grapple.swing"),
 ])
 def test_bad_dynamics_parameters_are_refused_naming_the_field(path, value, field):
     data = copy.deepcopy(_raw("s100f"))

@@ -68,6 +68,8 @@ def test_quasi_static_paths_refuse_them_naming_the_effect(s100f, tmp_path, capsy
     q0 = 0.5 * (s100f.limit_arrays()["q_min"] + s100f.limit_arrays()["q_max"])
     with pytest.raises(ValueError, match="bulk_modulus.*--plant exudyn"):
         respond(s100f, [0.0, 0.5, 1.0], u, q0, [BulkModulus(scale=0.5)])
+    with pytest.raises(ValueError, match="grapple_swing.*--plant exudyn"):
+        respond(s100f, [0.0, 0.5, 1.0], u, q0, [make("grapple_swing", length=1.0)])
     with pytest.raises(ValueError, match="hose_volume.*quasi-static model cannot fit"):
         Discrepancy(s100f, candidates=["flow_gain", "hose_volume"])
     assert not any(e.stage == "dynamics" for e in candidates(s100f))
@@ -85,3 +87,67 @@ def test_bad_values_are_refused_with_the_field_named(s100f):
         make("hose_volume", scale=2.0)
     with pytest.raises(ValueError, match="unknown joint 'stick'"):
         ExudynPlant(s100f, [parse_effect("hose_volume:joint=stick,scale=2", None)])
+
+
+# ----------------------------------------------------------------------------- grapple swing
+def pin_swing(run, pin, after):
+    """(frequency [Hz], exponential decay rate [1/s]) of a grapple pin's swing after ``after``
+    [s] (zero crossings about the mean; a line through the log of the half-period peaks)."""
+    from scipy.signal import find_peaks
+    m = run.t > after
+    t, x = run.t[m], run.grapple_q[m, pin] - run.grapple_q[m, pin].mean()
+    zc = np.flatnonzero(np.diff(np.sign(x)) != 0)
+    f = (len(zc) - 1) / 2 / (t[zc[-1]] - t[zc[0]])
+    pk, _ = find_peaks(np.abs(x), distance=int(0.4 / f / (t[1] - t[0])))
+    return f, -np.polyfit(t[pk], np.log(np.abs(x[pk])), 1)[0]
+
+
+def test_the_grapple_hangs_still_at_rest_and_the_energy_balance_closes_when_it_swings(s100f):
+    """Oracles: at rest the load hangs straight under the tip (the tree's own kinematics) and
+    holds the rigid plant's pressures; swinging after slew and boom pulses, the pump's work
+    equals the losses, the pins' damping and the change of mechanical energy of the crane and
+    the swinging load within 2 % (the load's energy from the pin angles, not from Exudyn)."""
+    from planner.simulation.dynamic.energy import energy_balance
+    from planner.simulation.dynamic.grapple import link_frames
+    L = s100f.limit_arrays()
+    q0 = 0.5 * (L["q_min"] + L["q_max"])
+    plant = ExudynPlant(s100f, [make("grapple_swing", length=1.5, damping=200.0)])
+    still = plant.run([0.0, 1.0], np.zeros((2, s100f.n)), q0)
+    rigid = ExudynPlant(s100f).run([0.0, 1.0], np.zeros((2, s100f.n)), q0)
+    assert still.ok and np.ptp(still.grapple_q, axis=0).max() < 1e-6
+    assert np.abs(still.p_a - rigid.p_a).max() < 1e-3 * np.abs(rigid.p_a).max()
+    _, links = link_frames(plant.tree, np.concatenate([q0, still.grapple_q[0]]))
+    com = (links[-1] @ np.array([1.5, 0.0, 0.0, 1.0]))[:3]
+    tip = links[s100f.n][:3, 3]
+    assert np.allclose(com - tip, [0.0, 0.0, -1.5], atol=1e-9)
+
+    u = np.zeros((3, s100f.n))
+    u[0, 0], u[0, 1] = 0.4, 0.3
+    run = plant.run([0.0, 1.0, 8.0], u, q0)
+    assert run.ok and np.ptp(run.grapple_q[:, 1]) > 0.2    # it swings out of the boom plane
+    bal = energy_balance(plant, run)
+    assert bal["grapple_swing_J"] != 0 and bal["grapple_damping_J"] > 0
+    assert abs(bal["residual_rel"]) < 0.02
+
+
+@pytest.mark.slow
+def test_the_grapple_swings_like_the_compound_pendulum(s100f):
+    """Oracle: with the crane held stiff (oil 30× stiffer, valves closed after a short pulse)
+    each pin swings at sqrt(g·L/(L²+k²))/2π (±1 %) and its damping decays the swing at
+    c/(2·m·(L²+k²)) (±8 %; the pivot is still not perfectly still)."""
+    from dataclasses import replace
+    length, damping, k, m = 1.5, 400.0, 0.3, s100f.spec.payload.total
+    I = length ** 2 + k ** 2
+    f0 = np.sqrt(9.81 * length / I) / (2 * np.pi)
+    dyn = replace(s100f.spec.dynamics, bulk_modulus=30 * s100f.spec.dynamics.bulk_modulus)
+    plant = ExudynPlant(s100f, [make("grapple_swing", length=length, damping=damping)],
+                        dynamics=dyn, step=1e-3)
+    L = s100f.limit_arrays()
+    q0 = 0.5 * (L["q_min"] + L["q_max"])
+    for joint, pin in ((1, 0), (0, 1)):   # boom: swing in the boom plane; slew: out of it
+        u = np.zeros((3, s100f.n))
+        u[0, joint] = 0.15
+        run = plant.run([0.0, 0.3, 8.0], u, q0)
+        f, decay = pin_swing(run, pin, after=1.0)
+        assert f == pytest.approx(f0, rel=0.01)
+        assert decay == pytest.approx(damping / (2 * m * I), rel=0.08)

@@ -34,7 +34,7 @@ from planner.model.effects.base import (CATALOGUE, STAGES, Effect, Parameter, Va
                                              as_effects, catalogue, effect_from_dict, make,
                                              fittable, parse_effect, quasi_static, register,
                                              unregister)
-from planner.model.effects.dynamics import BulkModulus, HoseVolume
+from planner.model.effects.dynamics import BulkModulus, GrappleSwing, HoseVolume
 from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleLoad,
                                               JointOffset, PayloadMass, PressureOffset,
                                               ViscousFriction)
@@ -47,10 +47,11 @@ __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register",
            "JointOffset", "FlowGain", "ValveDeadband", "ValveLag", "TimeDelay", "PumpFlowLimit",
            "Leakage", "CoulombFriction", "ViscousFriction", "PayloadMass", "ActuatorMass",
            "PressureOffset", "StartOffset", "GrappleLoad", "SensorGain", "SensorDrift",
-           "PressureDrift", "BulkModulus", "HoseVolume", "quasi_static", "fittable"]
+           "PressureDrift", "BulkModulus", "HoseVolume", "GrappleSwing", "quasi_static", "fittable"]
 
 for _cls in (JointOffset, FlowGain, ValveDeadband, ValveLag, TimeDelay, PumpFlowLimit, Leakage,
              CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset,
-             SensorGain, SensorDrift, PressureDrift, BulkModulus, HoseVolume):
+             SensorGain, SensorDrift, PressureDrift, BulkModulus, HoseVolume,
+             GrappleSwing):
     register(_cls)
 del _cls

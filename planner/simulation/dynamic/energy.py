@@ -7,7 +7,9 @@ pump work (hydraulic, ∫ p_s·Q_pump dt) = Δ(pump-line oil energy) + meter-in 
 Every term except the mechanical one comes from the run's own states through the circuit's
 flow definitions; the kinetic and potential energies come from the project's model of the same
 masses (``plant.true_crane``): E_kin = ½ q̇ᵀ M(q) q̇ with M q̇ = ID(q, 0, q̇) − ID(q, 0, 0) —
-so a closed balance also says the Exudyn multibody and the model agree on the mechanics. The
+so a closed balance also says the Exudyn multibody and the model agree on the mechanics (with a
+grapple link, plus what the swinging load adds: :func:`~planner.simulation.dynamic.grapple.
+swing_energy`, term ``grapple_swing_J``, and the pins' damping, ``grapple_damping_J``). The
 residual (integration error, the second-order oil-energy terms) is reported relative to the
 pump work. Pump energy at the shaft = pump work / η (what :func:`planner.trajectory.evaluate`
 reports as ``energy_J`` for the quasi-static model).
@@ -15,6 +17,8 @@ reports as ``energy_J`` for the quasi-static model).
 from __future__ import annotations
 
 import numpy as np
+
+from planner.simulation.dynamic.grapple import swing_energy
 
 __all__ = ["energy_balance"]
 
@@ -57,6 +61,14 @@ def energy_balance(plant, run) -> dict:
             - crane.inverse_dynamics(run.q, z, z, run.payload))
     e_kin = 0.5 * np.sum(run.qd * m_qd, axis=1)
     e_pot = crane.potential_energy(run.q, run.payload)
+    if run.grapple_q is not None:   # the load swinging on its link, beyond the point mass
+        ends = [0, -1]
+        e_sw = swing_energy(plant.tree, np.hstack([run.q[ends], run.grapple_q[ends]]),
+                            np.hstack([run.qd[ends], run.grapple_qd[ends]]),
+                            crane.spec.gravity)
+        terms["grapple_swing_J"] = float(e_sw[1] - e_sw[0])
+        terms["grapple_damping_J"] = _integral(t, plant.tree["grapple"].damping
+                                               * np.sum(run.grapple_qd ** 2, axis=1))
     terms.update(oil_J=float(e_oil[-1] - e_oil[0]), pump_line_J=float(e_line[-1] - e_line[0]),
                  kinetic_J=float(e_kin[-1] - e_kin[0]),
                  potential_J=float(e_pot[-1] - e_pot[0]))

@@ -5,8 +5,9 @@ pressure dynamics, driven open loop by valve commands.
   recursive dynamics) built from the spec's DH chain: joint i turns about (slides along) its
   local z, then the constant part of its DH row follows; link masses, centres of mass and
   inertias are the model's (:func:`planner.model.dynamics.lumped_links`, actuator masses
-  lumped as the model lumps them) and the payload is a point mass at the tip; gravity acts in
-  −z of frame 0. Nothing of the project's inverse dynamics is used to move the plant.
+  lumped as the model lumps them) and the payload is a point mass at the tip — or, with a
+  grapple link (``[dynamics.grapple]``, the ``grapple_swing`` effect), hangs on two damped pins
+  below it (:mod:`planner.simulation.dynamic.grapple`); gravity acts in −z of frame 0. Nothing of the project's inverse dynamics is used to move the plant.
 * **Actuators**: each actuator acts on its joint with the generalised force F·dx/dq (virtual
   work), F from the chamber pressures (:class:`~planner.simulation.dynamic.circuit.Circuit`),
   dx/dq from the spec's mounting geometry (the stroke map of :mod:`planner.model.actuators`:
@@ -36,6 +37,7 @@ from planner.model.dynamics import lumped_links
 from planner.model.kinematics import joint_transforms
 from planner.model.effects import as_effects, effect_from_dict
 from planner.simulation.dynamic.circuit import Circuit
+from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
 from planner.simulation.replay import stroke_stops, valve_set
 
 __all__ = ["StrokeTable", "tree_parameters", "DynamicRun", "ExudynPlant", "PlantDiverged"]
@@ -127,7 +129,8 @@ class DynamicRun:
     """What the dynamic plant did, at every integration step: t (K,), q, qd (K, n), strokes
     x, xd, pressures p_a, p_b (K, n) [Pa], pump pressure p_s (K,), spool positions (K, n),
     commands u (K, n) as commanded; ``status`` "ok" | "diverged" | "timeout", ``t_fail``
-    (None when ok), ``reason``; ``wall_s`` the wall time; ``circuit``; ``payload`` [kg]."""
+    (None when ok), ``reason``; ``wall_s`` the wall time; ``circuit``; ``payload`` [kg];
+    with a grapple link, its two pin angles and rates ``grapple_q``, ``grapple_qd`` (K, 2)."""
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
@@ -145,6 +148,8 @@ class DynamicRun:
     reason: str = ""
     wall_s: float = 0.0
     meta: dict = field(default_factory=dict)
+    grapple_q: np.ndarray | None = None
+    grapple_qd: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -219,7 +224,8 @@ class ExudynPlant:
         self.circuit = replace(Circuit.from_crane(crane, dyn, self.stops, vs.flow_gain_scale,
                                                   vs.deadband, vs.pump_flow_scale, leak),
                                coulomb=coulomb, viscous=viscous)
-        self.tree = tree_parameters(true_spec, payload)
+        self.tree = (tree_parameters(true_spec, payload) if dyn.grapple is None else
+                     extend_tree(tree_parameters(true_spec, 0.0), payload, dyn.grapple))
         self.strokes = StrokeTable(crane)
 
     # ------------------------------------------------------------------ the model
@@ -229,13 +235,15 @@ class ExudynPlant:
                                           ObjectKinematicTree)
         n = self.crane.n
         T = self.tree
+        m = len(T["types"])             # n, or n + 2 with the grapple's pins
+        c_pin = T["grapple"].damping if m > n else 0.0
         jt = {"revolute": exu.JointType.RevoluteZ, "prismatic": exu.JointType.PrismaticZ}
         SC = exu.SystemContainer()
         mbs = SC.AddSystem()
-        node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * n,
+        node = mbs.AddNode(NodeGenericODE2(referenceCoordinates=[0.0] * m,
                                            initialCoordinates=list(map(float, q0)),
-                                           initialCoordinates_t=[0.0] * n,
-                                           numberOfODE2Coordinates=n))
+                                           initialCoordinates_t=[0.0] * m,
+                                           numberOfODE2Coordinates=m))
         hnode = mbs.AddNode(NodeGenericODE1(referenceCoordinates=[0.0] * (2 * n + 1),
                                             initialCoordinates=list(map(float, p0)),
                                             numberOfODE1Coordinates=2 * n + 1))
@@ -253,7 +261,7 @@ class ExudynPlant:
             q_t = _aslist(q_t)
             xd = [d[i] * q_t[i] for i in range(n)]
             F = f_force(p[:n], p[n:n2], x, xd)
-            return [d[i] * F[i] for i in range(n)]
+            return [d[i] * F[i] for i in range(n)] + [-c_pin * w for w in q_t[n:]]
 
         def rhs(mbs_, t, item, p):
             q = mbs_.GetNodeOutput(node, coords).tolist()
@@ -266,7 +274,7 @@ class ExudynPlant:
 
         tree = mbs.AddObject(ObjectKinematicTree(
             nodeNumber=node, jointTypes=[jt[k] for k in T["types"]],
-            linkParents=list(range(-1, n - 1)),
+            linkParents=list(range(-1, m - 1)),
             jointTransformations=exu.Matrix3DList([h[:3, :3] for h in T["hts"]]),
             jointOffsets=exu.Vector3DList([h[:3, 3] for h in T["hts"]]),
             linkInertiasCOM=exu.Matrix3DList(T["inertias"]),
@@ -320,8 +328,11 @@ class ExudynPlant:
         C = self.circuit
         ps0 = float(C.pump_setpoint(np.zeros(n)))
         self._state = state = {"o": [0.0] * n}
-        exu, SC, mbs, node, hnode, _ = self._build(q0, np.concatenate([pa0, pb0, [ps0]]))
-        rec = {k: np.full((K + 1, n), np.nan) for k in ("q", "qd", "p_a", "p_b", "spool", "u")}
+        m = len(self.tree["types"])     # the crane's joints, then the grapple's pins if any
+        q0_tree = np.concatenate([q0, hanging_angles(self.tree, q0) if m > n else []])
+        exu, SC, mbs, node, hnode, _ = self._build(q0_tree, np.concatenate([pa0, pb0, [ps0]]))
+        rec = {k: np.full((K + 1, n), np.nan) for k in ("p_a", "p_b", "spool", "u")}
+        rec["q"], rec["qd"] = np.full((K + 1, m), np.nan), np.full((K + 1, m), np.nan)
         rec["t"] = t0 + h * np.arange(K + 1)
         rec["p_s"] = np.full(K + 1, np.nan)
         spool = np.zeros(n)
@@ -338,7 +349,7 @@ class ExudynPlant:
             p = mbs.GetNodeOutput(hnode, coords)
             rec["q"][k], rec["qd"][k] = q, qd
             rec["p_a"][k], rec["p_b"][k], rec["p_s"][k] = p[:n], p[n:2 * n], p[2 * n]
-            return q, qd, p
+            return q[:n], qd[:n], p
 
         def pre_step(mbs_, t):
             nonlocal spool
@@ -411,8 +422,10 @@ class ExudynPlant:
             rec["spool"][K] = spool
         good = np.isfinite(rec["p_s"])
         rec = {k: v[good] for k, v in rec.items()}
+        pins = dict(grapple_q=rec["q"][:, n:], grapple_qd=rec["qd"][:, n:]) if m > n else {}
+        rec["q"], rec["qd"] = rec["q"][:, :n], rec["qd"][:, :n]
         x, d = self.strokes.batch(rec["q"])
-        return DynamicRun(t=rec["t"], q=rec["q"], qd=rec["qd"], x=x, xd=d * rec["qd"],
+        return DynamicRun(t=rec["t"], q=rec["q"], qd=rec["qd"], x=x, xd=d * rec["qd"], **pins,
                           p_a=rec["p_a"], p_b=rec["p_b"], p_s=rec["p_s"], spool=rec["spool"],
                           u=rec["u"], circuit=C, payload=self.payload,
                           status=fail.get("status", "ok"), t_fail=fail.get("t"),

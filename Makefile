@@ -43,6 +43,8 @@ bench: install
 	$(BIN)/python benchmarks/bench_scaling.py
 	$(BIN)/python benchmarks/bench_exudyn.py
 	$(BIN)/python benchmarks/bench_exudyn_claims.py
+	$(BIN)/python benchmarks/bench_exudyn_grapple.py
+	$(BIN)/python benchmarks/bench_exudyn_energy_gap.py
 	$(BIN)/python benchmarks/bench_exudyn_speed.py --repeat 3
 	$(BIN)/python benchmarks/bench_faults.py
 	$(BIN)/python benchmarks/dp_memory.py

@@ -118,7 +118,7 @@ def report(rows, args, wall):
         return f"{a} of {b} ({100.0 * a / b:.0f} %)" if b else "0 of 0"
     L = ["# Discrepancy workflow: designed excitations on confusable pairs", "",
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
-         f"{os.cpu_count()} CPUs shared with other jobs (load ≈ 3–4), niced. `python "
+         f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f} at the end. `python "
          f"benchmarks/bench_discrepancy_excite.py --seeds {args.seeds} --seed-base "
          f"{args.seed_base}{' --pairs ' + args.pairs if args.pairs else ''} --magnitude "
          f"{args.magnitude[0]:g} {args.magnitude[1]:g} --workers {args.workers} "

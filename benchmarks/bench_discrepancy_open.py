@@ -260,8 +260,8 @@ def clean_name(args) -> str:
 def clean_report(rows, args, wall, planned=None):
     L = ["# Discrepancy workflow: false alarms on clean recordings", "",
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
-         f"{os.cpu_count()} CPUs (shared with other jobs: load ≈ 3), {args.workers} workers, "
-         "niced. `python benchmarks/bench_discrepancy_open.py "
+         f"{os.cpu_count()} CPUs (load {os.getloadavg()[0]:.1f} at the end), {args.workers} "
+         "workers. `python benchmarks/bench_discrepancy_open.py "
          f"{'--variants-only' if args.variants_only else '--clean-only'} --scale "
          f"{args.scale:g} --duration {args.duration:g}` ({len(rows)} recordings"
          + (f" of {planned} so far: a partial report" if planned and planned > len(rows) else "")

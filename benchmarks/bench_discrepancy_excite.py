@@ -62,7 +62,8 @@ def trial(machine, first, second, joint, seed, args):
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from planner import Crane, evaluate
     from planner.calibration.discrepancy import Discrepancy
-    from planner.calibration.excite import design_excitation, parse_candidates
+    from planner.calibration.excite import (candidates_from_result, design_excitation,
+                                            parse_candidates)
     from planner.calibration.trials import TrialSequence, draw, record
     from planner.model.effects import CATALOGUE
     crane = Crane.from_id(machine)
@@ -90,7 +91,10 @@ def trial(machine, first, second, joint, seed, args):
     else:
         out["group"] = "right" if named_right else res.verdict
         return out
-    cand = parse_candidates(crane, sep, seed=seed)      # as `crane-planner excite` does
+    if args.fitted and res.verdict == "ambiguous":   # `excite --from result.json`
+        cand = candidates_from_result(crane, res.to_json())
+    else:                                            # `excite --separate …`
+        cand = parse_candidates(crane, sep, seed=seed)
     d = design_excitation(crane, cand, duration=args.duration, candidates=args.starts,
                           budget=args.budget, seed=seed)
     ev = evaluate(crane, d.plan)
@@ -124,13 +128,16 @@ def report(rows, args, wall):
          f"{args.magnitude[0]:g} {args.magnitude[1]:g} --workers {args.workers} "
          f"--default-duration {args.default_duration:g} --speed "
          f"{args.speed[0]:g} {args.speed[1]:g} --duration {args.duration:g} --starts "
-         f"{args.starts} --budget {args.budget}` ({len(rows)} trials, {wall / 60:.1f} min). "
+         f"{args.starts} --budget {args.budget}{' --fitted' if args.fitted else ''}` "
+         f"({len(rows)} trials, {wall / 60:.1f} min). "
          f"Default: a {args.default_duration:g} s sequence of small moves (poses in the middle "
          f"30 % of every range, {args.speed[0]:g}–{args.speed[1]:g} of the speed limits), the "
          f"hidden effect at {args.magnitude[0]:g}–{args.magnitude[1]:g} × its trial magnitude "
          "(log-uniform). Designs: "
          f"{args.duration:g} s, {args.starts} random starts + Nelder–Mead for {args.budget} "
-         "evaluations; the candidates are the ambiguous verdict's `--separate` list. Judge: "
+         "evaluations; the candidates are the ambiguous verdict's "
+         + ("candidates at the values they were fitted to (`excite --from result.json`). "
+            if args.fitted else "`--separate` list at trial magnitudes. ") + "Judge: "
          "the fast plant (recordings made with it), seed 001's sensor noise.", "",
          "| measure | result | target |", "| --- | ---: | ---: |",
          f"| default sequence: named right | {pct(n(rows, 'default_right'), len(rows))} | |",
@@ -186,6 +193,9 @@ def main():
     ap.add_argument("--budget", type=int, default=12)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed-base", type=int, default=600)
+    ap.add_argument("--fitted", action="store_true",
+                    help="design for the ambiguous result's candidates at their fitted values "
+                         "(excite --from RESULT.json) instead of at trial magnitudes")
     ap.add_argument("--pairs", default=None,
                     help="comma-separated indices into PAIRS (default: all)")
     ap.add_argument("--name", default="discrepancy_excite", help="results file name")

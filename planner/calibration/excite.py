@@ -52,8 +52,8 @@ from planner.calibration.verdict import TIE_Z
 from planner.model.effects import CATALOGUE, Effect
 from planner.trajectory import evaluate
 
-__all__ = ["Design", "Family", "parse_candidates", "separation", "separation_details",
-           "design_excitation", "METHODS"]
+__all__ = ["Design", "Family", "parse_candidates", "candidates_from_result", "separation",
+           "separation_details", "design_excitation", "METHODS"]
 
 METHODS = ("optimise", "random")
 TIE_FLOOR = 4.0 * TIE_Z ** 2      # [σ²] a pair below it stays a tie for the verdict
@@ -114,6 +114,32 @@ def parse_candidates(crane, text: str, joint: str | None = None, seed: int = 0) 
     if len(out) < 2:
         raise ValueError(f"--separate {text!r}: name at least two effects, e.g. "
                          "viscous_friction@swing,coulomb_friction@swing")
+    return tuple(out)
+
+
+def candidates_from_result(crane, result: dict, where: str = "--from") -> tuple:
+    """The candidates of an ``ambiguous`` discrepancy result (the dict its JSON holds) at the
+    values each was fitted to: a design for them separates the effects at the magnitudes the
+    data showed (a weak effect needs a stronger design than its trial magnitude suggests)."""
+    verdict = result.get("verdict") if isinstance(result, dict) else None
+    if verdict != "ambiguous":
+        raise ValueError(f"{where}: verdict = {verdict!r}; allowed: 'ambiguous' (only an "
+                         "ambiguous result has candidates to separate)")
+    out = []
+    for k, c in enumerate(result.get("candidates") or []):
+        name, joint = c.get("effect"), c.get("joint")
+        if name not in CATALOGUE:
+            raise ValueError(f"{where}: candidates[{k}].effect = {name!r}; allowed: a "
+                             f"catalogue effect ({', '.join(CATALOGUE)})")
+        if joint is not None and joint not in crane.names:
+            raise ValueError(f"{where}: candidates[{k}].joint = {joint!r}; joints of "
+                             f"{crane.spec.id}: {', '.join(crane.names)}")
+        try:
+            out.append(CATALOGUE[name](joint, **(c.get("parameters") or {})))
+        except ValueError as e:
+            raise ValueError(f"{where}: candidates[{k}]: {e}") from None
+    if len(out) < 2:
+        raise ValueError(f"{where}: {len(out)} candidate(s); at least two are needed")
     return tuple(out)
 
 

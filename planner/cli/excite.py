@@ -1,6 +1,7 @@
 """``excite CRANE --separate A[@JOINT],B[@JOINT][,…] --duration T --out FILE.csv``: a test
 trajectory within the machine's limits on which the named effects show as differently as
-possible (:mod:`planner.calibration.excite`)."""
+possible (:mod:`planner.calibration.excite`). ``--from RESULT.json`` instead of ``--separate``:
+the candidates of an ambiguous ``discrepancy --json`` result, at their fitted values."""
 from __future__ import annotations
 
 from planner.cli.common import add_json_arg, emit
@@ -10,9 +11,16 @@ from planner.model import Crane
 def cmd_excite(args):
     """Design (optimised over a family of feasible test sequences), then write."""
     # scipy and the planners: only when the command runs
-    from planner.calibration.excite import design_excitation, parse_candidates
+    from planner.calibration.excite import (candidates_from_result, design_excitation,
+                                            parse_candidates)
     crane = Crane.from_id(args.crane)
-    effects = parse_candidates(crane, args.separate, args.joint, args.seed)
+    if (args.separate is None) == (args.from_result is None):
+        raise ValueError("excite: give --separate A,B[,…] or --from RESULT.json (one of them)")
+    if args.from_result is not None:
+        effects = candidates_from_result(crane, _read_json(args.from_result),
+                                         f"--from {args.from_result}")
+    else:
+        effects = parse_candidates(crane, args.separate, args.joint, args.seed)
     if not 10.0 <= args.duration <= 600.0:
         raise ValueError(f"--duration {args.duration:g}: allowed 10 ... 600 s")
     if not 1 <= args.candidates <= 100:
@@ -46,12 +54,27 @@ def cmd_excite(args):
     return 0
 
 
+def _read_json(path) -> dict:
+    import json
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except OSError as e:
+        raise ValueError(f"--from {path}: cannot read: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--from {path}: not JSON ({e.msg} at line {e.lineno})") from None
+
+
 def add_parsers(sub) -> None:
     """``excite``."""
     p = sub.add_parser("excite", help="a test trajectory that tells candidate effects apart")
     p.add_argument("crane", help="machine id or a TOML spec")
-    p.add_argument("--separate", required=True, metavar="A[@JOINT],B[@JOINT],…",
-                   help="catalogue effects to tell apart (per-joint ones with @JOINT)")
+    p.add_argument("--separate", metavar="A[@JOINT],B[@JOINT],…",
+                   help="catalogue effects to tell apart (per-joint ones with @JOINT), at "
+                        "their trial magnitudes")
+    p.add_argument("--from", dest="from_result", metavar="RESULT.json",
+                   help="instead of --separate: the candidates of an ambiguous `discrepancy "
+                        "--json` result, at the values they were fitted to")
     p.add_argument("--joint", help="the joint of per-joint effects written without @JOINT")
     p.add_argument("--duration", type=float, default=60.0, help="seconds (60)")
     p.add_argument("--rate", type=float, default=50.0, help="command rate in Hz (50)")

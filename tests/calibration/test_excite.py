@@ -60,3 +60,30 @@ def test_coinciding_predictions_are_reported_unseparated(cat):
         design_excitation(cat, (a, b), duration=10.0, method="grid")
     with pytest.raises(ValueError, match="moves"):
         Family(cat, 10.0, moves=1)
+
+
+def test_a_design_from_an_ambiguous_result_uses_its_fitted_values(cat, tmp_path, capsys):
+    """`excite --from result.json`: the candidates at the values the discrepancy fit gave them
+    (not their trial magnitudes); anything but an ambiguous result, or a bad candidate, is
+    refused with the field named (exit 2, no file)."""
+    import json
+    from planner.calibration.excite import candidates_from_result
+    from planner.cli import main
+    res = dict(verdict="ambiguous", candidates=[
+        dict(effect="viscous_friction", joint="swing", parameters=dict(coefficient=1234.5)),
+        dict(effect="coulomb_friction", joint="swing", parameters=dict(force=210.0))])
+    a, b = candidates_from_result(cat, res)
+    assert (a.name, a.joint, a.coefficient) == ("viscous_friction", "swing", 1234.5)
+    assert (b.name, b.values["force"]) == ("coulomb_friction", 210.0)
+    with pytest.raises(ValueError, match="verdict = 'named'"):
+        candidates_from_result(cat, dict(res, verdict="named"))
+    bad = dict(res, candidates=[res["candidates"][0], dict(effect="leakage", joint="arm")])
+    with pytest.raises(ValueError, match=r"candidates\[1\].joint = 'arm'"):
+        candidates_from_result(cat, bad)
+    f = tmp_path / "res.json"
+    f.write_text(json.dumps(dict(res, verdict="explained")))
+    out = tmp_path / "exc.csv"
+    assert main(["excite", "cat215b", "--from", str(f), "--out", str(out)]) == 2
+    assert "verdict = 'explained'" in capsys.readouterr().err and not out.exists()
+    assert main(["excite", "cat215b", "--out", str(out)]) == 2
+    assert "--separate A,B" in capsys.readouterr().err and not out.exists()

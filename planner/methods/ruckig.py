@@ -42,6 +42,7 @@ NO_JERK = 1e6   # stands for "no jerk limit" (Ruckig needs a finite value) [unit
 MIN_GAP = 1e-4  # [s] shortest interval :func:`sample` keeps between samples (jerk ∝ 1/h³)
 
 _local = threading.local()  # one Ruckig calculator per DOF count and thread, made once
+_TWO_ZEROS = (0.0, 0.0)     # the two empty brake pieces of a DOF without a brake
 
 
 _RUCKIG_LIMITS = weakref.WeakKeyDictionary()  # crane -> {scale: limit lists}, see below
@@ -49,13 +50,15 @@ _RUCKIG_LIMITS = weakref.WeakKeyDictionary()  # crane -> {scale: limit lists}, s
 
 def _ruckig_limits(crane, scale: float) -> tuple:
     """(vmax, vmin, amax, jmax) lists of the crane's joint limits times ``scale`` (jerk: the
-    crane's, or :data:`NO_JERK` where it has none), made once per crane and scale."""
+    crane's, or :data:`NO_JERK` where it has none), then the position range (lower, upper,
+    each widened by 1e-9), made once per crane and scale."""
     per = _RUCKIG_LIMITS.setdefault(crane, {})
     if scale not in per:
         L = crane.limit_arrays()
         per[scale] = ((scale * L["qd_max"]).tolist(), (scale * L["qd_min"]).tolist(),
                       (scale * L["qdd_max"]).tolist(),
-                      np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK).tolist())
+                      np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], NO_JERK).tolist(),
+                      (L["q_min"] - 1e-9).tolist(), (L["q_max"] + 1e-9).tolist())
     return per[scale]
 
 
@@ -124,20 +127,31 @@ class JerkProfile:
 
     def __init__(self, traj: ruckig.Trajectory):
         self.duration = float(traj.duration)
-        rows = []
+        flat = []          # per DOF: knots, p, v, a, j (10 each), one flat list for numpy
+        put = flat.extend
         for prof in traj.profiles[0]:
             brake = prof.brake
             tb = brake.duration if brake is not None else 0.0
-            if tb > 0:
-                head = ([0.0, brake.t[0]], brake.p, brake.v, brake.a, brake.j)
-            else:
-                head = ([0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
             # Ruckig's own running sum of the phase durations, in the same order
-            knots = [tb] + [tb + s for s in itertools.accumulate(prof.t)]
-            rows.append((head[0] + knots, head[1] + prof.p, head[2] + prof.v,
-                         head[3] + prof.a, head[4] + prof.j + [0.0]))  # the tail: no jerk
+            knots = [tb + s for s in itertools.accumulate(prof.t, initial=0.0)]
+            if tb > 0:
+                put((0.0, brake.t[0]))
+                put(knots)
+                for b, x in ((brake.p, prof.p), (brake.v, prof.v), (brake.a, prof.a)):
+                    put(b)
+                    put(x)
+                put(brake.j)
+            else:
+                put(_TWO_ZEROS)
+                put(knots)
+                for x in (prof.p, prof.v, prof.a):
+                    put(_TWO_ZEROS)
+                    put(x)
+                put(_TWO_ZEROS)
+            put(prof.j)
+            flat.append(0.0)   # the tail: no jerk
         #: (5, DOF, PIECES): knots [s], then p, v, a, j at the start of each piece
-        self.table = np.array(rows).transpose(1, 0, 2)
+        self.table = np.array(flat).reshape(-1, 5, self.PIECES).transpose(1, 0, 2)
 
     @property
     def dof(self) -> int:
@@ -153,9 +167,15 @@ class JerkProfile:
         the start 0 and the end (the duration); the pieces between them are cubics in time.
         A time within ``merge`` [s] (≥ 0) of the previous one kept is left out (0: exact
         duplicates only)."""
-        t = np.sort(np.concatenate([[0.0, self.duration], self.table[0, :, 1:].ravel()]))
-        t = t[(t >= 0) & (t <= self.duration)]
-        return t[np.concatenate([[True], np.diff(t) > merge])]
+        T = self.duration
+        out, last = [0.0], 0.0     # a short sorted list: plain Python beats numpy here
+        for x in sorted(self.table[0, :, 1:].ravel().tolist()):
+            if x - last > merge and x <= T:
+                out.append(x)
+                last = x
+        if T - last > merge:
+            out.append(T)
+        return np.array(out)
 
     def at(self, t) -> tuple:
         """(q, q̇, q̈) arrays (len(t), DOF) at the times ``t`` [s] (t < 0 read as 0), each
@@ -242,10 +262,13 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     exactly (the motion is cubic between them)."""
     t0 = _time.perf_counter()
     q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
-    L = crane.limit_arrays()
-    lo, hi = L["q_min"] - 1e-9, L["q_max"] + 1e-9
+    vmax, vmin, amax, jmax, lo_l, hi_l = _ruckig_limits(crane, float(scale))
     if q0.shape != (crane.n,) or q1.shape != (crane.n,) or not (
-            (q0 >= lo) & (q0 <= hi) & (q1 >= lo) & (q1 <= hi)).all():
+            all(map(float.__le__, lo_l, q0.tolist())) and all(map(float.__le__, q0.tolist(), hi_l))
+            and all(map(float.__le__, lo_l, q1.tolist()))
+            and all(map(float.__le__, q1.tolist(), hi_l))):   # NaN fails every comparison
+        L = crane.limit_arrays()
+        lo, hi = L["q_min"] - 1e-9, L["q_max"] + 1e-9
         for name, q in (("start", q0), ("goal", q1)):   # name the first bad value
             bad = (np.flatnonzero(~((q >= lo) & (q <= hi))) if q.shape == (crane.n,) else None)
             if bad is not None and not bad.size:
@@ -260,7 +283,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
                          "[Hz], or None for the switching times only")
     z = [0.0] * crane.n
     try:
-        traj = state_to_state((q0, z, z), (q1, z, z), *_ruckig_limits(crane, float(scale)))
+        traj = state_to_state((q0, z, z), (q1, z, z), vmax, vmin, amax, jmax)
     except RuntimeError as e:
         return PlanResult("failed", str(e), solve_time_s=_time.perf_counter() - t0)
     prof = JerkProfile(traj)

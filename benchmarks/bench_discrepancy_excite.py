@@ -63,7 +63,7 @@ def trial(machine, first, second, joint, seed, args):
     from planner import Crane, evaluate
     from planner.calibration.discrepancy import Discrepancy
     from planner.calibration.excite import (candidates_from_result, design_excitation,
-                                            parse_candidates)
+                                            lengthen, parse_candidates)
     from planner.calibration.trials import TrialSequence, draw, record
     from planner.model.effects import CATALOGUE
     crane = Crane.from_id(machine)
@@ -97,9 +97,15 @@ def trial(machine, first, second, joint, seed, args):
         cand = parse_candidates(crane, sep, seed=seed)
     d = design_excitation(crane, cand, duration=args.duration, candidates=args.starts,
                           budget=args.budget, seed=seed)
+    need = [u["duration_needed_s"] for u in d.unseparated]
+    lengthened = None
+    if need and all(need) and max(need) <= args.max_duration and d.source != "random":
+        lengthened = max(need)                          # `excite --max-duration`
+        d = lengthen(crane, d, lengthened)
     ev = evaluate(crane, d.plan)
     res2 = Discrepancy(crane).fit(record(crane, d.plan, d.ff, (truth,), seed=seed + 1))
     out.update(separate=sep, design_source=d.source, separation=d.separation,
+               lengthened_to=lengthened, design_duration=float(d.plan.duration),
                default_separation=d.default_separation, evaluations=d.evaluations,
                design_s=d.runtime_s, design_limits_ok=bool(ev.ok()),
                design_max_violation=float(ev.max_limit_violation),
@@ -128,7 +134,8 @@ def report(rows, args, wall):
          f"{args.magnitude[0]:g} {args.magnitude[1]:g} --workers {args.workers} "
          f"--default-duration {args.default_duration:g} --speed "
          f"{args.speed[0]:g} {args.speed[1]:g} --duration {args.duration:g} --starts "
-         f"{args.starts} --budget {args.budget}{' --fitted' if args.fitted else ''}` "
+         f"{args.starts} --budget {args.budget}{' --fitted' if args.fitted else ''}"
+         f"{f' --max-duration {args.max_duration:g}' if args.max_duration else ''}` "
          f"({len(rows)} trials, {wall / 60:.1f} min). "
          f"Default: a {args.default_duration:g} s sequence of small moves (poses in the middle "
          f"30 % of every range, {args.speed[0]:g}–{args.speed[1]:g} of the speed limits), the "
@@ -168,7 +175,8 @@ def report(rows, args, wall):
             if r["designed_verdict"] == "ambiguous":
                 des += " (" + ", ".join(c[0] for c in r["designed_candidates"]) + ")"
             sepn = f"{r['default_separation']:.0f} → {r['separation']:.0f}"
-            dsg = f"{r['design_source']}, {r['evaluations']} eval., {r['design_s']:.0f} s"
+            dsg = (f"{r['design_source']}, {r['evaluations']} eval., {r['design_s']:.0f} s"
+                   + (f", run {r['lengthened_to']:.0f} s" if r.get("lengthened_to") else ""))
         else:
             des, sepn, dsg = "–", "–", "–"
         L.append(f"| {r['machine']} | {r['hidden']}{'@' + r['joint'] if r['truth'].get('joint') else ''}"
@@ -193,6 +201,8 @@ def main():
     ap.add_argument("--budget", type=int, default=12)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed-base", type=int, default=600)
+    ap.add_argument("--max-duration", type=float, default=0.0,
+                    help="lengthen a design whose pairs need it up to this many s (0: never)")
     ap.add_argument("--fitted", action="store_true",
                     help="design for the ambiguous result's candidates at their fitted values "
                          "(excite --from RESULT.json) instead of at trial magnitudes")

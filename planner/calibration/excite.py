@@ -40,8 +40,9 @@ the designs tried, the pair is not separable, and ``ambiguous`` is the right ver
 """
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import minimize
@@ -53,10 +54,12 @@ from planner.model.effects import CATALOGUE, Effect
 from planner.trajectory import evaluate
 
 __all__ = ["Design", "Family", "parse_candidates", "candidates_from_result", "separation",
-           "separation_details", "design_excitation", "METHODS"]
+           "separation_details", "design_excitation", "lengthen", "needed_duration",
+           "METHODS"]
 
 METHODS = ("optimise", "random")
 TIE_FLOOR = 4.0 * TIE_Z ** 2      # [σ²] a pair below it stays a tie for the verdict
+MAX_NEEDED_S = 600.0              # [s] longest recording a design proposes (ten minutes)
 CAP = 4.0 * TIE_FLOOR             # [σ²] a pair separated this well needs no more (objective)
 
 
@@ -71,7 +74,9 @@ class Design:
     (the best member of the family, even when the default is returned), ``evaluations``,
     ``runtime_s``, ``z`` (the design vector, optimise only), ``signal`` (each candidate's
     own held-out signal on the design, σ²), ``unseparated`` (pairs left below the tie floor,
-    each with why)."""
+    each with why and ``duration_needed_s``: the length of the same periodic sequence at which
+    the pair would reach the floor, None when no practical length does; see
+    :func:`lengthen`), ``rate`` and ``moves`` of the family."""
     plan: object
     ff: object
     seed: int
@@ -88,6 +93,8 @@ class Design:
     z: list | None = None
     signal: dict = field(default_factory=dict)
     unseparated: list = field(default_factory=list)
+    rate: float = 50.0
+    moves: int = 3
 
 
 def parse_candidates(crane, text: str, joint: str | None = None, seed: int = 0) -> tuple:
@@ -244,18 +251,49 @@ def _moving_joints(effects) -> list | None:
     return None
 
 
-def _unseparated(pairs: dict, signal: dict) -> list:
+def needed_duration(D: float, duration: float) -> float | None:
+    """Length [s] of the same periodic sequence at which a pair separated by ``D`` σ² over
+    ``duration`` s reaches the tie floor with a 1.5× margin (D, a sum over the samples, grows
+    in proportion to the length); None beyond :data:`MAX_NEEDED_S`."""
+    if not D > 0:
+        return None
+    need = 10.0 * math.ceil(1.5 * TIE_FLOOR / D * duration / 10.0)
+    return need if need <= MAX_NEEDED_S else None
+
+
+def _unseparated(pairs: dict, signal: dict, duration: float) -> list:
     out = []
     for (a, b), D in pairs.items():
         if D < TIE_FLOOR:
             s = signal.get(a, 0.0)
             share = D / s if s > 0 else float("nan")
-            out.append(dict(pair=f"{a} vs {b}", D=D, signal_A=s, why=(
+            need = needed_duration(D, duration)
+            out.append(dict(pair=f"{a} vs {b}", D=D, signal_A=s, duration_needed_s=need, why=(
                 f"{b} fitted to a recording of {a} reproduces it to within {D:.1f} σ² "
                 f"(of {a}'s own signal {s:.1f} σ², {100 * share:.1f} %) on the best design "
                 f"found; below the verdict's tie floor {TIE_FLOOR:g} σ², so from these "
-                "channels the pair stays ambiguous")))
+                f"{duration:g} s the pair stays ambiguous; "
+                + (f"about {need:g} s of the same sequence would separate it (--max-duration)"
+                   if need else f"no recording shorter than {MAX_NEEDED_S:g} s would"))))
     return out
+
+
+def lengthen(crane, design: Design, duration: float) -> Design:
+    """The same design (the same periodic sequence, or the default sequence of its seed) run
+    for ``duration`` s, its separation recomputed: what a longer recording of it buys."""
+    effects = design.effects
+    if design.source == "optimised" and design.z is not None:
+        fam = Family(crane, duration, design.rate, _moving_joints(effects), design.moves)
+        plan, ff = fam.build(np.asarray(design.z, float))
+    elif design.source == "default":
+        plan, ff = excitation(crane, duration, rate=design.rate, seed=design.seed)
+    else:
+        raise ValueError(f"lengthen: a {design.source!r} design cannot be lengthened; allowed: "
+                         "an optimised or default one")
+    pairs, signal = separation_details(crane, plan, ff, effects, seed=design.seed)
+    return replace(design, plan=plan, ff=ff, separation=min(pairs.values()),
+                   pairs={f"{a} vs {b}": x for (a, b), x in pairs.items()}, signal=signal,
+                   unseparated=_unseparated(pairs, signal, float(plan.duration)))
 
 
 def design_excitation(crane, effects, duration: float = 60.0, rate: float = 50.0,
@@ -333,7 +371,8 @@ def design_excitation(crane, effects, duration: float = 60.0, rate: float = 50.0
                   v0, effects, tried, method="optimise", source=source,
                   optimised_separation=v, evaluations=n_eval[0] + 1,
                   runtime_s=time.perf_counter() - t0, z=[float(x) for x in z],
-                  signal=signal, unseparated=_unseparated(pairs, signal))
+                  signal=signal, unseparated=_unseparated(pairs, signal, float(plan.duration)),
+                  rate=rate, moves=moves)
 
 
 def _random(crane, effects, duration, rate, candidates, seed, first, tried, t0) -> Design:
@@ -356,4 +395,5 @@ def _random(crane, effects, duration, rate, candidates, seed, first, tried, t0) 
                   first[0], effects, tried, method="random",
                   source="default" if best is first else "random", optimised_separation=v,
                   evaluations=candidates + 1, runtime_s=time.perf_counter() - t0,
-                  signal=signal, unseparated=_unseparated(pairs, signal))
+                  signal=signal, unseparated=_unseparated(pairs, signal, float(plan.duration)),
+                  rate=rate)

@@ -12,7 +12,7 @@ def cmd_excite(args):
     """Design (optimised over a family of feasible test sequences), then write."""
     # scipy and the planners: only when the command runs
     from planner.calibration.excite import (candidates_from_result, design_excitation,
-                                            parse_candidates)
+                                            lengthen, parse_candidates)
     crane = Crane.from_id(args.crane)
     if (args.separate is None) == (args.from_result is None):
         raise ValueError("excite: give --separate A,B[,…] or --from RESULT.json (one of them)")
@@ -23,6 +23,10 @@ def cmd_excite(args):
         effects = parse_candidates(crane, args.separate, args.joint, args.seed)
     if not 10.0 <= args.duration <= 600.0:
         raise ValueError(f"--duration {args.duration:g}: allowed 10 ... 600 s")
+    max_duration = args.duration if args.max_duration is None else args.max_duration
+    if not args.duration <= max_duration <= 600.0:
+        raise ValueError(f"--max-duration {max_duration:g}: allowed --duration "
+                         f"({args.duration:g}) ... 600 s")
     if not 1 <= args.candidates <= 100:
         raise ValueError(f"--candidates {args.candidates}: allowed 1 ... 100")
     if not 0 <= args.budget <= 2000:
@@ -31,6 +35,11 @@ def cmd_excite(args):
     d = design_excitation(crane, effects, duration=args.duration, rate=args.rate,
                           candidates=args.candidates, seed=args.seed, budget=args.budget,
                           method=args.method, moves=args.moves, progress=say)
+    lengthened = None
+    need = [u["duration_needed_s"] for u in d.unseparated]
+    if need and all(need) and max(need) <= max_duration and d.source != "random":
+        lengthened = (float(d.plan.duration), max(need))
+        d = lengthen(crane, d, max(need))
     # everything computed: now write
     d.ff.to_csv(args.out, d.plan)
     info = dict(status="ok", out=args.out, crane=crane.spec.id, seed=d.seed,
@@ -40,13 +49,16 @@ def cmd_excite(args):
                 tried={str(k): v for k, v in d.tried.items()}, method=d.method,
                 source=d.source, optimised_separation=d.optimised_separation,
                 evaluations=d.evaluations, runtime_s=d.runtime_s, design_vector=d.z,
-                signal=d.signal, unseparated=d.unseparated)
+                signal=d.signal, unseparated=d.unseparated,
+                lengthened_from_s=lengthened[0] if lengthened else None)
     emit(args, info)
     if not args.json:
         print(f"{args.out}: {d.plan.duration:.1f} s test sequence ({d.source}, "
               f"{d.evaluations} designs evaluated in {d.runtime_s:.0f} s); smallest "
               f"separation of the candidates {d.separation:.1f} σ² (default sequence: "
-              f"{d.default_separation:.1f} σ²)")
+              f"{d.default_separation:.1f} σ²)"
+              + (f"; lengthened from {lengthened[0]:.0f} s so that every pair reaches the "
+                 "tie floor" if lengthened else ""))
         for k, v in d.pairs.items():
             print(f"  {k}: {v:.1f}")
         for u in d.unseparated:
@@ -77,6 +89,9 @@ def add_parsers(sub) -> None:
                         "--json` result, at the values they were fitted to")
     p.add_argument("--joint", help="the joint of per-joint effects written without @JOINT")
     p.add_argument("--duration", type=float, default=60.0, help="seconds (60)")
+    p.add_argument("--max-duration", type=float, metavar="S",
+                   help="run the design's sequence up to S seconds when a pair needs a longer "
+                        "recording to be told apart (default: --duration)")
     p.add_argument("--rate", type=float, default=50.0, help="command rate in Hz (50)")
     p.add_argument("--candidates", type=int, default=6,
                    help="random starting designs (6)")

@@ -87,3 +87,27 @@ def test_a_design_from_an_ambiguous_result_uses_its_fitted_values(cat, tmp_path,
     assert "verdict = 'explained'" in capsys.readouterr().err and not out.exists()
     assert main(["excite", "cat215b", "--out", str(out)]) == 2
     assert "--separate A,B" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_longer_run_of_the_same_design_separates_in_proportion(cat):
+    """The design's sequence is periodic, so the separation (a sum over the samples) grows
+    with its length: twice as long, about twice the separation (the oracle: the
+    criterion recomputed on the lengthened sequence); the proposed length follows."""
+    from planner.calibration.excite import TIE_FLOOR, lengthen, needed_duration
+    effects = parse_candidates(cat, "viscous_friction@swing,coulomb_friction@swing", seed=4)
+    d = design_excitation(cat, effects, duration=12.0, candidates=1, budget=0, seed=4)
+    T = d.plan.duration     # at least one whole cycle of the sequence, here more than 12 s
+    longer = lengthen(cat, d, 2 * T)
+    assert longer.plan.duration >= 2 * T and evaluate(cat, longer.plan).ok()
+    assert longer.separation / d.separation == pytest.approx(2.0, rel=0.25)
+    assert needed_duration(TIE_FLOOR / 2, 60.0) == 180.0
+    assert needed_duration(0.0, 60.0) is None and needed_duration(1e-3, 60.0) is None
+
+
+def test_max_duration_below_duration_is_refused(tmp_path, capsys):
+    from planner.cli import main
+    out = tmp_path / "exc.csv"
+    assert main(["excite", "cat215b", "--separate", "viscous_friction@swing,coulomb_friction@swing",
+                 "--duration", "30", "--max-duration", "20", "--out", str(out)]) == 2
+    assert "--max-duration 20: allowed --duration (30) ... 600 s" in capsys.readouterr().err
+    assert not out.exists()

@@ -38,6 +38,10 @@ def cmd_discrepancy(args):
     if args.report:
         write_report(res, args.report, crane=crane, measured=args.measured, closed=closed)
     js = res.to_json()
+    if res.verdict == "ambiguous" and args.json not in (None, "-"):
+        # the design at the values the candidates were fitted to: this file is its input
+        js["suggest_from"] = (f"crane-planner excite {args.crane} --from {args.json} "
+                              "--max-duration 180 --out excitation.csv")
     if closed is not None:
         js["closed_loop"] = closed
     emit(args, js)
@@ -54,6 +58,8 @@ def cmd_discrepancy(args):
                      f"({diff[0]['channel']})" if diff else ""))
         if res.suggest:
             print(f"  to tell them apart, record the sequence of: {res.suggest}")
+            print("  (or at the values they were fitted to: rerun with --json R.json, then "
+                  f"crane-planner excite {args.crane} --from R.json --max-duration 180 …)")
         for sg in res.signature[:3]:
             print(f"  signature: {sg['kind']} on {sg['channel']} "
                   f"({sg['rms_over_noise']:.1f} x noise)")

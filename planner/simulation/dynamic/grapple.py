@@ -60,7 +60,10 @@ def extend_tree(tree: dict, payload: float, grapple) -> dict:
     """The tree data of :func:`~planner.simulation.dynamic.exudyn_plant.tree_parameters` (built
     without the payload) with the two grapple joints and the hanging load appended."""
     n = len(tree["types"])
-    first_pitch = next(i for i in range(1, n) if tree["types"][i] == "revolute")
+    first_pitch = next((i for i in range(1, n) if tree["types"][i] == "revolute"), None)
+    if first_pitch is None:
+        raise ValueError("grapple link: the machine has no revolute joint after the first "
+                         "(no boom pitch axis to hang the grapple's first pin on)")
     joints, links = link_frames(tree, np.zeros(n))
     R_last = links[-1][:3, :3]
     a1 = R_last.T @ joints[first_pitch][:3, 2]          # the pitch axis in the last link

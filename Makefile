@@ -35,7 +35,7 @@ bench: install
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_discrepancy_open.py
 	$(BIN)/python benchmarks/bench_discrepancy_open.py --clean-only --scale 1 --duration 12
-	$(BIN)/python benchmarks/bench_discrepancy_excite.py --seeds 3 --seed-base 600 --magnitude 0.2 1 --workers 2 --default-duration 15 --speed 0.15 0.35 --duration 20 --starts 2 --budget 12
+	$(BIN)/python benchmarks/bench_discrepancy_excite.py --seeds 3 --seed-base 600 --magnitude 0.2 1 --workers 2 --default-duration 15 --speed 0.15 0.35 --duration 60 --starts 3 --budget 30 --fitted --max-duration 240
 	$(BIN)/python benchmarks/bench_discrepancy_structure.py --states 4000
 	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --seeds 1 --duration 20
 	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --dynamic --seeds 2

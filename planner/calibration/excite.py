@@ -272,7 +272,7 @@ def _unseparated(pairs: dict, signal: dict, duration: float) -> list:
                 f"{b} fitted to a recording of {a} reproduces it to within {D:.1f} σ² "
                 f"(of {a}'s own signal {s:.1f} σ², {100 * share:.1f} %) on the best design "
                 f"found; below the verdict's tie floor {TIE_FLOOR:g} σ², so from these "
-                f"{duration:g} s the pair stays ambiguous; "
+                f"{duration:.0f} s the pair stays ambiguous; "
                 + (f"about {need:g} s of the same sequence would separate it (--max-duration)"
                    if need else f"no recording shorter than {MAX_NEEDED_S:g} s would"))))
     return out

@@ -85,9 +85,9 @@ def main(argv=None):
          f"Produced by `python benchmarks/bench_exudyn_speed.py {' '.join(sys.argv[1:])}`".rstrip()
          + f" on {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {platform.node()} "
          f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}); "
-         f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the end (the machine "
-         "was shared with other jobs: the wall times are what it gave, the CPU times what one "
-         "core needs).", "",
+         f"load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the end (wall "
+         "times grow with other jobs on the machine; the CPU times are what one core "
+         "needs).", "",
          f"A {runs[0]['sim_s']:.1f} s recording of s100f (4 joints, step 2 ms = {steps} steps, "
          "output at 50 Hz): the target is ≤ 30 s on one core.", "",
          "| run | CPU time of the process [s] | wall time [s] |", "| --- | ---: | ---: |"]

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
-from planner.calibration.noise import noise_floor, upsampling_factor
+from planner.calibration.noise import noise_floor, noise_floor_at, upsampling_factor
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
@@ -198,6 +198,7 @@ class Discrepancy:
             raise ValueError("recording: the sample times must be uniform (one command per "
                              "sample, as the CSV contract's simulate writes them)")
         self._notes = list(getattr(rec, "notes", ()) or ())
+        logged = getattr(rec, "logged", None)
         m = upsampling_factor(self._channels(rec), self._floor(rec))
         if m > 1:
             rate = 1.0 / float(np.median(dt))
@@ -213,6 +214,15 @@ class Discrepancy:
             [f"p_{j}_{s}" for j in crane.names for s in ("a", "b")] if has_p else [])
         Y = self._channels(rec)
         sig = np.maximum(noise_floor(Y), self._floor(rec))
+        if logged is not None and len(logged.t) >= 20:
+            # resampled on reading: interpolation mixed neighbouring readings, so the noise
+            # is estimated on the samples as logged (the resampled ones understate it)
+            s_log = noise_floor_at(logged.t, self._channels(logged))
+            if s_log.shape == sig.shape:
+                k = float(np.median(s_log / np.maximum(noise_floor(Y), 1e-300)))
+                sig = np.maximum(sig, s_log)
+                self._notes.append(f"noise estimated on the samples as logged (before "
+                                   f"resampling): x{k:.2f} the resampled readings' own estimate")
         block = np.floor((rec.t - rec.t[0]) / self.block_s).astype(int)
         train = block % 2 == 0
         self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-__all__ = ["noise_floor", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
+__all__ = ["noise_floor", "noise_floor_at", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
 
 WHITE_RATIO = 0.7     # above: the samples are not independent measurements (white: ≈ 0.45)
 
@@ -27,6 +27,23 @@ def noise_floor(Y: np.ndarray) -> np.ndarray:
     d2 = np.diff(Y, n=2, axis=0)
     mad = np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0)
     return 1.4826 * mad / math.sqrt(6.0)
+
+
+def noise_floor_at(t, Y) -> np.ndarray:
+    """Per-column noise standard deviation of samples at any strictly increasing times ``t``
+    (a logger's jittered stamps): each inner sample's offset from the straight line through
+    its two neighbours, divided by that offset's white-noise spread √(1 + a² + b²) (a, b the
+    neighbours' interpolation weights), then 1.4826·MAD. On a uniform grid the offset is
+    −Δ²/2 and this equals :func:`noise_floor`. Use it on the samples as logged: a log resampled
+    by interpolation mixes neighbouring readings, which shrinks Δ² more than the noise each
+    reading carries (±10 % jitter: the uniform estimate comes out about 8 % low)."""
+    t = np.asarray(t, float)
+    Y = np.asarray(Y, float)
+    h0, h1 = np.diff(t)[:-1], np.diff(t)[1:]
+    a, b = h1 / (h0 + h1), h0 / (h0 + h1)         # weights of the left and right neighbour
+    r = Y[1:-1] - (a[:, None] * Y[:-2] + b[:, None] * Y[2:])
+    r /= np.sqrt(1.0 + a * a + b * b)[:, None]
+    return 1.4826 * _mad(r)
 
 
 def _mad(x):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -79,6 +79,9 @@ class Recording:
     p_a: np.ndarray | None = None
     p_b: np.ndarray | None = None
     notes: tuple = ()
+    # the readings as the logger wrote them (times not uniform), kept when reading resampled
+    # them: the noise is estimated there (interpolation mixes neighbouring readings)
+    logged: "Recording | None" = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_replay(cls, crane, sim: Trajectory, u_at_samples=None,
@@ -145,13 +148,16 @@ class Recording:
             ff = commands(crane, plan, 1.0 / dt)
             k = np.clip(np.round((t - ff.t[0]) / dt).astype(int), 0, len(ff.t) - 1)
             u = ff.u[k]
-        return cls(d["t"], u, d["q"], d["p_a"], d["p_b"], tuple(d.get("notes", ())))
+        lg = d.get("logged")
+        logged = None if lg is None else cls(lg["t"], lg["u"], lg["q"], lg["p_a"], lg["p_b"])
+        return cls(d["t"], u, d["q"], d["p_a"], d["p_b"], tuple(d.get("notes", ())), logged)
 
     def resampled(self, rate: float) -> "Recording":
         """The recording on a uniform grid at ``rate`` [Hz] (:func:`resample_arrays`)."""
         t, (u, q, pa, pb) = resample_arrays(self.t, (self.u, self.q, self.p_a, self.p_b),
                                             rate)
-        return Recording(t, u, q, pa, pb, self.notes)
+        return Recording(t, u, q, pa, pb, self.notes,
+                         self if self.logged is None else self.logged)
 
 
 def check_units(crane, d: dict, path) -> None:
@@ -213,7 +219,8 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
 
     Returns dict t (N,), u (N, n) or None (no command columns), q (N, n), p_a, p_b (N, n) or
     None (no pressure columns: "positions only"), columns (the header names, a list) and
-    notes (what reading changed, one line each).
+    notes (what reading changed, one line each) and logged (None, or — when jitter was
+    resampled — dict t, u, q, p_a, p_b of the samples as written, for the noise estimate).
 
     A missing or unreadable file raises OSError. Every other rejection is a ValueError that
     starts with the path and names the line (1-based, header = line 1), the column (number and
@@ -429,9 +436,11 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
             raise fail(f"line {line}, column {c + 1} ({header[c]}): pressure {v!r} Pa is "
                        f"{why}; allowed: -2e6 ... 1e9 Pa")
         p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
+    logged = None
     if notes:
+        logged = dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b)
         t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean, "nearest")
-    return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes)
+    return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes, logged=logged)
 
 
 def resample_arrays(t, arrays, rate: float, commands: str = "hold"):

@@ -9,7 +9,7 @@ import pytest
 
 from planner import Crane
 from planner.calibration.discrepancy import Discrepancy
-from planner.calibration.noise import upsampling_factor
+from planner.calibration.noise import noise_floor, noise_floor_at, upsampling_factor
 from planner.calibration.signature import channel_signature
 from planner.calibration.trials import excitation, hidden_trial, record
 from planner.cli import main
@@ -171,6 +171,39 @@ def test_jitter_is_resampled_and_reported(cat, clean, tmp_path):
     Recording(tj, clean.u, clean.q, clean.p_a, clean.p_b).to_csv(path, cat)
     with pytest.raises(ValueError, match=r"line 12, column 1 \(t\).*crane-planner resample"):
         Recording.from_csv(path, cat)
+
+
+def test_noise_at_jittered_times_is_the_sensor_noise():
+    """The estimate on jittered stamps matches the known σ of white noise on a smooth signal
+    (and the uniform one on a grid); the same readings interpolated onto the mean grid give
+    a uniform estimate that understates it — why the reader keeps the logged samples."""
+    rng = np.random.default_rng(3)
+    n, dt, sig = 20000, 0.02, np.array([1e-3, 5e4])
+    t = np.arange(n) * dt
+    tj = t + rng.uniform(-0.1, 0.1, n) * dt
+    smooth = np.column_stack([0.5 * np.sin(0.7 * tj), 2e6 + 1e6 * np.cos(1.3 * tj)])
+    Y = smooth + rng.normal(size=(n, 2)) * sig
+    np.testing.assert_allclose(noise_floor_at(tj, Y), sig, rtol=0.03)
+    np.testing.assert_allclose(noise_floor_at(t, Y), noise_floor(Y), rtol=1e-9)
+    Yr = np.column_stack([np.interp(t, tj, Y[:, c]) for c in range(2)])
+    assert np.all(noise_floor(Yr) < 0.95 * sig)
+
+
+def test_jittered_log_noise_is_estimated_on_the_logged_samples(cat, clean, tmp_path):
+    rng = np.random.default_rng(5)
+    dt = float(np.median(np.diff(clean.t)))
+    tj = clean.t + rng.uniform(-0.1, 0.1, clean.t.size) * dt
+    tj[0], tj[-1] = clean.t[0], clean.t[-1]
+    path = tmp_path / "j.csv"
+    Recording(tj, clean.u, clean.q, clean.p_a, clean.p_b).to_csv(path, cat)
+    rec = Recording.from_csv(path, cat)
+    assert rec.logged is not None and np.allclose(rec.logged.t, tj, rtol=0, atol=1e-8)
+    res = Discrepancy(cat).fit(rec)
+    assert res.verdict == "explained"
+    assert any("as logged" in n for n in res.notes)
+    plain = Discrepancy(cat).fit(clean)
+    for c in res.noise:       # the sensor noise of the logged samples, not the resampled one's
+        assert res.noise[c] == pytest.approx(plain.noise[c], rel=0.12)
 
 
 def test_resample_round_trip(cat, clean, tmp_path, capsys):

@@ -330,6 +330,19 @@ class MoveNLP(Guesses, SolverTwins):
         neg = (-self._Ab[self._dbl] * xd[:, self._dbl] > eps).astype(float)
         return np.hstack([pos, neg]).ravel()
 
+    def _still_optimal(self, sol, mask, new) -> bool:
+        """True when the solution ``sol`` (solved with activity ``mask``) already meets the
+        load-sensing pressure rows of the functions ``new`` switches on: those rows were
+        relaxed by the big M, so without it their value is theirs minus 1e3 [MPa]; if each is
+        ≥ 0 the point is feasible for the new mask and its KKT conditions hold with zero
+        multipliers there — a re-solve would return it (up to the tolerance)."""
+        if "pressure" not in self.layout.con_names:   # no load-sensing rows: nothing changes
+            return True
+        rows = self.layout.rows("pressure")            # one per mask entry, in its order
+        on = np.flatnonzero((new > 0) & (mask == 0))
+        g = np.asarray(sol["g"]).ravel()[rows[on]] - 1e3
+        return bool(np.all(g >= -1e-6))
+
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
               payload: float | None = None, w0=None, q_start=None, q_goal=None):
@@ -469,10 +482,10 @@ class MoveNLP(Guesses, SolverTwins):
             w = np.array(sol["x"]).ravel()
             if ist not in STATUS_OK or self.objective == "time":
                 break
-            new = self._activity(w)
-            if np.array_equal(new, mask):
+            new = np.maximum(mask, self._activity(w))   # keep functions once seen active
+            if np.array_equal(new, mask) or self._still_optimal(sol, mask, new):
                 break
-            mask, guess = np.maximum(mask, new), w  # keep functions once seen active
+            mask, guess = new, w
         if ist not in STATUS_OK:
             return nlp_result(ipopt_code(ist), ist if ist.startswith("FATROP") else
                               f"IPOPT: {ist}", iterations=iters,

@@ -95,6 +95,21 @@ class Trajectory:
         if bad:
             raise ValueError(f"Trajectory.limits: unknown kind(s) {bad}; allowed: {LIMIT_KINDS}")
 
+    @classmethod
+    def trusted(cls, t, q, qd, qdd, **fields) -> "Trajectory":
+        """A Trajectory from float arrays a producer has just computed itself — t (N,)
+        strictly increasing, q/qd/qdd (N, n), ``fields`` complete (joint_names of length n,
+        known limit kinds) — without the constructor's copies and checks (a few µs, which is
+        most of a Ruckig move's cost); one finite-sum check still refuses NaN/inf. Users and
+        readers of files construct ``Trajectory(...)``, which checks everything."""
+        if not math.isfinite(float(q.sum() + qd.sum() + qdd.sum() + t.sum())):
+            return cls(t, q, qd, qdd, **fields)    # the checked path names the bad value
+        self = cls.__new__(cls)
+        self.__dict__.update(t=t, q=q, qd=qd, qdd=qdd, joint_names=(), method="", objective="",
+                             interpolation="quintic", limits=LIMIT_KINDS, u=None, meta={})
+        self.__dict__.update(fields)
+        return self
+
     # ------------------------------------------------------------------ basic properties
     @property
     def duration(self) -> float:

@@ -71,6 +71,45 @@ def _calculator(n: int) -> ruckig.Ruckig:
     return otg[n]
 
 
+def _rest_input(n: int, limits: tuple):
+    """(calculator, input, trajectory) for rest-to-rest moves of ``n`` DOF, made once per
+    thread: the velocities and accelerations of a fresh input are zero and stay so (only this
+    function's caller sets the positions), the limits are set again when ``limits`` (a cached
+    tuple of :func:`_ruckig_limits`) is not the one they were last set from."""
+    r2r = getattr(_local, "r2r", None)
+    if r2r is None:
+        r2r = _local.r2r = {}
+    e = r2r.get(n)
+    if e is None:
+        e = r2r[n] = [_calculator(n), ruckig.InputParameter(n), ruckig.Trajectory(n), None]
+    if e[3] is not limits:
+        inp = e[1]
+        inp.max_velocity, inp.min_velocity, inp.max_acceleration, inp.max_jerk = limits[:4]
+        e[3] = limits
+    return e
+
+
+def _switch_list(traj: ruckig.Trajectory, merge: float) -> list:
+    """:meth:`JerkProfile.switch_times` (same knots, same arithmetic) read straight from the
+    Ruckig trajectory, as a list: no table, for a move sampled at its switches only."""
+    T = float(traj.duration)
+    knots = []
+    put = knots.extend
+    for prof in traj.profiles[0]:
+        brake = prof.brake
+        tb = brake.duration if brake is not None else 0.0
+        put((brake.t[0], tb) if tb > 0 else (0.0, 0.0))
+        put([tb + x for x in itertools.accumulate(prof.t)])
+    out, last = [0.0], 0.0
+    for x in sorted(knots):
+        if x - last > merge and x <= T:
+            out.append(x)
+            last = x
+    if T - last > merge:
+        out.append(T)
+    return out
+
+
 def state_to_state(current, target, vmax, vmin, amax, jmax) -> ruckig.Trajectory:
     """Time-optimal synchronised jerk-limited move from ``current`` to ``target``, each a
     triple (position, velocity, acceleration) of per-DOF sequences; ``vmax`` / ``vmin``
@@ -262,7 +301,8 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     exactly (the motion is cubic between them)."""
     t0 = _time.perf_counter()
     q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
-    vmax, vmin, amax, jmax, lo_l, hi_l = _ruckig_limits(crane, float(scale))
+    limits = _ruckig_limits(crane, float(scale))
+    lo_l, hi_l = limits[4], limits[5]
     if q0.shape != (crane.n,) or q1.shape != (crane.n,) or not (
             all(map(float.__le__, lo_l, q0.tolist())) and all(map(float.__le__, q0.tolist(), hi_l))
             and all(map(float.__le__, lo_l, q1.tolist()))
@@ -281,26 +321,37 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     if sample_rate is not None and not sample_rate > 0:
         raise ValueError(f"rest_to_rest: sample_rate = {sample_rate!r}; allowed: a rate > 0 "
                          "[Hz], or None for the switching times only")
-    z = [0.0] * crane.n
+    otg, inp, traj, _ = _rest_input(crane.n, limits)
+    inp.current_position = q0.tolist()
+    inp.target_position = q1.tolist()
     try:
-        traj = state_to_state((q0, z, z), (q1, z, z), vmax, vmin, amax, jmax)
-    except RuntimeError as e:
-        return PlanResult("failed", str(e), solve_time_s=_time.perf_counter() - t0)
-    prof = JerkProfile(traj)
-    T = prof.duration
-    sw = np.array([0.0, max(T, 1e-9)])
+        res = otg.calculate(inp, traj)
+    except (RuntimeError, ruckig.RuckigError) as e:  # invalid input or no profile found
+        res = f"{str(e).strip().splitlines()[0]}"
+    if res not in (ruckig.Result.Working, ruckig.Result.Finished):
+        return PlanResult("failed", f"Ruckig: {getattr(res, 'name', res)}",
+                          solve_time_s=_time.perf_counter() - t0)
+    T = float(traj.duration)
     if T <= 0:
-        t = sw
+        sw = [0.0, 1e-9]
     else:
-        sw = prof.switch_times(merge=1e-6)  # near-duplicates would add 1/h³ noise
+        sw = _switch_list(traj, 1e-6)       # near-duplicates would add 1/h³ noise
         if sw[-1] < T:   # the end dropped as a near-duplicate: keep the end, not its neighbour
             sw[-1] = T
-        t = sw if sample_rate is None else sample_times(T, sw, sample_rate, 50)
-    q, qd, qdd = prof.at(t)
-    tr = Trajectory(t, q, qd, qdd, joint_names=tuple(crane.names), method="ruckig",
-                    objective="time", limits=("position", "velocity", "acceleration", "jerk"),
-                    meta=dict(independent_min_durations=list(traj.independent_min_durations),
-                              switch_times=sw.tolist()))
+    if sample_rate is None and T > 0:
+        # the move at its switching times only: Ruckig's own states there (a handful of
+        # calls), no piece table
+        q, qd, qdd = (np.array(x) for x in zip(*map(traj.at_time, sw)))
+        t = np.array(sw)
+    else:
+        t = np.array(sw) if sample_rate is None or T <= 0 else sample_times(T, sw,
+                                                                            sample_rate, 50)
+        q, qd, qdd = JerkProfile(traj).at(t)
+    tr = Trajectory.trusted(t, q, qd, qdd, joint_names=tuple(crane.names), method="ruckig",
+                            objective="time",
+                            limits=("position", "velocity", "acceleration", "jerk"),
+                            meta=dict(independent_min_durations=list(
+                                traj.independent_min_durations), switch_times=sw))
     return PlanResult("ok", trajectory=tr, duration_s=T,
                       solve_time_s=_time.perf_counter() - t0)
 

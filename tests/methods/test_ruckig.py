@@ -82,7 +82,7 @@ def test_vectorised_sampling_equals_ruckig_at_time(cid):
     sample) against Ruckig's own ``at_time``, sample by sample, to 1e-12: random moves between
     moving states (some starting above the velocity limit, so Ruckig brakes first), at random
     times, at every switching time and past the end (Ruckig keeps constant acceleration)."""
-    from planner.methods.ruckig import JerkProfile, state_to_state
+    from planner.methods.ruckig import JerkProfile, _switch_list, state_to_state
     crane = Crane.from_id(cid)
     L = crane.limit_arrays()
     J = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 50.0)
@@ -101,6 +101,8 @@ def test_vectorised_sampling_equals_ruckig_at_time(cid):
                             [tr.duration * 1.05]])
         got = prof.at(t)
         want = [np.array([tr.at_time(x)[i] for x in t]) for i in range(3)]
+        for merge in (0.0, 1e-6, 1e-2):   # the table-free switch list rest_to_rest reads
+            assert _switch_list(tr, merge) == prof.switch_times(merge).tolist()
         for g, w in zip(got, want):
             np.testing.assert_allclose(g, w, rtol=0, atol=1e-12)
     assert braked > 0  # the brake pre-trajectory was exercised
@@ -120,3 +122,38 @@ def test_rest_to_rest_at_the_switch_times_only_is_the_same_motion(umea_lab):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="sample_rate"):
         rest_to_rest(umea_lab, q0, q1, sample_rate=0.0)
+
+
+def test_rest_to_rest_is_the_same_from_threads_and_across_cranes():
+    """rest_to_rest keeps one Ruckig input per thread and DOF count, its limits set again when
+    the crane (or scale) changes: interleaved cranes of the same and other DOF counts, in two
+    threads, give exactly the serial answers; the Trajectory it builds without the
+    constructor's checks equals a checked one."""
+    from concurrent.futures import ThreadPoolExecutor
+    from planner.trajectory import Trajectory
+    cranes = [Crane.from_id(c) for c in ("umea-lab", "s100f", "cat215b", "cranab850")]
+    jobs = [(c, *random_configs(c, 2, seed=30 + k), sc) for k, c in enumerate(cranes * 3)
+            for sc in (1.0, 0.5)]
+
+    def run(job):
+        c, a, b, sc = job
+        r = rest_to_rest(c, a, b, sample_rate=None, scale=sc)
+        return r.duration_s, r.trajectory.q
+    serial = [run(j) for j in jobs]
+    with ThreadPoolExecutor(2) as ex:
+        threaded = list(ex.map(run, jobs[::-1]))[::-1]
+    for (d1, q1), (d2, q2) in zip(serial, threaded):
+        assert d1 == d2
+        np.testing.assert_array_equal(q1, q2)
+    tr = rest_to_rest(cranes[0], *random_configs(cranes[0], 2, seed=3), sample_rate=None)
+    tr = tr.trajectory
+    checked = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, joint_names=tr.joint_names,
+                         method=tr.method, objective=tr.objective, limits=tr.limits,
+                         meta=tr.meta)
+    for k, v in vars(checked).items():
+        w = getattr(tr, k)
+        assert np.array_equal(v, w) if isinstance(v, np.ndarray) else v == w, k
+    bad = tr.q.copy()
+    bad[1, 0] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        Trajectory.trusted(tr.t, bad, tr.qd, tr.qdd, joint_names=tr.joint_names)

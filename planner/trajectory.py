@@ -35,6 +35,10 @@ def _arr(name, a, two_d: bool = False):
     return a
 
 
+_TRUSTED_DEFAULTS = dict(joint_names=(), method="", objective="", interpolation="quintic",
+                         limits=LIMIT_KINDS, u=None)
+
+
 @dataclass
 class Trajectory:
     """Sampled joint trajectory. t [s] (N,), q/qd/qdd (N, n) in rad | m and their rates.
@@ -102,12 +106,14 @@ class Trajectory:
         known limit kinds) — without the constructor's copies and checks (a few µs, which is
         most of a Ruckig move's cost); one finite-sum check still refuses NaN/inf. Users and
         readers of files construct ``Trajectory(...)``, which checks everything."""
-        if not math.isfinite(float(q.sum() + qd.sum() + qdd.sum() + t.sum())):
+        if not math.isfinite(q.sum() + qd.sum() + qdd.sum() + t.sum()):
             return cls(t, q, qd, qdd, **fields)    # the checked path names the bad value
         self = cls.__new__(cls)
-        self.__dict__.update(t=t, q=q, qd=qd, qdd=qdd, joint_names=(), method="", objective="",
-                             interpolation="quintic", limits=LIMIT_KINDS, u=None, meta={})
-        self.__dict__.update(fields)
+        d = self.__dict__
+        d.update(_TRUSTED_DEFAULTS)
+        d.update(fields, t=t, q=q, qd=qd, qdd=qdd)
+        if "meta" not in fields:
+            d["meta"] = {}
         return self
 
     # ------------------------------------------------------------------ basic properties

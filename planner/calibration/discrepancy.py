@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
-from planner.calibration.noise import noise_floor, noise_floor_at, upsampling_factor
+from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
@@ -186,43 +186,33 @@ class Discrepancy:
 
     # ------------------------------------------------------------------ data
     def _prepare(self, rec: Recording):
-        crane = self.crane
-        n = crane.n
+        crane, n = self.crane, self.crane.n
         if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
             raise ValueError(f"recording: expected u and q of shape (N, {n})")
         if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
             raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
                              f"is too short: need at least 4 blocks of {self.block_s:g} s")
-        dt = np.diff(rec.t)
-        if np.ptp(dt) > 1e-6 * np.median(dt) + 1e-9:
+        if np.ptp(dt := np.diff(rec.t)) > 1e-6 * np.median(dt) + 1e-9:
             raise ValueError("recording: the sample times must be uniform (one command per "
                              "sample, as the CSV contract's simulate writes them)")
         self._notes = list(getattr(rec, "notes", ()) or ())
         logged = getattr(rec, "logged", None)
         m = upsampling_factor(self._channels(rec), self._floor(rec))
         if m > 1:
-            rate = 1.0 / float(np.median(dt))
             self._notes.append(
                 f"warning: the log looks upsampled (interpolated) about x{m} from "
-                f"~{rate / m:.0f} Hz: its samples are not independent measurements, so the "
-                f"noise estimate and the statistics use every {m}th sample")
-            rec = Recording(rec.t[::m], rec.u[::m], rec.q[::m],
-                            None if rec.p_a is None else rec.p_a[::m],
-                            None if rec.p_b is None else rec.p_b[::m])
+                f"~{1.0 / float(np.median(dt)) / m:.0f} Hz: its samples are not independent "
+                f"measurements, so the noise estimate and the statistics use every {m}th sample")
+            rec = Recording(*(None if a is None else a[::m]
+                              for a in (rec.t, rec.u, rec.q, rec.p_a, rec.p_b)))
         has_p = rec.p_a is not None and rec.p_b is not None
         cols = [f"q_{j}" for j in crane.names] + (
             [f"p_{j}_{s}" for j in crane.names for s in ("a", "b")] if has_p else [])
         Y = self._channels(rec)
         sig = np.maximum(noise_floor(Y), self._floor(rec))
-        if logged is not None and len(logged.t) >= 20:
-            # resampled on reading: interpolation mixed neighbouring readings, so the noise
-            # is estimated on the samples as logged (the resampled ones understate it)
-            s_log = noise_floor_at(logged.t, self._channels(logged))
-            if s_log.shape == sig.shape:
-                k = float(np.median(s_log / np.maximum(noise_floor(Y), 1e-300)))
-                sig = np.maximum(sig, s_log)
-                self._notes.append(f"noise estimated on the samples as logged (before "
-                                   f"resampling): x{k:.2f} the resampled readings' own estimate")
+        if logged is not None:     # resampled on reading: the noise of the logged samples
+            sig, note = logged_noise(sig, Y, logged.t, self._channels(logged))
+            self._notes += [note] * bool(note)
         block = np.floor((rec.t - rec.t[0]) / self.block_s).astype(int)
         train = block % 2 == 0
         self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-__all__ = ["noise_floor", "noise_floor_at", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
+__all__ = ["noise_floor", "noise_floor_at", "logged_noise", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
 
 WHITE_RATIO = 0.7     # above: the samples are not independent measurements (white: ≈ 0.45)
 
@@ -44,6 +44,21 @@ def noise_floor_at(t, Y) -> np.ndarray:
     r = Y[1:-1] - (a[:, None] * Y[:-2] + b[:, None] * Y[2:])
     r /= np.sqrt(1.0 + a * a + b * b)[:, None]
     return 1.4826 * _mad(r)
+
+
+def logged_noise(sig, Y, t_logged, Y_logged):
+    """(σ per channel, note or None) for readings ``Y`` resampled on reading from the samples
+    ``Y_logged`` at times ``t_logged``: interpolation mixed neighbouring readings, so σ is the
+    larger of ``sig`` (the resampled readings' own, floored) and :func:`noise_floor_at` of the
+    samples as logged (the resampled ones understate it)."""
+    if len(t_logged) < 20:
+        return sig, None
+    s_log = noise_floor_at(t_logged, Y_logged)
+    if s_log.shape != np.shape(sig):
+        return sig, None
+    k = float(np.median(s_log / np.maximum(noise_floor(Y), 1e-300)))
+    return np.maximum(sig, s_log), (f"noise estimated on the samples as logged (before "
+                                    f"resampling): x{k:.2f} the resampled readings' own estimate")
 
 
 def _mad(x):

@@ -46,6 +46,7 @@ import numpy as np
 
 from planner.bounds import lower_bound
 from planner.geometry.paths import tip_to_xyz, xyz_to_tip
+from planner.methods.nlp.activity import ActivityRounds
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
@@ -54,7 +55,6 @@ from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.methods.nlp.twins import SolverTwins, warm_rounds
 from planner.model.flows import actuator_table
-from planner.model.hydraulics import ACTIVE_FLOW
 from planner.trajectory import Trajectory, evaluate
 
 __all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
@@ -70,7 +70,7 @@ AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IP
 PUMP_MARGIN = {"time": 0.005, "energy": 0.02, "blend": 0.02}
 
 
-class MoveNLP(Guesses, SolverTwins):
+class MoveNLP(Guesses, SolverTwins, ActivityRounds):
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
@@ -317,31 +317,6 @@ class MoveNLP(Guesses, SolverTwins):
                           stats=dict(winner="ruckig", solver=res.stats.get("solver"),
                                      nlp_duration_s=res.duration_s if res.ok else float("nan")),
                           solve_time_s=_time.perf_counter() - t0)
-
-    def _activity(self, w) -> np.ndarray:
-        """Which functions draw pump flow at each node (per direction) in the primal ``w``:
-        the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
-        crane, n = self.crane, self.crane.n
-        X = self.layout.unpack(w, "X")
-        _, dxdq = crane.stroke(X[:n].T)
-        xd = dxdq * X[n:2 * n].T
-        eps = ACTIVE_FLOW * crane.spec.pump.max_flow
-        pos = (self._Aa * xd > eps).astype(float)
-        neg = (-self._Ab[self._dbl] * xd[:, self._dbl] > eps).astype(float)
-        return np.hstack([pos, neg]).ravel()
-
-    def _still_optimal(self, sol, mask, new) -> bool:
-        """True when the solution ``sol`` (solved with activity ``mask``) already meets the
-        load-sensing pressure rows of the functions ``new`` switches on: those rows were
-        relaxed by the big M, so without it their value is theirs minus 1e3 [MPa]; if each is
-        ≥ 0 the point is feasible for the new mask and its KKT conditions hold with zero
-        multipliers there — a re-solve would return it (up to the tolerance)."""
-        if "pressure" not in self.layout.con_names:   # no load-sensing rows: nothing changes
-            return True
-        rows = self.layout.rows("pressure")            # one per mask entry, in its order
-        on = np.flatnonzero((new > 0) & (mask == 0))
-        g = np.asarray(sol["g"]).ravel()[rows[on]] - 1e3
-        return bool(np.all(g >= -1e-6))
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,

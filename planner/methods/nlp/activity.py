@@ -1,0 +1,44 @@
+"""The load-sensing activity mask of the energy/blend move NLP and when a round of it ends.
+
+A load-sensing pump raises its pressure only for the functions that draw flow; which ones do at
+each node is a parameter of the NLP (the mask), taken from the guess and grown from each
+solution, re-solving while it grows (≤ 4 rounds, :meth:`MoveNLP._solve_from`). A grown mask
+needs no new round when the solution already meets the pressure rows it switches on.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from planner.model.hydraulics import ACTIVE_FLOW
+
+__all__ = ["ActivityRounds"]
+
+
+class ActivityRounds:
+    """Mixin of :class:`~planner.methods.nlp.move.MoveNLP` (uses its crane, layout and the
+    actuator areas ``_Aa``, ``_Ab``, ``_dbl``)."""
+
+    def _activity(self, w) -> np.ndarray:
+        """Which functions draw pump flow at each node (per direction) in the primal ``w``:
+        the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
+        crane, n = self.crane, self.crane.n
+        X = self.layout.unpack(w, "X")
+        _, dxdq = crane.stroke(X[:n].T)
+        xd = dxdq * X[n:2 * n].T
+        eps = ACTIVE_FLOW * crane.spec.pump.max_flow
+        pos = (self._Aa * xd > eps).astype(float)
+        neg = (-self._Ab[self._dbl] * xd[:, self._dbl] > eps).astype(float)
+        return np.hstack([pos, neg]).ravel()
+
+    def _still_optimal(self, sol, mask, new) -> bool:
+        """True when the solution ``sol`` (solved with activity ``mask``) already meets the
+        load-sensing pressure rows of the functions ``new`` switches on: those rows were
+        relaxed by the big M, so without it their value is theirs minus 1e3 [MPa]; if each is
+        ≥ 0 the point is feasible for the new mask and its KKT conditions hold with zero
+        multipliers there — a re-solve would return it (up to the tolerance)."""
+        if "pressure" not in self.layout.con_names:   # no load-sensing rows: nothing changes
+            return True
+        rows = self.layout.rows("pressure")            # one per mask entry, in its order
+        on = np.flatnonzero((new > 0) & (mask == 0))
+        g = np.asarray(sol["g"]).ravel()[rows[on]] - 1e3
+        return bool(np.all(g >= -1e-6))

@@ -156,14 +156,19 @@ def test_upsampled_log_is_detected_and_not_a_false_alarm(cat, clean):
     assert any("upsampled" in n for n in res.notes)
 
 
-def test_jitter_is_resampled_and_reported(cat, clean, tmp_path):
-    rng = np.random.default_rng(1)
+def _jittered(cat, clean, path, seed, share):
+    """(the clean recording written with its stamps jittered by ±``share`` of the step and
+    read back, the stamps, the step)."""
     dt = float(np.median(np.diff(clean.t)))
-    tj = clean.t + rng.uniform(-0.08, 0.08, clean.t.size) * dt
+    tj = clean.t + np.random.default_rng(seed).uniform(-share, share, clean.t.size) * dt
     tj[0], tj[-1] = clean.t[0], clean.t[-1]
-    path = tmp_path / "j.csv"
     Recording(tj, clean.u, clean.q, clean.p_a, clean.p_b).to_csv(path, cat)
-    rec = Recording.from_csv(path, cat)
+    return Recording.from_csv(path, cat), tj, dt
+
+
+def test_jitter_is_resampled_and_reported(cat, clean, tmp_path):
+    path = tmp_path / "j.csv"
+    rec, tj, dt = _jittered(cat, clean, path, 1, 0.08)
     assert np.ptp(np.diff(rec.t)) < 1e-9 and rec.notes and "jitter" in rec.notes[0]
     assert 1 / np.mean(np.diff(rec.t)) == pytest.approx(1 / dt, rel=1e-3)
     # beyond ±10 %: refused, the resample command named
@@ -190,13 +195,7 @@ def test_noise_at_jittered_times_is_the_sensor_noise():
 
 
 def test_jittered_log_noise_is_estimated_on_the_logged_samples(cat, clean, tmp_path):
-    rng = np.random.default_rng(5)
-    dt = float(np.median(np.diff(clean.t)))
-    tj = clean.t + rng.uniform(-0.1, 0.1, clean.t.size) * dt
-    tj[0], tj[-1] = clean.t[0], clean.t[-1]
-    path = tmp_path / "j.csv"
-    Recording(tj, clean.u, clean.q, clean.p_a, clean.p_b).to_csv(path, cat)
-    rec = Recording.from_csv(path, cat)
+    rec, tj, _ = _jittered(cat, clean, tmp_path / "j.csv", 5, 0.1)
     assert rec.logged is not None and np.allclose(rec.logged.t, tj, rtol=0, atol=1e-8)
     res = Discrepancy(cat).fit(rec)
     assert res.verdict == "explained"

@@ -373,12 +373,17 @@ def summary(values):
 def report(res) -> str:
     m, tp, rk = res["machine"], res["topp"], res["ruckig"]
     s = res["summary"]
+    runs = res.get("runs", {})   # per section: when it was run (--only keeps the others)
+    when = "; ".join(f"{name} section: {r['date']} ({r['repeat']} rounds, load {r['load']})"
+                     for key, name in (("topp", "TOPP-RA"), ("ruckig", "Ruckig"))
+                     if (r := runs.get(key)))
     lines = [
         "# Peers: the project's methods against their raw libraries (issue 15)", "",
-        f"{m['date']}, {m['platform']}, Python {m['python']}, {m['cpus']} CPUs, load "
-        f"{m['load']}, numpy {m['numpy']}, toppra {m['toppra']}, ruckig {m['ruckig']}. "
-        f"Interleaved A/B timings, {res['repeat']} rounds (Ruckig: ×20 / ×5), medians; the "
-        "machine is shared, so read the ratios. `python benchmarks/bench_peers.py`.", "",
+        f"{when or m['date']}; NLP section: its own header below. {m['platform']}, Python "
+        f"{m['python']}, {m['cpus']} CPUs, numpy {m['numpy']}, toppra {m['toppra']}, ruckig "
+        f"{m['ruckig']}. Interleaved A/B timings (Ruckig: ×20 / ×5 calls per round), medians; "
+        "the machine is shared, so read the ratios. `python benchmarks/bench_peers.py "
+        "[--only topp,ruckig,nlp] [--repeat N]`.", "",
         "## Summary", "",
         "| comparison | ratio median | ratio max | target |", "| --- | --- | --- | --- |",
         f"| verified TOPP-RA retime / raw toppra + own 500 Hz sampling | "
@@ -460,7 +465,10 @@ def main(argv=None):
     if {"topp", "ruckig"} & only:
         tp = topp_rows(repeat, a.quick) if "topp" in only else old["topp"]
         rk = ruckig_rows(repeat, a.quick) if "ruckig" in only else old["ruckig"]
-        res.update(machine=machine, repeat=repeat, topp=tp, ruckig=rk,
+        runs = dict(res.get("runs", {}))
+        runs.update({k: dict(date=machine["date"], load=machine["load"], repeat=repeat)
+                     for k in ("topp", "ruckig") if k in only})
+        res.update(machine=machine, repeat=repeat, topp=tp, ruckig=rk, runs=runs,
                    summary=dict(topp_ratio=summary([r["ratio"] for r in tp]),
                                 topp_coarse=summary([r["coarse_excess"] for r in tp]),
                                 topp_raw_violation=summary([r["raw_violation"] for r in tp]),

@@ -34,7 +34,7 @@ bench: install
 	$(BIN)/python benchmarks/bench_energy_rounds.py --moves 36
 	$(BIN)/python benchmarks/bench_discrepancy.py
 	$(BIN)/python benchmarks/bench_discrepancy_open.py
-	$(BIN)/python benchmarks/bench_discrepancy_open.py --clean-only --scale 1 --duration 12
+	$(BIN)/python benchmarks/bench_discrepancy_open.py --clean-only --scale 1.5 --duration 12
 	$(BIN)/python benchmarks/bench_discrepancy_excite.py --seeds 3 --seed-base 600 --magnitude 0.2 1 --workers 2 --default-duration 15 --speed 0.15 0.35 --duration 60 --starts 3 --budget 30 --fitted --max-duration 240
 	$(BIN)/python benchmarks/bench_discrepancy_structure.py --states 4000
 	$(BIN)/python benchmarks/bench_discrepancy_exudyn.py --seeds 1 --duration 20

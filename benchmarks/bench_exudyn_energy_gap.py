@@ -6,7 +6,7 @@ broken down by loss term, on the library entries of ``bench_exudyn_claims.py`` (
                                                  [--out benchmarks/results]
 
 For every ok entry of the claims' forwarder-cycle subset library (built with the project's
-builder unless ``--library`` names one) the stored 50 Hz commands are replayed open loop on the
+builder, afresh, unless ``--library`` names one) the stored 50 Hz commands are replayed open loop on the
 Exudyn plant (valves closed 3 s after the plan's end) and the plan is judged by ``evaluate()``
 (1 kHz). Both figures are hydraulic pump work (before the pump's efficiency, which both divide
 by alike). The quasi-static work splits into meter-in throttling (Σ (p_pump − p_load,i)·Q_i),
@@ -101,6 +101,8 @@ def main(argv=None):
     t_start = time.perf_counter()
     crane = Crane.from_id("s100f")
     args.work.mkdir(parents=True, exist_ok=True)
+    if not args.library:   # a library left by an earlier run may come from other code: rebuild
+        (args.work / "claims-library.h5").unlink(missing_ok=True)
     lib = args.library or build_library(args.work, subset_suite(
         args.work / "forwarder-cycle-claims.toml"))[0]
     plant = ExudynPlant(crane)

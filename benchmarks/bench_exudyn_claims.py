@@ -86,9 +86,11 @@ def subset_suite(path: Path) -> Path:
 
 
 def build_library(work: Path, suite: Path) -> tuple[Path, float]:
-    """The subset library (NLP, time and energy), built or resumed by the project's builder."""
+    """The subset library (NLP, time and energy), built afresh by the project's builder (a
+    library left in ``work`` by an earlier run may come from other code)."""
     from planner.library.build import build
     lib = work / "claims-library.h5"
+    lib.unlink(missing_ok=True)
     t0 = time.perf_counter()
     build("s100f", str(suite), lib, objectives=("time", "energy"), robustness=False,
           progress=False)

@@ -101,8 +101,6 @@ def main(argv=None):
     t_start = time.perf_counter()
     crane = Crane.from_id("s100f")
     args.work.mkdir(parents=True, exist_ok=True)
-    if not args.library:   # a library left by an earlier run may come from other code: rebuild
-        (args.work / "claims-library.h5").unlink(missing_ok=True)
     lib = args.library or build_library(args.work, subset_suite(
         args.work / "forwarder-cycle-claims.toml"))[0]
     plant = ExudynPlant(crane)

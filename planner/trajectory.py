@@ -100,13 +100,15 @@ class Trajectory:
             raise ValueError(f"Trajectory.limits: unknown kind(s) {bad}; allowed: {LIMIT_KINDS}")
 
     @classmethod
-    def trusted(cls, t, q, qd, qdd, **fields) -> "Trajectory":
+    def trusted(cls, t, q, qd, qdd, *, block=None, **fields) -> "Trajectory":
         """A Trajectory from float arrays a producer has just computed itself — t (N,)
         strictly increasing, q/qd/qdd (N, n), ``fields`` complete (joint_names of length n,
         known limit kinds) — without the constructor's copies and checks (a few µs, which is
-        most of a Ruckig move's cost); one finite-sum check still refuses NaN/inf. Users and
+        most of a Ruckig move's cost); one finite-sum check still refuses NaN/inf (on
+        ``block`` instead of q, q̇, q̈ when they are views of that one array). Users and
         readers of files construct ``Trajectory(...)``, which checks everything."""
-        if not math.isfinite(q.sum() + qd.sum() + qdd.sum() + t.sum()):
+        if not math.isfinite((q.sum() + qd.sum() + qdd.sum() if block is None else block.sum())
+                             + t.sum()):
             return cls(t, q, qd, qdd, **fields)    # the checked path names the bad value
         self = cls.__new__(cls)
         d = self.__dict__

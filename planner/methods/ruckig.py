@@ -43,6 +43,7 @@ MIN_GAP = 1e-4  # [s] shortest interval :func:`sample` keeps between samples (je
 
 _local = threading.local()  # one Ruckig calculator per DOF count and thread, made once
 _TWO_ZEROS = (0.0, 0.0)     # the two empty brake pieces of a DOF without a brake
+_chain = itertools.chain.from_iterable
 
 
 _RUCKIG_LIMITS = weakref.WeakKeyDictionary()  # crane -> {scale: limit lists}, see below
@@ -98,15 +99,20 @@ def _switch_list(traj: ruckig.Trajectory, merge: float) -> list:
     for prof in traj.profiles[0]:
         brake = prof.brake
         tb = brake.duration if brake is not None else 0.0
-        put((brake.t[0], tb) if tb > 0 else (0.0, 0.0))
-        put([tb + x for x in itertools.accumulate(prof.t)])
+        if tb > 0:
+            put((brake.t[0], tb))
+            put([tb + x for x in itertools.accumulate(prof.t)])
+        else:          # no brake (every rest-to-rest move): the phase ends as they are
+            put(itertools.accumulate(prof.t))
+    knots.sort()
     out, last = [0.0], 0.0
-    for x in sorted(knots):
+    keep = out.append
+    for x in knots:
         if x - last > merge and x <= T:
-            out.append(x)
+            keep(x)
             last = x
     if T - last > merge:
-        out.append(T)
+        keep(T)
     return out
 
 
@@ -303,10 +309,14 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
     limits = _ruckig_limits(crane, float(scale))
     lo_l, hi_l = limits[4], limits[5]
-    if q0.shape != (crane.n,) or q1.shape != (crane.n,) or not (
-            all(map(float.__le__, lo_l, q0.tolist())) and all(map(float.__le__, q0.tolist(), hi_l))
-            and all(map(float.__le__, lo_l, q1.tolist()))
-            and all(map(float.__le__, q1.tolist(), hi_l))):   # NaN fails every comparison
+    n = crane.n
+    ok = q0.shape == (n,) and q1.shape == (n,)
+    if ok:
+        l0, l1 = q0.tolist(), q1.tolist()
+        le = float.__le__   # NaN fails every comparison
+        ok = (all(map(le, lo_l, l0)) and all(map(le, l0, hi_l)) and all(map(le, lo_l, l1))
+              and all(map(le, l1, hi_l)))
+    if not ok:
         L = crane.limit_arrays()
         lo, hi = L["q_min"] - 1e-9, L["q_max"] + 1e-9
         for name, q in (("start", q0), ("goal", q1)):   # name the first bad value
@@ -321,9 +331,9 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     if sample_rate is not None and not sample_rate > 0:
         raise ValueError(f"rest_to_rest: sample_rate = {sample_rate!r}; allowed: a rate > 0 "
                          "[Hz], or None for the switching times only")
-    otg, inp, traj, _ = _rest_input(crane.n, limits)
-    inp.current_position = q0.tolist()
-    inp.target_position = q1.tolist()
+    otg, inp, traj, _ = _rest_input(n, limits)
+    inp.current_position = l0
+    inp.target_position = l1
     try:
         res = otg.calculate(inp, traj)
     except (RuntimeError, ruckig.RuckigError) as e:  # invalid input or no profile found
@@ -340,14 +350,17 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
             sw[-1] = T
     if sample_rate is None and T > 0:
         # the move at its switching times only: Ruckig's own states there (a handful of
-        # calls), no piece table
-        q, qd, qdd = (np.array(x) for x in zip(*map(traj.at_time, sw)))
+        # calls), no piece table; one flat conversion to (3, samples, DOF)
+        flat = _chain(_chain(map(traj.at_time, sw)))
+        block = np.fromiter(flat, float, 3 * n * len(sw)).reshape(len(sw), 3, n)
+        q, qd, qdd = block.transpose(1, 0, 2)
         t = np.array(sw)
     else:
         t = np.array(sw) if sample_rate is None or T <= 0 else sample_times(T, sw,
                                                                             sample_rate, 50)
         q, qd, qdd = JerkProfile(traj).at(t)
-    tr = Trajectory.trusted(t, q, qd, qdd, joint_names=tuple(crane.names), method="ruckig",
+        block = None
+    tr = Trajectory.trusted(t, q, qd, qdd, block=block, joint_names=tuple(crane.names), method="ruckig",
                             objective="time",
                             limits=("position", "velocity", "acceleration", "jerk"),
                             meta=dict(independent_min_durations=list(

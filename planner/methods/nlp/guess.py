@@ -87,7 +87,7 @@ def path_guess(crane, path) -> Trajectory:
     d = dp(crane, path, step=0.05, tele_step=0.05, window=3)
     if not d.ok:
         raise ValueError(d.reason)
-    t = retime(crane, d.path_q, gridpoints=100)
+    t = retime(crane, d.path_q, gridpoints=100, adapt=0)   # a guess: no grid adaptation
     if not t.ok:
         raise ValueError(t.reason)
     return t.trajectory

@@ -18,6 +18,7 @@ import numpy as np
 from planner.bounds import lower_bound
 from planner.geometry.paths import Line
 from planner.methods.dp import dp
+from planner.methods.nlp.tip import CHECKS
 from planner.methods.ruckig import rest_to_rest
 from planner.methods.topp import retime
 from planner.trajectory import Trajectory
@@ -109,6 +110,10 @@ class Guesses:
         lay.pack(w0, "T", traj.duration)
         rest = lay.slice("T").stop
         w0[rest:] = np.clip(0.0, self.lbw[rest:], self.ubw[rest:])  # slacks: the solver lifts them
+        if lay.has("QC"):   # the joints at the interior obstacle check points
+            tc = t[:-1, None] + h * np.asarray(CHECKS)[None, :]          # (N, checks)
+            qc = traj.sample(tc.ravel())[0].reshape(N, len(CHECKS) * q.shape[1])
+            lay.pack(w0, "QC", qc.T)
         if self.curve is not None:  # θ per node: the nearest point of the curve to each tip
             u = np.linspace(*self.curve.u_range, 4001)
             P = np.asarray(self.curve.p(u))

@@ -49,9 +49,10 @@ from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.nlp.activity import ActivityRounds
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
-from planner.methods.nlp.limits import add_velocity_limits, pump_draw, step
+from planner.methods.nlp.limits import add_velocity_limits, step
+from planner.methods.nlp.pump import PumpRows
 from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
-from planner.methods.nlp.tip import add_curve, add_line, add_obstacles
+from planner.methods.nlp.tip import CHECKS, add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.methods.nlp.twins import SolverTwins, warm_rounds
 from planner.model.flows import actuator_table
@@ -70,7 +71,7 @@ AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IP
 PUMP_MARGIN = {"time": 0.005, "energy": 0.02, "blend": 0.02}
 
 
-class MoveNLP(Guesses, SolverTwins, ActivityRounds):
+class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
@@ -166,8 +167,22 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds):
         pts = [(X[:n, k], X[n:2 * n, k], X[2 * n:, k]) for k in range(N + 1)]
         mids = [self._at(X, U, k, hs[k] / 2) for k in range(N)]
         ends = [self._at(X, U, k, hs[k]) for k in range(N)]
-        for k, (q, _, _) in enumerate(mids):
-            lay.add_con("position", q, L["q_min"], L["q_max"], stage=(k, 1))
+        if self.obstacles:
+            # the joints at the interior obstacle check points as variables of their interval
+            # (bounded by the position limits), tied to its motion by equality rows: the
+            # second derivatives of the tip then involve those n joints, not the 4n + 1
+            # variables the interpolated joints depend on (the obstacle rows were 587k of the
+            # minimum-time Hessian's 688k instructions on the forwarder's headboard)
+            c = len(CHECKS)
+            QC = lay.add_var("QC", (c * n, N), np.tile(L["q_min"], c)[:, None] + np.zeros(N),
+                             np.tile(L["q_max"], c)[:, None] + np.zeros(N), stage=1)
+            for k in range(N):
+                for j, f in enumerate(CHECKS):
+                    lay.add_con("check_joints", QC[j * n:(j + 1) * n, k]
+                                - self._at(X, U, k, f * hs[k])[0], 0.0, 0.0, stage=(k, 1))
+        else:
+            for k, (q, _, _) in enumerate(mids):
+                lay.add_con("position", q, L["q_min"], L["q_max"], stage=(k, 1))
         # the per-interval jerk bound (exact at a cruise) stalls IPOPT where the problem is
         # already hard: the curve mode (seed 003's circle at max_iter) and obstacles (forwarder
         # moves over the headboard: 300-800 iterations instead of 34-60, same durations)
@@ -176,8 +191,8 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds):
         if self.obstacles:
             add_obstacles(lay, crane.f_fk, self.obstacles,
                           [(k, c) for k in range(N + 1) for c in
-                           ([pts[k]] + ([mids[k]] + [self._at(X, U, k, f * hs[k])
-                                                     for f in (0.25, 0.75)] if k < N else []))])
+                           ([pts[k]] + ([(QC[j * n:(j + 1) * n, k], None, None)
+                                         for j in range(len(CHECKS))] if k < N else []))])
         TH = add_curve(lay, crane.f_fk, self.curve, X, n, N) if path == "curve" else None
         if path == "line":
             add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
@@ -219,73 +234,6 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds):
         """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
         n = self.crane.n
         return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
-
-    def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
-        """Pump flow slacks and limit at every check point; for the energy objectives the
-        load-sensing pump pressure per node and the pump energy (trapezoid rule), returned
-        (0 when not needed)."""
-        crane, spec, lay, n, N = self.crane, self.crane.spec, self.layout, self.crane.n, self.N
-        Aa, Ab, dbl = self._Aa, self._Ab, self._dbl
-        n_dbl = int(dbl.sum())
-        Qm = spec.pump.max_flow
-        need_energy = self.objective in ("energy", "blend")
-        if not (self.pump or need_energy):
-            return 0
-        if not need_energy and self.path != "curve":   # one smooth inequality per check point
-            # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
-            # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
-            # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
-            # (FATROP: a row may only use its own stage's variables, so the midpoint's own)
-            J = [crane.f_stroke(q)[1] for q, _, _ in pts]
-            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.solver_name == "fatrop"
-                  else [(J[k] + J[k + 1]) / 2 for k in range(N)])
-            for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
-                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin,
-                            stage=(k % (N + 1), 1))
-            return 0
-        checks = pts + mids if self.pump else pts
-        powers = []
-        for idx, (q, v, a) in enumerate(checks):
-            _, dxdq = crane.f_stroke(q)
-            xd = dxdq * v
-            # flows drawn from the pump as fractions of Q_max: extending (piston side) and
-            # retracting (annulus; none for a single-acting cylinder lowering)
-            sp = lay.add_var(f"sp{idx}", n, 0.0, 10.0)
-            lay.add_con("flow_extend", Qm * sp - Aa * xd, 0.0, ca.inf)
-            flows = [sp]
-            if dbl.any():
-                sm = lay.add_var(f"sm{idx}", n_dbl, 0.0, 10.0)
-                lay.add_con("flow_retract", Qm * sm + Ab[dbl] * xd[np.flatnonzero(dbl)], 0.0,
-                            ca.inf)
-                flows.append(sm)
-            total = sum(ca.sum1(f_) for f_ in flows)
-            if self.pump:
-                lay.add_con("pump", total, -ca.inf, 1 - pump_margin)
-            if need_energy and idx <= N:
-                F = crane.f_id(q, v, a, payload) / dxdq
-                if spec.pump.kind == "load_sensing":
-                    p = lay.add_var(f"p{idx}", 1, spec.pump.standby / 1e6, 1e3)  # [MPa]
-                    mg = spec.pump.margin / 1e6
-                    # load sensing: a function raises the pump pressure only while it draws
-                    # flow. Which ones do is the activity mask (a parameter, updated from the
-                    # solution and re-solved: see solve); inactive ones are relaxed by a big M,
-                    # so every constraint is smooth
-                    base = idx * (n + n_dbl)
-                    m_pos = act_mask[base:base + n]
-                    lay.add_con("pressure", p - mg - F / Aa / 1e6 + 1e3 * (1 - m_pos), 0.0,
-                                ca.inf)
-                    if dbl.any():
-                        k = np.flatnonzero(dbl)
-                        m_neg = act_mask[base + n:base + n + n_dbl]
-                        lay.add_con("pressure", p - mg + F[k] / Ab[k] / 1e6 + 1e3 * (1 - m_neg),
-                                    0.0, ca.inf)
-                else:
-                    p = lay.add_var(f"p{idx}", 1, spec.pump.pressure / 1e6,
-                                    spec.pump.pressure / 1e6)
-                powers.append(p * 1e6 * Qm * total / spec.pump.efficiency)
-        if not need_energy:
-            return 0
-        return h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))
 
     def _prefer_exact(self, res, start, goal, lb, t0, q_ends=(None, None)):
         """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes

@@ -10,9 +10,13 @@ import casadi as ca
 __all__ = ["add_obstacles", "add_curve", "add_line"]
 
 
+CHECKS = (0.25, 0.5, 0.75)   # interior obstacle check points, as fractions of an interval
+
+
 def add_obstacles(layout, f_fk, obstacles, checks) -> None:
     """Clearance from every obstacle at the check points ``checks``: (stage, (q, q̇, q̈)) pairs
-    (the move NLP passes nodes, midpoints and quarter points: q is a cubic per interval)."""
+    (the move NLP passes its nodes and, at :data:`CHECKS` of every interval, joint variables
+    tied to the interval's cubic)."""
     for k, (q, _, _) in checks:
         xyz, cyl = f_fk(q)
         for ob in obstacles:

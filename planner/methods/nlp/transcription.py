@@ -90,6 +90,10 @@ class Layout:
         self._nw += shape[0] * shape[1]
         return var
 
+    def has(self, name: str) -> bool:
+        """Whether the layout has a variable block ``name``."""
+        return name in self._vars
+
     def slice(self, name: str) -> slice:
         """Where variable block ``name`` sits in the decision vector."""
         off, shape = self._var(name)

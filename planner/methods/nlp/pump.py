@@ -1,0 +1,92 @@
+"""The pump rows of the move NLP: the pump-flow limit at every check point and, for the energy
+objectives, the load-sensing pump pressure per node and the pump energy (trapezoid rule)."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from planner.methods.nlp.limits import pump_draw
+
+__all__ = ["PumpRows"]
+
+
+class PumpRows:
+    """Mixin of :class:`~planner.methods.nlp.move.MoveNLP` (uses its crane, N, layout, path,
+    objective, pump, solver name and the actuator table ``_acts`` with its areas ``_Aa``,
+    ``_Ab``, ``_dbl``)."""
+
+    def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
+        """Pump flow slacks and limit at every check point; for the energy objectives the
+        load-sensing pump pressure per node and the pump energy (trapezoid rule), returned
+        (0 when not needed)."""
+        crane, spec, lay, n, N = self.crane, self.crane.spec, self.layout, self.crane.n, self.N
+        Aa, Ab, dbl = self._Aa, self._Ab, self._dbl
+        n_dbl = int(dbl.sum())
+        Qm = spec.pump.max_flow
+        need_energy = self.objective in ("energy", "blend")
+        if not (self.pump or need_energy):
+            return 0
+        if not need_energy and self.path != "curve":   # one smooth inequality per check point
+            # stroke Jacobians at the nodes; at a midpoint the mean of its nodes' (the
+            # Jacobian moves by O(h²) of itself in between, far inside the pump margin, and the
+            # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
+            # (FATROP: a row may only use its own stage's variables, so the midpoint's own)
+            J = [crane.f_stroke(q)[1] for q, _, _ in pts]
+            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.solver_name == "fatrop"
+                  else [(J[k] + J[k + 1]) / 2 for k in range(N)])
+            for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
+                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin,
+                            stage=(k % (N + 1), 1))
+            return 0
+        checks = pts + mids if self.pump else pts
+        # least energy: stroke Jacobians at the nodes, at a midpoint (only its pump row needs
+        # it) the mean of its nodes' as above (its own, a function of the interpolated joints,
+        # tripled the flow rows' Hessian: 263k of 1.13M instructions); the curve mode (already
+        # at the edge of its iteration limit) keeps the midpoint's own
+        J = [crane.f_stroke(q)[1] for q, _, _ in pts]
+        if need_energy:
+            J += [(J[k] + J[k + 1]) / 2 for k in range(N)]
+        else:
+            J += [crane.f_stroke(q)[1] for q, _, _ in mids]
+        powers = []
+        for idx, (q, v, a) in enumerate(checks):
+            dxdq = J[idx]
+            xd = dxdq * v
+            # flows drawn from the pump as fractions of Q_max: extending (piston side) and
+            # retracting (annulus; none for a single-acting cylinder lowering)
+            sp = lay.add_var(f"sp{idx}", n, 0.0, 10.0)
+            lay.add_con("flow_extend", Qm * sp - Aa * xd, 0.0, ca.inf)
+            flows = [sp]
+            if dbl.any():
+                sm = lay.add_var(f"sm{idx}", n_dbl, 0.0, 10.0)
+                lay.add_con("flow_retract", Qm * sm + Ab[dbl] * xd[np.flatnonzero(dbl)], 0.0,
+                            ca.inf)
+                flows.append(sm)
+            total = sum(ca.sum1(f_) for f_ in flows)
+            if self.pump:
+                lay.add_con("pump", total, -ca.inf, 1 - pump_margin)
+            if need_energy and idx <= N:
+                F = crane.f_id(q, v, a, payload) / dxdq
+                if spec.pump.kind == "load_sensing":
+                    p = lay.add_var(f"p{idx}", 1, spec.pump.standby / 1e6, 1e3)  # [MPa]
+                    mg = spec.pump.margin / 1e6
+                    # load sensing: a function raises the pump pressure only while it draws
+                    # flow. Which ones do is the activity mask (a parameter, updated from the
+                    # solution and re-solved: see solve); inactive ones are relaxed by a big M,
+                    # so every constraint is smooth
+                    base = idx * (n + n_dbl)
+                    m_pos = act_mask[base:base + n]
+                    lay.add_con("pressure", p - mg - F / Aa / 1e6 + 1e3 * (1 - m_pos), 0.0,
+                                ca.inf)
+                    if dbl.any():
+                        k = np.flatnonzero(dbl)
+                        m_neg = act_mask[base + n:base + n + n_dbl]
+                        lay.add_con("pressure", p - mg + F[k] / Ab[k] / 1e6 + 1e3 * (1 - m_neg),
+                                    0.0, ca.inf)
+                else:
+                    p = lay.add_var(f"p{idx}", 1, spec.pump.pressure / 1e6,
+                                    spec.pump.pressure / 1e6)
+                powers.append(p * 1e6 * Qm * total / spec.pump.efficiency)
+        if not need_energy:
+            return 0
+        return h * (sum(powers[1:-1]) + 0.5 * (powers[0] + powers[-1]))

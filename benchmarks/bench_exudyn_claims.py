@@ -434,8 +434,9 @@ def header(args, t_start):
     return [f"Produced by `python benchmarks/bench_exudyn_claims.py {' '.join(args)}`".rstrip()
             + f" on {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {platform.node()} "
             f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}),"
-            f" load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the end (the "
-            f"machine was shared with other jobs), {(time.perf_counter() - t_start) / 60:.1f} min.",
+            f" load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the end (the study "
+            f"keeps one core busy; more is other work), {(time.perf_counter() - t_start) / 60:.1f}"
+            " min.",
             "", "Judges: **Exudyn** = the independent dynamic plant (planner/simulation/dynamic: "
             "multibody + oil compressibility, spool lag, orifice flow, LS pump), replaying the "
             "valve commands open loop; **fast** = the quasi-static replay plant of the same "
@@ -637,6 +638,7 @@ def main(argv=None):
                     / "exudyn-claims", help="where the library is built")
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
+    args.out.mkdir(parents=True, exist_ok=True)     # the figures are drawn before the tables
     if args.render:
         return render(args, t_start)
     crane = Crane.from_id("s100f")

@@ -199,6 +199,10 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
             return TimedPath("infeasible", f"a duration of {duration} s is too short: the "
                              f"fastest timing of this path under the limits takes "
                              f"{timing.duration:.3f} s", path, iterations=it)
+        if duration is not None:
+            # TOPPRAsd lands within about 1e-5 of the duration, on either side: scale the path
+            # speeds so that it lands on it (times scale by 1/c; verified below as scaled)
+            timing = PathTiming(grid, timing.sd * (timing.duration / duration))
         T = timing.duration
         if adapting and (it > adapt or (last is not None and abs(T / last - 1) < settle)):
             adapting = False      # the last round changed the duration by < settle: done

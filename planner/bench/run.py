@@ -173,7 +173,8 @@ def judge(ctx, move, method, out: Outcome, times, cache) -> dict:
             problems.append(f"not one executable motion: the joints jump by up to {jump:.3g} "
                             "(rad or m) where sections meet")
     if move.duration_s and end > move.duration_s + 1e-6:
-        problems.append(f"overruns the cycle ({end:.2f} s > {move.duration_s:.2f} s)")
+        problems.append(f"overruns the cycle by {end - move.duration_s:.3g} s ({end:.3f} s > "
+                        f"{move.duration_s:.3f} s)")
     bound, kind = _bound(ctx, move, checked, cache)
     row.update(lower_bound_s=bound, bound_kind=kind,
                gap_pct=None if not bound else 100.0 * (row["duration_s"] / bound - 1.0))

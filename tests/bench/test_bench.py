@@ -179,3 +179,32 @@ def test_malformed_task_files_name_the_field(tmp_path):
         f.write_text(ok + f"[bench]\n{bench}\n")
         with pytest.raises(ValueError, match=msg):
             build_suite(str(f), Settings.make(True))
+
+
+def test_a_cycle_judged_on_its_clock_overrun_named_with_its_size():
+    """A timed cycle must end on its clock: a piece ending 0.5 s late fails with the overrun
+    in the verdict; one ending within 1 µs of the clock passes (the TOPP-RA sections of
+    topp:dp land on their durations to ~1e-15 s)."""
+    import numpy as np
+    from planner.bench.context import Ctx, Outcome, Settings
+    from planner.bench.run import judge
+    from planner.bench.suites import build_suite
+    from planner.model import Crane
+    from planner.trajectory import Trajectory
+    st = Settings.make(quick=True)
+    suite = build_suite("seed002-hvd", st)
+    crane = Crane.from_id(suite.crane_id)
+    ctx = Ctx(crane, st, suite)
+    move = next(m for m in suite.moves if m.cycle)
+    T = move.duration_s
+    q0 = np.asarray(crane.ik(move.start), float).reshape(-1)
+
+    def still(end):
+        t = np.linspace(0.0, end, 50)
+        z = np.zeros((50, crane.n))
+        return Trajectory(t, np.tile(q0, (50, 1)), z, z, joint_names=tuple(crane.names))
+
+    late = judge(ctx, move, "x", Outcome("ok", pieces=[(0.0, still(T + 0.5))]), [], {})
+    assert not late["success"] and "overruns the cycle by 0.5 s" in late["verdict"]
+    on = judge(ctx, move, "x", Outcome("ok", pieces=[(0.0, still(T + 5e-7))]), [], {})
+    assert "overruns" not in on["verdict"]

@@ -64,7 +64,16 @@ def run(moves: int) -> dict:
     return dict(rows=rows)
 
 
-def report(res: dict, header: str) -> str:
+def history(md: Path) -> str:
+    """The hand-kept "History …" paragraph of an earlier report (earlier runs and what changed
+    in between), so that a re-run keeps it; "" when there is none."""
+    if not md.exists():
+        return ""
+    paras = md.read_text(encoding="utf-8").split("\n\n")
+    return next((p.strip() for p in paras if p.startswith("History")), "")
+
+
+def report(res: dict, header: str, hist: str = "") -> str:
     rows = res["rows"]
     s = {m: np.array([r[m]["s"] for r in rows]) for m in ("cold", "warm")}
     E = {m: np.array([r[m]["energy_J"] for r in rows]) for m in ("cold", "warm")}
@@ -81,8 +90,10 @@ def report(res: dict, header: str) -> str:
            f"| NLP won against the incumbents | "
            f"{sum(r['cold']['winner'] == 'nlp' for r in rows)} | "
            f"{sum(r['warm']['winner'] == 'nlp' for r in rows)} |",
-           f"| worst evaluate() violation | | {viol:.4%} (both) |", "",
-           "| move | T_min s | cold s | cold kJ | cold it. | warm s | warm kJ | warm it. | "
+           f"| worst evaluate() violation | | {viol:.4%} (both) |", ""]
+    if hist:
+        out += [hist, ""]
+    out += ["| move | T_min s | cold s | cold kJ | cold it. | warm s | warm kJ | warm it. | "
            "winner (cold / warm) |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     for r in rows:
         c, w = r["cold"], r["warm"]
@@ -109,7 +120,8 @@ def main():
               "interleaved per move on the same minimum-time result; energy judged by evaluate().")
     out = Path(a.out)
     atomic_write_text(out / "energy_rounds.json", json.dumps(dict(res, moves=a.moves), indent=1))
-    atomic_write_text(out / "energy_rounds.md", report(res, header))
+    atomic_write_text(out / "energy_rounds.md",
+                      report(res, header, history(out / "energy_rounds.md")))
 
 
 if __name__ == "__main__":

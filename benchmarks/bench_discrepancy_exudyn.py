@@ -72,14 +72,14 @@ def exudyn_record(crane, plan, ff, effects, seed):
     from planner.simulation.dynamic.exudyn_plant import ExudynPlant
     from planner.simulation.recording import Recording
     plant = ExudynPlant(crane, effects)
-    run = plant.run(np.asarray(ff.t, float), np.asarray(ff.u, float), plan.q[0],
-                    t_end=float(ff.t[-1]), max_wall_s=900.0)
+    run = plant.integrate(np.asarray(ff.t, float), np.asarray(ff.u, float), plan.q[0],
+                          t_end=float(ff.t[-1]), max_wall_s=900.0)
     if not run.ok:
         return None, f"{run.status} at t = {run.t_fail:.2f} s: {run.reason}"
     t = np.asarray(ff.t, float)
     t = t[t <= run.t[-1] + 1e-12]
     q, p_a, p_b, u = run.sample(t)
-    q_s, pa_s, pb_s = plant.sense(q, p_a, p_b)
+    q_s, pa_s, pb_s = plant.sense(q, p_a, p_b, t)
     return Recording(t, u, q_s, pa_s, pb_s).with_noise(crane, True, seed), ""
 
 

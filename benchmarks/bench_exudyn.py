@@ -48,7 +48,7 @@ def _ma(a, w=25):
 
 def rest(crane, q0):
     plant = ExudynPlant(crane)
-    run = plant.run([0.0, 1.0], np.zeros((2, crane.n)), q0)
+    run = plant.integrate([0.0, 1.0], np.zeros((2, crane.n)), q0)
     pa0, pb0 = plant.initial_pressures(q0)
     scale = np.maximum(np.maximum(np.abs(pa0), np.abs(pb0)), 1e5)
     err = np.maximum(np.abs(run.p_a[-1] - pa0), np.abs(run.p_b[-1] - pb0)) / scale
@@ -85,7 +85,7 @@ def natural_frequency(crane, q0):
     for i in range(crane.n):
         u = np.zeros((3, crane.n))
         u[0, i] = 0.3 * (1 if q0[i] < np.mean(crane.limit_arrays()["q_max"][i]) else -1)
-        run = plant.run([0.0, 0.2, 3.0], u, q0)
+        run = plant.integrate([0.0, 0.2, 3.0], u, q0)
         x = run.x[run.t > 0.45, i]
         x = x - x.mean()
         zc = np.flatnonzero(np.diff(np.sign(x)) != 0)

@@ -17,6 +17,7 @@ source = "…"
 hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
 coulomb = 1500.0                # N (N·m for rotary drives), seal friction at the actuator
 viscous = 2.0e4                 # N·s/m (N·m·s/rad)
+leakage = 0.0                   # m³/(s·Pa), loaded chamber to tank (optional, 0)
 [dynamics.grapple]              # optional: the load hangs on a passive two-axis link
 link_length = 1.2               # m, pivot at the boom tip to the centre of mass of grapple + load
 damping = 800.0                 # N·m·s/rad about each of the two pins
@@ -35,7 +36,7 @@ __all__ = ["JointDynamics", "GrappleLink", "DynamicsSpec", "parse_dynamics", "DY
 DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
                  "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
                  "joint", "grapple"}
-_JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "source"}
+_JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "leakage", "source"}
 _GRAPPLE_KEYS = {"link_length", "damping", "gyration", "source"}
 #: assumed radius of gyration [m] of grapple + load about their centre of mass: a forestry
 #: grapple with its rotator is about 1 m tall and its logs spread ~0.5 m around the axis
@@ -45,11 +46,13 @@ GYRATION = 0.3
 @dataclass(frozen=True)
 class JointDynamics:
     """Per-actuator dynamic data: hose volumes [m³] (piston side, rod side), Coulomb friction
-    [N | N·m] and viscous friction [N·s/m | N·m·s/rad] at the actuator."""
+    [N | N·m] and viscous friction [N·s/m | N·m·s/rad] at the actuator, leakage of the loaded
+    chamber to tank [m³/(s·Pa)] (0: tight)."""
     hose_volume: tuple[float, float]
     coulomb: float = 0.0
     viscous: float = 0.0
     source: str = ""
+    leakage: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,8 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
         joints[name] = JointDynamics(hose_volume=tuple(hv),
                                      coulomb=R.num(t, "coulomb", jw, default=0.0, lo=0.0),
                                      viscous=R.num(t, "viscous", jw, default=0.0, lo=0.0),
+                                     leakage=R.num(t, "leakage", jw, default=0.0, lo=0.0,
+                                                   hi=1e-9),
                                      source=R.text(t, "source", jw, default=""))
     g = R.table(tbl, "grapple", w, required=False)
     if g is not None:

@@ -171,8 +171,7 @@ def valve_set(crane, plant=Plant()) -> ValveSet:
     vs = ValveSet(flow_gain_scale=np.ones(crane.n),
                   deadband=valve_params(crane).deadband.copy(), pump_flow_scale=1.0)
     for e in as_effects(crane, plant):
-        if e.stage == "valves":
-            vs = e.valves(crane, vs)
+        vs = e.valves(crane, vs)        # the default hook changes nothing
     return vs
 
 
@@ -276,14 +275,12 @@ def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
     # what the valves act on (delays, lags)
     u_valves = u
     for e in effects:
-        if e.stage == "commands":
-            u_valves = e.commands(crane, t_u, u_valves)
+        u_valves = e.commands(crane, t_u, u_valves)     # the default hooks change nothing
     # initial state (mismatch), clipped into the joint range
     L = crane.limit_arrays()
     q_start = q0
     for e in effects:
-        if e.stage == "start":
-            q_start = e.start(crane, q_start)
+        q_start = e.start(crane, q_start)
     q_start = np.clip(q_start, L["q_min"], L["q_max"])
 
     # held stroke rates per command interval (valves, dead band, areas, flow sharing)

@@ -94,7 +94,7 @@ def test_at_rest_pressures_hold_the_models_load_holding_pressures(cid):
     crane = Crane.from_id(cid)
     plant = ExudynPlant(crane)
     q0 = random_configs(crane, 1, seed=4)[0]
-    run = plant.run([0.0, 1.0], np.zeros((2, crane.n)), q0)
+    run = plant.integrate([0.0, 1.0], np.zeros((2, crane.n)), q0)
     assert run.ok, run.reason
     pa0, pb0 = plant.initial_pressures(q0)
     scale = np.maximum(np.maximum(np.abs(pa0), np.abs(pb0)), 1e5)
@@ -127,7 +127,7 @@ def test_effects_act_on_the_dynamic_plant(s100f):
     base = ExudynPlant(s100f)
     assert heavy.payload == pytest.approx(base.payload + 300.0)
     tau = s100f.inverse_dynamics(q0, np.zeros(4), np.zeros(4), base.payload + 300.0)
-    run = heavy.run([0.0, 0.3], np.zeros((2, 4)), q0)
+    run = heavy.integrate([0.0, 0.3], np.zeros((2, 4)), q0)
     F = tau[1] / s100f.stroke(q0)[1][1]
     area = s100f.spec.joints[1].actuator.area_a
     assert run.p_a[-1, 1] == pytest.approx(F / area, rel=0.01)
@@ -138,7 +138,7 @@ def test_effects_act_on_the_dynamic_plant(s100f):
 
 def test_a_run_out_of_wall_time_stops_with_status_and_time(s100f):
     q0 = random_configs(s100f, 1, seed=6)[0]
-    run = ExudynPlant(s100f).run([0.0, 5.0], np.zeros((2, 4)), q0, max_wall_s=0.0)
+    run = ExudynPlant(s100f).integrate([0.0, 5.0], np.zeros((2, 4)), q0, max_wall_s=0.0)
     assert run.status == "timeout" and run.t_fail is not None and run.t_fail < 5.0
     assert not run.ok
 

@@ -24,6 +24,12 @@ dynamics     the oil's physical data, in the dynamic (Exudyn) plant only (bulk_m
              hose_volume; never drawn by trials nor fitted: the quasi-static model has no oil)
 ===========  ==================================================================================
 
+Which plant applies an effect is decided by its **hooks**, not its stage or its name: every
+plant lists the hooks it calls, an effect acts through the ones it overrides, and a plant that
+shares none with it refuses it by name (:mod:`planner.model.effects.hooks`; e.g. friction acts
+through ``force`` in the quasi-static plant and through ``dynamics`` — the actuator's own
+friction — in the dynamic ones).
+
 Adding an effect is one class: subclass :class:`Effect`, set its attributes, override its
 stage's hook (and ``trial_values`` when trials should draw it), and :func:`register` it —
 a built-in one in the tuple below (its place there is its place in the catalogue). Parse the
@@ -32,8 +38,9 @@ catalogue with :func:`catalogue`.
 """
 from planner.model.effects.base import (CATALOGUE, STAGES, Effect, Parameter, ValveSet,
                                              as_effects, catalogue, effect_from_dict, make,
-                                             fittable, parse_effect, quasi_static, register,
-                                             unregister)
+                                             fittable, parse_effect, quasi_static, refuse,
+                                             register, unregister)
+from planner.model.effects.hooks import EffectRefused
 from planner.model.effects.dynamics import BulkModulus, GrappleSwing, HoseVolume
 from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleLoad,
                                               JointOffset, PayloadMass, PressureOffset,
@@ -47,7 +54,8 @@ __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register",
            "JointOffset", "FlowGain", "ValveDeadband", "ValveLag", "TimeDelay", "PumpFlowLimit",
            "Leakage", "CoulombFriction", "ViscousFriction", "PayloadMass", "ActuatorMass",
            "PressureOffset", "StartOffset", "GrappleLoad", "SensorGain", "SensorDrift",
-           "PressureDrift", "BulkModulus", "HoseVolume", "GrappleSwing", "quasi_static", "fittable"]
+           "PressureDrift", "BulkModulus", "HoseVolume", "GrappleSwing", "quasi_static", "fittable",
+           "refuse", "EffectRefused"]
 
 for _cls in (JointOffset, FlowGain, ValveDeadband, ValveLag, TimeDelay, PumpFlowLimit, Leakage,
              CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset,

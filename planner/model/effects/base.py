@@ -27,11 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.model.effects.hooks import QUASI_STATIC_HOOKS, EffectRefused, hooks_in, overridden
 from planner.units import parse_angle
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",
            "catalogue", "make", "effect_from_dict", "parse_effect", "as_effects",
-           "quasi_static", "fittable"]
+           "quasi_static", "fittable", "refuse", "EffectRefused"]
 
 # the stages of the plant, in the order the plant applies them, then "dynamics": the oil's and
 # the hoses' physical data, which only the dynamic (Exudyn) plant has (set before it runs)
@@ -163,9 +164,26 @@ class Effect:
         return out
 
     def dynamics(self, crane, dyn):
-        """Dynamics stage: the dynamic plant's ``[dynamics]`` data (a
+        """A dynamic plant's ``[dynamics]`` data (a
         :class:`~planner.model.dynamics_spec.DynamicsSpec`) with this effect applied."""
         return dyn
+
+    def bodies(self, crane, spec):
+        """The machine's rigid-body data as a dynamic plant integrates it (a spec with other
+        masses) with this effect applied."""
+        return spec
+
+    # ---------------------------------------------------------------- plants
+    @classmethod
+    def own_hooks(cls) -> tuple:
+        """The hooks this effect class overrides (:mod:`planner.model.effects.hooks`)."""
+        return overridden(cls, Effect)
+
+    @classmethod
+    def hooks_in(cls, plant_hooks, physical_first: bool = False) -> tuple:
+        """The hooks through which it acts in a plant that calls ``plant_hooks`` (empty: that
+        plant refuses it; see :func:`planner.model.effects.hooks.hooks_in`)."""
+        return hooks_in(cls, Effect, plant_hooks, physical_first)
 
     @property
     def kinematic(self) -> bool:
@@ -410,21 +428,37 @@ def parse_effect(text: str, crane=None) -> Effect:
 
 
 def fittable() -> list:
-    """The catalogue names the quasi-static model can show, so fit (all but the dynamics
-    stage): the discrepancy search's default candidates."""
-    return [k for k, c in CATALOGUE.items() if c.stage != "dynamics"]
+    """The catalogue names the quasi-static model can show, so fit (every effect with a
+    quasi-static hook): the discrepancy search's default candidates."""
+    return [k for k, c in CATALOGUE.items() if c.hooks_in(QUASI_STATIC_HOOKS)]
+
+
+def refuse(effect, plant: str, plant_hooks, physical_first: bool = False,
+           elsewhere: str = "") -> tuple:
+    """The hooks through which ``effect`` (an instance or a class) acts in plant ``plant``
+    (a plant calling ``plant_hooks``); :class:`EffectRefused` naming the effect, what it acts
+    through and ``elsewhere`` (the plants that do apply it) when it shares none."""
+    cls = effect if isinstance(effect, type) else type(effect)
+    used = cls.hooks_in(plant_hooks, physical_first)
+    if not used:
+        own = cls.own_hooks()
+        raise EffectRefused(cls.name, plant, (
+            f"effect {cls.name}: the {plant} plant cannot apply it (it acts through "
+            f"{', '.join(own) or 'no hook'}, which the {plant} plant does not have)"
+            + (f"; {elsewhere}" if elsewhere else "")))
+    return used
 
 
 def quasi_static(effects) -> tuple:
-    """``effects`` (a tuple), refused with a ValueError when one of them acts on the oil's
-    dynamics (the ``dynamics`` stage), which the quasi-static plant and model do not have."""
+    """``effects`` (a tuple), refused with :class:`EffectRefused` (a ValueError) when one of
+    them has no quasi-static hook (the oil's dynamics, hose volumes, a swinging grapple),
+    which the quasi-static plant and model do not have."""
     effects = tuple(effects)
     for e in effects:
-        if e.stage == "dynamics":
-            raise ValueError(f"effect {e.name}: changes the oil's dynamics (stage 'dynamics'), "
-                             "which only the dynamic plant has; simulate with --plant exudyn "
-                             "(the quasi-static plant and model cannot show it, so the "
-                             f"quasi-static model cannot fit it; fittable: {', '.join(fittable())})")
+        refuse(e, "fast", QUASI_STATIC_HOOKS, elsewhere=(
+            "it changes what only a dynamic plant has; simulate it with the exudyn plant "
+            "(the quasi-static plant cannot show it, so the quasi-static model cannot fit "
+            f"it; fittable: {', '.join(fittable())})"))
     return effects
 
 

@@ -4,6 +4,7 @@ viscous_friction, payload_mass, grapple_load, actuator_mass) and what the transd
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -21,6 +22,15 @@ def smooth_sign(crane, i, xd):
     return np.tanh(xd / v)
 
 
+def _joint_dynamics(effect, crane, dyn, **change):
+    """``dyn`` with the effect's joint's :class:`JointDynamics` fields changed: each keyword
+    maps a field to a function of the old joint data."""
+    effect.index(crane)   # an unknown joint is refused with the known ones named
+    j = dyn.joints[effect.joint]
+    j2 = replace(j, **{k: f(j) for k, f in change.items()})
+    return replace(dyn, joints={**dyn.joints, effect.joint: j2})
+
+
 # ===================================================================== forces stage
 class CoulombFriction(Effect):
     name = "coulomb_friction"
@@ -35,6 +45,11 @@ class CoulombFriction(Effect):
     def force(self, crane, s):
         return self.on_own_joint(crane, s.force_model, lambda i: self.force_value
                                  * smooth_sign(crane, i, s.xd[:, i]))
+
+    def dynamics(self, crane, dyn):
+        # a dynamic plant: the actuator's own (smoothed) Coulomb friction, raised
+        return _joint_dynamics(self, crane, dyn, coulomb=lambda j: j.coulomb
+                               + self.force_value)
 
     @property
     def force_value(self):
@@ -59,6 +74,9 @@ class ViscousFriction(Effect):
 
     def force(self, crane, s):
         return self.on_own_joint(crane, s.force_model, lambda i: self.coefficient * s.xd[:, i])
+
+    def dynamics(self, crane, dyn):
+        return _joint_dynamics(self, crane, dyn, viscous=lambda j: j.viscous + self.coefficient)
 
     @classmethod
     def trial_values(cls, crane, i, magnitude, sign, rng, sequence):
@@ -111,6 +129,13 @@ class ActuatorMass(Effect):
 
     def force(self, crane, s):
         return self.mass * s.unit_actuator_force(self.index(crane))
+
+    def bodies(self, crane, spec):
+        # a dynamic plant integrates the heavier actuator itself (lumped as the model lumps it)
+        i = self.index(crane)
+        j = spec.joints[i]
+        j2 = replace(j, actuator=replace(j.actuator, mass=j.actuator.mass + self.mass))
+        return replace(spec, joints=spec.joints[:i] + (j2,) + spec.joints[i + 1:])
 
     @classmethod
     def observable(cls, crane, i):

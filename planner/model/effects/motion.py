@@ -192,6 +192,13 @@ class Leakage(Effect):
                             self.coefficient * (s.p_b[:, i] - pt) / a.area_b)
         return self.on_own_joint(crane, s.xd, rate)
 
+    def dynamics(self, crane, dyn):
+        # a dynamic plant: a flow from the loaded chamber to tank, ∝ its pressure
+        self.index(crane)
+        j = dyn.joints[self.joint]
+        j2 = replace(j, leakage=j.leakage + self.coefficient)
+        return replace(dyn, joints={**dyn.joints, self.joint: j2})
+
     @classmethod
     def observable(cls, crane, i):
         # the slew drive holds no gravity load, so nothing drives a leak

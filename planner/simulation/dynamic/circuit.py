@@ -47,6 +47,17 @@ _STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
 _STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
 #                          a damping force that jumps on at contact stalls the Newton iteration
 #                          of a start on a stop)
+_STOP_SOFT = 1.0e-4      # [m] the stiffness, too, ramps in over this penetration (the force is
+#                          k·o²/(2·δ) below δ, k·(o − δ/2) beyond: its slope is continuous at
+#                          contact; a slope that jumps from 0 to k made the implicit integrator's
+#                          Newton iteration fail on a joint that starts exactly on its stop)
+
+
+def _stop_spring(over):
+    """Penetration -> spring part of the end-stop force / stiffness (C¹ at contact)."""
+    o = np.abs(over)
+    return np.sign(over) * np.where(o < _STOP_SOFT, o * o / (2.0 * _STOP_SOFT),
+                                    o - 0.5 * _STOP_SOFT)
 
 
 def root(dp):
@@ -151,7 +162,7 @@ class Circuit:
         over = np.maximum(x - self.x_hi, 0.0) - np.maximum(self.x_lo - x, 0.0)
         k = _STOP_STIFFNESS * np.where(self.motor, 0.0, 1.0)
         ramp = np.minimum(np.abs(over) / _STOP_RAMP, 1.0)
-        return -k * over - _STOP_DAMPING * k * ramp * xd
+        return -k * _stop_spring(over) - _STOP_DAMPING * k * ramp * xd
 
     def force(self, p_a, p_b, x, xd):
         """Net actuator force [N | N·m] along +x."""
@@ -270,8 +281,11 @@ class Circuit:
                 if not motor[i]:
                     over = max(x[i] - hi[i], 0.0) - max(lo[i] - x[i], 0.0)
                     if over != 0.0:
-                        F -= _STOP_STIFFNESS * (over + _STOP_DAMPING * min(
-                            abs(over) / _STOP_RAMP, 1.0) * xd[i])
+                        o = abs(over)
+                        spring = (o * o / (2.0 * _STOP_SOFT) if o < _STOP_SOFT
+                                  else o - 0.5 * _STOP_SOFT)
+                        F -= _STOP_STIFFNESS * (math.copysign(spring, over) + _STOP_DAMPING
+                                                * min(o / _STOP_RAMP, 1.0) * xd[i])
                 out.append(F)
             return out
 

@@ -203,7 +203,7 @@ def replay_move(crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: 
     h0, wall = plant.step, 0.0
     try:
         for attempt in range(retries + 1):
-            run = plant.run(tu, uu, q0, t_end=t_end, max_wall_s=max_wall_s)
+            run = plant.integrate(tu, uu, q0, t_end=t_end, max_wall_s=max_wall_s)
             wall += run.wall_s
             if run.ok or run.status != "diverged" or "pressure" in run.reason \
                     or "range" in run.reason:    # a physical blow-up: a smaller step won't help

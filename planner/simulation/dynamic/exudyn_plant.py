@@ -35,9 +35,10 @@ import numpy as np
 from planner.model import Crane
 from planner.model.dynamics import lumped_links
 from planner.model.kinematics import joint_transforms
-from planner.model.effects import as_effects, effect_from_dict
+from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.simulation.dynamic.circuit import Circuit
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
+from planner.simulation.plants import BasePlant, PlantRecord
 from planner.simulation.replay import stroke_stops, valve_set
 
 __all__ = ["StrokeTable", "tree_parameters", "DynamicRun", "ExudynPlant", "PlantDiverged"]
@@ -165,16 +166,23 @@ class DynamicRun:
         return lin(self.q), lin(self.p_a), lin(self.p_b), self.u[k]
 
 
-class ExudynPlant:
+class ExudynPlant(BasePlant):
     """One machine as an Exudyn model (see the module doc), with the physical counterparts of
     ``effects`` (a sequence of :class:`planner.model.effects.Effect`, after the spec's own
-    calibrated ones): payload and grapple load (tip mass), actuator mass (lumped links),
-    Coulomb and viscous friction (added to the ``[dynamics]`` friction), the oil's bulk modulus
-    and hose volumes (the dynamics stage, on ``[dynamics]``), leakage (a flow out of
-    the loaded chamber), flow gain, dead band and pump limit (the valves stage), delay and spool
-    lag (the commands stage, before the plant's own spool), start offsets; sensor offsets act
-    on the output (:meth:`sense`). ``dynamics`` overrides the spec's ``[dynamics]``; ``step``
-    is the fixed integration step [s]."""
+    calibrated ones), each through the hooks it declares (:mod:`planner.model.effects.hooks`):
+    ``payload`` (tip mass), ``bodies`` (e.g. a heavier actuator, lumped as the model lumps
+    it), ``dynamics`` (the ``[dynamics]`` data: bulk modulus, hose volumes, friction, leakage,
+    the grapple link), ``valves`` (flow gains, dead bands, pump limit), ``commands`` (delay,
+    spool lag before the plant's own spool), ``start``, ``force`` (an extra actuator force
+    with no physical data, evaluated at the start of each step and held over it) and the
+    sensors (``sense_q_at`` / ``sense_p_at``, on the output: :meth:`sense`). An effect with
+    none of these (a bare stroke drift) is refused by name. ``dynamics`` overrides the spec's
+    ``[dynamics]``; ``step`` is the fixed integration step [s]."""
+    name = "exudyn"
+    description = ("Exudyn multibody + chamber-pressure dynamics, its own circuit code (the "
+                   "independent judge)")
+    hooks = DYNAMIC_HOOKS
+    physical_first = True
 
     def __init__(self, crane, effects=(), dynamics=None, step: float = 2e-3):
         spec = crane.spec
@@ -189,41 +197,29 @@ class ExudynPlant:
             raise ValueError(f"crane '{spec.id}': field 'transformer.enabled': true; the "
                              "dynamic plant does not model the hydraulic transformer")
         self.crane, self.step = crane, float(step)
-        given = tuple(effect_from_dict(d) for d in spec.effects) + as_effects(crane, effects)
-        self.effects = given
-        for e in given:   # the oil's own data: bulk modulus, hose volumes
+        self._take_effects(crane, effects)
+        for e in self.acting("dynamics"):   # the oil, hoses, friction, leakage, the grapple
             dyn = e.dynamics(crane, dyn)
         self.dyn = dyn
-        n = spec.n
         payload = spec.payload.total
-        extra_mass = np.zeros(n)
-        coulomb = np.array([dyn.joints[j.name].coulomb for j in spec.joints])
-        viscous = np.array([dyn.joints[j.name].viscous for j in spec.joints])
-        leak = np.zeros(n)
-        for e in given:
-            if e.stage == "forces":
-                payload = e.payload(crane, payload)
-                if e.name == "actuator_mass":
-                    extra_mass[e.index(crane)] += e.mass
-                elif e.name == "coulomb_friction":
-                    coulomb[e.index(crane)] += e.force_value
-                elif e.name == "viscous_friction":
-                    viscous[e.index(crane)] += e.coefficient
-            elif e.stage == "strokes" and e.name == "leakage":
-                leak[e.index(crane)] += e.coefficient
+        for e in self.acting("payload"):
+            payload = e.payload(crane, payload)
         self.payload = payload
         true_spec = spec
-        if np.any(extra_mass != 0):
-            joints = tuple(replace(j, actuator=replace(j.actuator, mass=j.actuator.mass + m))
-                           for j, m in zip(spec.joints, extra_mass))
-            true_spec = replace(spec, joints=joints)
+        for e in self.acting("bodies"):
+            true_spec = e.bodies(crane, true_spec)
         #: the rigid-body truth's own model (for initial pressures and energies only)
         self.true_crane = crane if true_spec is spec else Crane(true_spec)
-        vs = valve_set(crane, given)
+        #: effects whose extra force (no physical data) is added at each step
+        self.extra_forces = self.acting("force")
+        jd = [dyn.joints[j.name] for j in spec.joints]
+        vs = valve_set(crane, self.acting("valves"))
         self.stops = stroke_stops(crane)
         self.circuit = replace(Circuit.from_crane(crane, dyn, self.stops, vs.flow_gain_scale,
-                                                  vs.deadband, vs.pump_flow_scale, leak),
-                               coulomb=coulomb, viscous=viscous)
+                                                  vs.deadband, vs.pump_flow_scale,
+                                                  np.array([d.leakage for d in jd])),
+                               coulomb=np.array([d.coulomb for d in jd]),
+                               viscous=np.array([d.viscous for d in jd]))
         self.tree = (tree_parameters(true_spec, payload) if dyn.grapple is None else
                      extend_tree(tree_parameters(true_spec, 0.0), payload, dyn.grapple))
         self.strokes = StrokeTable(crane)
@@ -261,7 +257,8 @@ class ExudynPlant:
             q_t = _aslist(q_t)
             xd = [d[i] * q_t[i] for i in range(n)]
             F = f_force(p[:n], p[n:n2], x, xd)
-            return [d[i] * F[i] for i in range(n)] + [-c_pin * w for w in q_t[n:]]
+            fx = state["extra"]
+            return [d[i] * (F[i] + fx[i]) for i in range(n)] + [-c_pin * w for w in q_t[n:]]
 
         def rhs(mbs_, t, item, p):
             q = mbs_.GetNodeOutput(node, coords).tolist()
@@ -283,6 +280,22 @@ class ExudynPlant:
         mbs.AddObject(ObjectGenericODE1(nodeNumbers=[hnode], rhsUserFunction=rhs))
         return exu, SC, mbs, node, hnode, tree
 
+    def _extra_force(self, t, q, qd, p, k):
+        """The ``force`` hooks of effects without physical data at the state of step k
+        (held over the step; qdd from the last two steps' rates)."""
+        from planner.simulation.plant import PlantState
+        n, crane = self.crane.n, self.crane
+        q, qd = np.array(q[:n], float)[None], np.array(qd[:n], float)[None]
+        prev = self._state.get("qd_prev")
+        qdd = np.zeros_like(qd) if prev is None else (qd - prev) / self.step
+        self._state["qd_prev"] = qd
+        x, d = self.strokes.batch(q)
+        Fm = np.atleast_2d(self.true_crane.inverse_dynamics(q, qd, qdd, self.payload)) / d
+        s = PlantState(crane, np.array([t]), q, qd, qdd, x, d * qd, Fm, self.payload,
+                       force=Fm, p_a=np.array(p[:n], float)[None],
+                       p_b=np.array(p[n:2 * n], float)[None])
+        return sum(np.atleast_2d(e.force(crane, s))[0] for e in self.extra_forces)
+
     def initial_pressures(self, q0):
         """Load-holding chamber pressures at rest in q0 (the model's inverse dynamics of the
         true masses and payload): the state the plant starts from."""
@@ -291,8 +304,8 @@ class ExudynPlant:
         return self.circuit.initial_pressures(tau / np.array(self.strokes(q0)[1]))
 
     # ------------------------------------------------------------------ running
-    def run(self, t_u, u, q0, t_end: float | None = None, max_wall_s: float = 600.0,
-            spectral_radius: float = 0.9, controller=None) -> DynamicRun:
+    def integrate(self, t_u, u, q0, t_end: float | None = None, max_wall_s: float = 600.0,
+                  spectral_radius: float = 0.9, controller=None) -> DynamicRun:
         """Replay commands ``u`` (M, n), each held from ``t_u[k]`` (zero-order hold), from
         rest at ``q0`` (start effects applied) until ``t_end`` (default t_u[-1]). Returns a
         :class:`DynamicRun` (its status says whether it finished).
@@ -316,18 +329,16 @@ class ExudynPlant:
         if K < 1:
             raise ValueError(f"ExudynPlant.run: span {t_end - t0:g} s shorter than one step")
         u_valves = u
-        for e in self.effects:
-            if e.stage == "commands":
-                u_valves = e.commands(crane, t_u, u_valves)
+        for e in self.acting("commands"):
+            u_valves = e.commands(crane, t_u, u_valves)
         L = crane.limit_arrays()
-        for e in self.effects:
-            if e.stage == "start":
-                q0 = e.start(crane, q0)
+        for e in self.acting("start"):
+            q0 = e.start(crane, q0)
         q0 = np.clip(q0, L["q_min"], L["q_max"])
         pa0, pb0 = self.initial_pressures(q0)
         C = self.circuit
         ps0 = float(C.pump_setpoint(np.zeros(n)))
-        self._state = state = {"o": [0.0] * n}
+        self._state = state = {"o": [0.0] * n, "extra": [0.0] * n}
         m = len(self.tree["types"])     # the crane's joints, then the grapple's pins if any
         q0_tree = np.concatenate([q0, hanging_angles(self.tree, q0) if m > n else []])
         exu, SC, mbs, node, hnode, _ = self._build(q0_tree, np.concatenate([pa0, pb0, [ps0]]))
@@ -387,6 +398,8 @@ class ExudynPlant:
             target = np.clip(cmd, -1.0, 1.0)
             spool = target + (spool - target) * decay
             state["o"] = C.opening(spool).tolist()
+            if self.extra_forces:
+                state["extra"] = self._extra_force(t, q, qd, p, k).tolist()
             return True
 
         mbs.SetPreStepUserFunction(pre_step)
@@ -432,10 +445,38 @@ class ExudynPlant:
                           reason=fail.get("reason", ""), wall_s=_time.perf_counter() - wall0,
                           meta=dict(step=h, steps=K))
 
-    def sense(self, q, p_a, p_b):
-        """What the transducers report (the sensors-stage effects: offsets)."""
-        for e in self.effects:
-            if e.stage == "sensors":
-                q = e.sense_q(self.crane, q)
-                p_a, p_b = e.sense_p(self.crane, p_a, p_b)
+    def run(self, t_u, u, q0, t_end: float | None = None, rate: float | None = None,
+            **kw) -> PlantRecord:
+        """The plant interface (:class:`planner.simulation.plants.BasePlant`):
+        :meth:`integrate`, sampled at ``rate`` [Hz] (default: the command grid) and read
+        through the sensors (:meth:`sense`). ``kw``: :meth:`integrate`'s options."""
+        run = self.integrate(t_u, u, q0, t_end=t_end, **kw)
+        t_u = np.asarray(t_u, float)
+        dt = (1.0 / float(rate) if rate is not None else
+              float(np.median(np.diff(t_u))) if t_u.size > 1 else 0.02)
+        t = t_u[0] + dt * np.arange(int(np.floor((run.t[-1] - t_u[0]) / dt + 1e-9)) + 1)
+        q, p_a, p_b, u_s = run.sample(t)
+        q_s, pa_s, pb_s = self.sense(q, p_a, p_b, t)
+        return PlantRecord(t, u_s, q_s, pa_s, pb_s, q, p_a, p_b, plant=self.name,
+                           status=run.status, reason=run.reason, t_fail=run.t_fail,
+                           meta=dict(run.meta, run=run, wall_s=run.wall_s))
+
+    def sense(self, q, p_a, p_b, t=None):
+        """What the transducers report at the sample times ``t`` (N,) [s] (the sensor
+        effects: offsets, gains, drifts counted from the first sample). Without ``t`` a
+        time-dependent sensor effect is refused (it would silently read as constant)."""
+        q, p_a, p_b = (np.atleast_2d(np.asarray(a, float)) for a in (q, p_a, p_b))
+        sensors = [e for e in self.effects
+                   if {"sense_q_at", "sense_p_at"} & set(self.applied[e])]
+        if t is None:
+            timed = [e.name for e in sensors if {"sense_q_at", "sense_p_at"}
+                     & set(vars(type(e)))]
+            if timed:
+                raise ValueError(f"ExudynPlant.sense: effect {timed[0]} changes with time; "
+                                 "give the sample times t")
+            t = np.zeros(len(q))
+        t = np.asarray(t, float).ravel()
+        for e in sensors:
+            q = e.sense_q_at(self.crane, t, q)
+            p_a, p_b = e.sense_p_at(self.crane, t, p_a, p_b)
         return q, p_a, p_b

@@ -93,8 +93,8 @@ def run_online(crane, law_key: str, command, duration: float, q0, *, rate: float
     ctl = OnlineLaw(crane, make_online_law(law_key), command, rate, gain)
     t_end = duration + settle
     t_u = np.arange(0.0, t_end + 1e-9, 1.0 / rate)
-    run = plant.run(t_u, np.zeros((t_u.size, crane.n)), q0, t_end=t_end,
-                    max_wall_s=max_wall_s, controller=ctl)
+    run = plant.integrate(t_u, np.zeros((t_u.size, crane.n)), q0, t_end=t_end,
+                          max_wall_s=max_wall_s, controller=ctl)
     out = dict(law=law_key, status=run.status, t_fail=run.t_fail, reason=run.reason,
                gain=gain, max_tip_error_m=ctl.max_err,
                rms_tip_error_m=math.sqrt(ctl.sq_err / max(ctl.calls, 1)),

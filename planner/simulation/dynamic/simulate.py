@@ -48,7 +48,7 @@ def simulate_trajectory(crane, traj: Trajectory, rate: float = 50.0, effects=(),
         t_u = np.append(t_u, t_u[-1] + dt)
         u = np.vstack([u, np.zeros((1, crane.n))])
     t_end = float(max(traj.t[-1], t_u[-1]) + settle)
-    run = plant.run(t_u, u, traj.q[0], t_end=t_end, **run_kw)
+    run = plant.integrate(t_u, u, traj.q[0], t_end=t_end, **run_kw)
     return run, t_u, u, src
 
 
@@ -65,7 +65,7 @@ def exudyn_to_csv(crane, traj: Trajectory, out, rate: float = 50.0, noise=None, 
         raise PlantDiverged(run.status, run.t_fail, run.reason)
     t = np.arange(t_u[0], run.t[-1] + 1e-9, 1.0 / rate)
     q, p_a, p_b, u_s = run.sample(t)
-    q_s, pa_s, pb_s = plant.sense(q, p_a, p_b)
+    q_s, pa_s, pb_s = plant.sense(q, p_a, p_b, t)
     rec = Recording(t, u_s, q_s, pa_s, pb_s).with_noise(crane, noise, seed)
     cols = rec.to_csv(out, crane)
     q_plan = traj.sample(np.clip(t, traj.t[0], traj.t[-1]))[0]

@@ -1,0 +1,191 @@
+"""One plant interface: every plant is built from a machine and effects, runs valve commands
+open loop into the measured-data record, and reports what each effect did.
+
+=========  ===========================================================================  =======
+name       plant                                                                         judge?
+=========  ===========================================================================  =======
+fast       the quasi-static open-loop replay plus effects                               no: the
+           (:func:`planner.simulation.plant.respond`; the model that plans and fits)    model's
+exudyn     Exudyn multibody + chamber-pressure dynamics with its own circuit code        yes
+           (:class:`planner.simulation.dynamic.exudyn_plant.ExudynPlant`)
+=========  ===========================================================================  =======
+
+The dynamic twin of the next issue (the model's own pressure dynamics, for feed-forward and
+calibration) joins as one more :class:`BasePlant` subclass registered here.
+
+The contract (:class:`BasePlant`):
+
+* ``Plant(crane, effects=())`` — the spec's own ``[[effects]]`` first, then the given ones.
+  Each effect acts through the hooks it shares with the plant (``hooks``,
+  :mod:`planner.model.effects.hooks`); an effect that shares none is **refused** at
+  construction with :class:`~planner.model.effects.EffectRefused` naming it and the plants that
+  apply it. Nothing is dropped silently.
+* ``run(t_u, u, q0, t_end=None, rate=None)`` — commands ``u`` (M, n) held from ``t_u``
+  (zero-order hold), from rest at ``q0`` -> a :class:`PlantRecord` sampled at ``rate`` [Hz]
+  (default: the command grid): what the sensors report and the true states behind them.
+* ``report()`` — one row per effect: its name, joint, values and the hooks it acted through.
+
+:func:`plant_class` looks a plant up by name (imports only the one asked for: Exudyn is heavy).
+"""
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from planner.model.effects import as_effects, effect_from_dict, refuse
+from planner.model.effects.hooks import DYNAMIC_HOOKS, QUASI_STATIC_HOOKS
+
+__all__ = ["PlantRecord", "BasePlant", "FastPlant", "PLANTS", "plant_class", "make_plant",
+           "applying"]
+
+
+@dataclass
+class PlantRecord:
+    """A run of a plant sampled at ``t`` (N,) [s]: the commanded ``u`` (N, n) in effect, what
+    the sensors report (``q``, ``p_a``, ``p_b``; (N, n), rad | m, Pa) and the true states
+    (``q_true``, ``p_a_true``, ``p_b_true``); ``status`` "ok" | "diverged" | "timeout" with
+    ``reason`` and ``t_fail`` (a run that stopped early keeps what it recorded)."""
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    p_a: np.ndarray
+    p_b: np.ndarray
+    q_true: np.ndarray
+    p_a_true: np.ndarray
+    p_b_true: np.ndarray
+    plant: str
+    status: str = "ok"
+    reason: str = ""
+    t_fail: float | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def recording(self):
+        """The measured-data record (:class:`planner.simulation.recording.Recording`)."""
+        from planner.simulation.recording import Recording
+        return Recording(self.t, self.u, self.q, self.p_a, self.p_b)
+
+
+class BasePlant(ABC):
+    """A plant (see the module doc). A subclass sets ``name``, ``description``, ``hooks``
+    (the effect hooks it calls) and ``physical_first`` (a dynamic plant: an effect's physical
+    data replaces its quasi-static stand-ins), calls :meth:`_take_effects` in its constructor
+    and implements :meth:`run`."""
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    hooks: ClassVar[tuple[str, ...]] = ()
+    physical_first: ClassVar[bool] = False
+
+    def _take_effects(self, crane, effects) -> tuple:
+        """The spec's effects, then ``effects``; each checked against this plant's hooks
+        (:class:`EffectRefused` for one it cannot apply). Sets ``self.effects`` and
+        ``self.applied`` (effect -> the hooks it acts through here)."""
+        given = (tuple(effect_from_dict(d) for d in crane.spec.effects)
+                 + as_effects(crane, effects))
+        self.applied = {}
+        for e in given:
+            self.applied[e] = refuse(e, self.name, self.hooks, self.physical_first,
+                                     elsewhere=_elsewhere(e, self.name))
+        self.effects = given
+        return given
+
+    def acting(self, hook: str) -> list:
+        """The effects that act through ``hook`` in this plant, in order."""
+        return [e for e in self.effects if hook in self.applied[e]]
+
+    @abstractmethod
+    def run(self, t_u, u, q0, t_end: float | None = None,
+            rate: float | None = None) -> PlantRecord:
+        """Commands ``u`` (M, n) held from ``t_u`` (M,), from rest at ``q0`` (n,)."""
+
+    def report(self) -> list[dict]:
+        """What each effect did here: its catalogue form and the hooks it acted through."""
+        return [dict(e.to_dict(), plant=self.name, hooks=list(self.applied[e]))
+                for e in self.effects]
+
+
+def _grid(t_u, t_end, rate):
+    """Sample times: the command grid to ``t_end`` (default), or ``rate`` [Hz] from t_u[0]."""
+    t_u = np.asarray(t_u, float)
+    if rate is None:
+        dt = float(np.median(np.diff(t_u))) if t_u.size > 1 else 0.02
+    else:
+        dt = 1.0 / float(rate)
+    return t_u[0] + dt * np.arange(int(np.floor((t_end - t_u[0]) / dt + 1e-9)) + 1)
+
+
+def _sample(t_src, a, t):
+    return np.column_stack([np.interp(t, t_src, a[:, i]) for i in range(a.shape[1])])
+
+
+class FastPlant(BasePlant):
+    """The quasi-static replay with every stage of effects
+    (:func:`planner.simulation.plant.respond`): rigid flows from the commands, pressures from
+    the model's inverse dynamics, the quasi-static stand-ins of forces and leaks."""
+    name = "fast"
+    description = "quasi-static open-loop replay plus effects (the model's own family)"
+    hooks = QUASI_STATIC_HOOKS
+
+    def __init__(self, crane, effects=(), plant=None):
+        from planner.simulation.replay import Plant
+        self.crane = crane
+        self._take_effects(crane, effects)
+        self._deviations = Plant() if plant is None else plant
+        # the robustness study's deviations are effects too (checked like the others)
+        for e in as_effects(crane, self._deviations):
+            self.applied.setdefault(e, refuse(e, self.name, self.hooks))
+
+    def run(self, t_u, u, q0, t_end=None, rate=None) -> PlantRecord:
+        from planner.simulation.plant import respond
+        given = self.effects[len(self.crane.spec.effects):]
+        r = respond(self.crane, t_u, u, q0, given, plant=self._deviations, t_end=t_end)
+        t = r.t if rate is None else _grid(t_u, r.t[-1], rate)
+        if rate is None:
+            q, pa, pb, qt = r.q, r.p_a, r.p_b, r.state.q
+            pat, pbt, uu = r.state.p_a, r.state.p_b, r.u
+        else:
+            q, pa, pb = (_sample(r.t, a, t) for a in (r.q, r.p_a, r.p_b))
+            qt, pat, pbt = (_sample(r.t, a, t) for a in (r.state.q, r.state.p_a, r.state.p_b))
+            uu = np.asarray(u, float)[np.clip(np.searchsorted(t_u, t + 1e-9, side="right") - 1,
+                                              0, len(t_u) - 1)]
+        return PlantRecord(t, uu, q, pa, pb, qt, pat, pbt, plant=self.name,
+                           meta=dict(r.meta, response=r))
+
+
+#: name -> "module:Class" (imported on first use)
+PLANTS = {"fast": "planner.simulation.plants:FastPlant",
+          "exudyn": "planner.simulation.dynamic.exudyn_plant:ExudynPlant"}
+#: the hooks each plant calls, known without importing it (for messages and listings)
+PLANT_HOOKS = {"fast": (QUASI_STATIC_HOOKS, False), "exudyn": (DYNAMIC_HOOKS, True)}
+
+
+def plant_class(name: str) -> type:
+    """The plant class registered as ``name`` (ValueError naming the known ones)."""
+    if name not in PLANTS:
+        raise ValueError(f"plant = {name!r}; allowed: {', '.join(PLANTS)}")
+    mod, _, cls = PLANTS[name].partition(":")
+    return getattr(importlib.import_module(mod), cls)
+
+
+def make_plant(name: str, crane, effects=()) -> BasePlant:
+    """The plant ``name`` of ``crane`` with ``effects``."""
+    return plant_class(name)(crane, effects)
+
+
+def applying(effect) -> list[str]:
+    """The registered plants that apply ``effect`` (an instance or class)."""
+    cls = effect if isinstance(effect, type) else type(effect)
+    return [p for p, (hooks, phys) in PLANT_HOOKS.items() if cls.hooks_in(hooks, phys)]
+
+
+def _elsewhere(effect, here: str) -> str:
+    others = [p for p in applying(effect) if p != here]
+    return (f"plants that apply it: {', '.join(others)}" if others
+            else "no registered plant applies it")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 from planner.cli.common import CLIError, add_json_arg, emit, output_arg, read_trajectory
 from planner.model import Crane
@@ -72,8 +73,7 @@ def _simulate_exudyn(args, crane, traj, effects):
                                 noise=noise_levels(args.noise), seed=args.seed, effects=effects)
     except PlantDiverged as e:
         emit(args, dict(status=e.status, reason=e.reason, t_fail_s=e.t_fail, plant="exudyn"))
-        if not args.json:
-            print(f"error: {e}; nothing written")
+        print(f"error: {e}; nothing written", file=sys.stderr)
         return 3
     emit(args, summary)
     if not args.json:
@@ -83,13 +83,16 @@ def _simulate_exudyn(args, crane, traj, effects):
 
 
 def cmd_effects_list(args):
-    cat = catalogue()
+    from planner.model.effects import CATALOGUE
+    from planner.simulation.plants import applying
+    cat = [dict(e, plants=applying(CATALOGUE[e["name"]])) for e in catalogue()]
     emit(args, cat)
     if not args.json:
         for e in cat:
             ps = ", ".join(f"{k} {v if isinstance(v, str) else v}" for k, v in
                            e["parameters"].items())
-            only = " (--plant exudyn only)" if e.get("stage") == "dynamics" else ""
+            only = "" if "fast" in e["plants"] else (
+                f" (--plant {' / '.join(e['plants'])} only)")
             print(f"{e['name']:18s} {e['description']}{only}\n{'':18s} parameters: {ps}")
     return 0
 

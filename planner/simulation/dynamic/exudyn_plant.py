@@ -258,7 +258,9 @@ class ExudynPlant(BasePlant):
             xd = [d[i] * q_t[i] for i in range(n)]
             F = f_force(p[:n], p[n:n2], x, xd)
             fx = state["extra"]
-            return [d[i] * (F[i] + fx[i]) for i in range(n)] + [-c_pin * w for w in q_t[n:]]
+            # an effect's extra force is a load the actuator works against (as in the
+            # quasi-static plant, where the actuator must supply it)
+            return [d[i] * (F[i] - fx[i]) for i in range(n)] + [-c_pin * w for w in q_t[n:]]
 
         def rhs(mbs_, t, item, p):
             q = mbs_.GetNodeOutput(node, coords).tolist()
@@ -287,7 +289,7 @@ class ExudynPlant(BasePlant):
         n, crane = self.crane.n, self.crane
         q, qd = np.array(q[:n], float)[None], np.array(qd[:n], float)[None]
         prev = self._state.get("qd_prev")
-        qdd = np.zeros_like(qd) if prev is None else (qd - prev) / self.step
+        qdd = np.zeros_like(qd) if prev is None else (qd - prev) / self._state["h"]
         self._state["qd_prev"] = qd
         x, d = self.strokes.batch(q)
         Fm = np.atleast_2d(self.true_crane.inverse_dynamics(q, qd, qdd, self.payload)) / d
@@ -313,8 +315,23 @@ class ExudynPlant(BasePlant):
         ``controller(t, q, qd, p_a, p_b) -> u`` (n,): closed loop instead — called at every
         control instant ``t_u[k]`` with the plant's state (true joints, chamber pressures) and
         its command held until the next instant (``u`` then only gives the shape; the
-        commands-stage effects do not apply)."""
-        crane, n, h = self.crane, self.crane.n, self.step
+        commands-stage effects do not apply).
+
+        When the engine's Newton iteration fails (not the plant's own checks), the run is
+        repeated with half the step, twice at most: a starving pump or a stop hit at speed is
+        stiffer than the default step resolves (``meta["step"]`` says which step ran)."""
+        wall0 = _time.perf_counter()
+        for halvings in range(3):
+            run = self._integrate(self.step / 2 ** halvings, t_u, u, q0, t_end,
+                                  max_wall_s - (_time.perf_counter() - wall0),
+                                  spectral_radius, controller)
+            if run.ok or not run.meta.get("engine_failed"):
+                break
+        run.wall_s = _time.perf_counter() - wall0
+        return run
+
+    def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller):
+        crane, n = self.crane, self.crane.n
         t_u = np.asarray(t_u, float).ravel()
         u = np.atleast_2d(np.asarray(u, float))
         q0 = np.asarray(q0, float).ravel()
@@ -338,7 +355,7 @@ class ExudynPlant(BasePlant):
         pa0, pb0 = self.initial_pressures(q0)
         C = self.circuit
         ps0 = float(C.pump_setpoint(np.zeros(n)))
-        self._state = state = {"o": [0.0] * n, "extra": [0.0] * n}
+        self._state = state = {"o": [0.0] * n, "extra": [0.0] * n, "h": h}
         m = len(self.tree["types"])     # the crane's joints, then the grapple's pins if any
         q0_tree = np.concatenate([q0, hanging_angles(self.tree, q0) if m > n else []])
         exu, SC, mbs, node, hnode, _ = self._build(q0_tree, np.concatenate([pa0, pb0, [ps0]]))
@@ -392,7 +409,7 @@ class ExudynPlant(BasePlant):
                 fail.update(status="timeout", t=t, reason=f"wall time above {max_wall_s:g} s")
                 return False
             if bad:
-                fail.update(status="diverged", t=t, reason=bad)
+                fail.update(status="diverged", t=t, reason=bad, checked=True)
                 return False
             # spool: first-order lag towards the held (delayed, lagged) command, exact step
             target = np.clip(cmd, -1.0, 1.0)
@@ -429,6 +446,10 @@ class ExudynPlant(BasePlant):
             last = np.flatnonzero(np.isfinite(rec["p_s"]))
             fail = dict(status="diverged", t=float(rec["t"][last[-1]]) if last.size else t0,
                         reason="the integrator did not converge")
+        engine = bool(fail) and fail.get("status") == "diverged" and "reason" in fail and (
+            ok is False and not fail.get("checked"))
+        if engine:
+            fail["reason"] = self._engine_failure(rec, h, fail["reason"])
         if not fail:
             record(K)
             rec["u"][K] = rec["u"][K - 1]
@@ -443,7 +464,24 @@ class ExudynPlant(BasePlant):
                           u=rec["u"], circuit=C, payload=self.payload,
                           status=fail.get("status", "ok"), t_fail=fail.get("t"),
                           reason=fail.get("reason", ""), wall_s=_time.perf_counter() - wall0,
-                          meta=dict(step=h, steps=K))
+                          meta=dict(step=h, steps=K, engine_failed=engine))
+
+    def _engine_failure(self, rec, h, what: str) -> str:
+        """The reason of an engine failure with what the plant was doing: the joints on or
+        near a stroke end and the pump-line pressure at the last recorded step."""
+        last = np.flatnonzero(np.isfinite(rec["p_s"]))
+        if not last.size:
+            return f"{what} (at the first step of {h:g} s)"
+        k = last[-1]
+        x, _ = self.strokes.batch(rec["q"][k:k + 1, :self.crane.n])
+        lo, hi = self.circuit.x_lo, self.circuit.x_hi
+        near = [f"{j} ({'lower' if abs(x[0, i] - lo[i]) < abs(x[0, i] - hi[i]) else 'upper'})"
+                for i, j in enumerate(self.crane.names)
+                if not self.circuit.motor[i]
+                and min(abs(x[0, i] - lo[i]), abs(x[0, i] - hi[i])) < 1e-3]
+        return (f"{what}: the integrator's Newton iteration failed with a step of {h:g} s; "
+                f"joints at a stroke end: {', '.join(near) or 'none'}; pump line "
+                f"{rec['p_s'][k] / 1e6:.2f} MPa")
 
     def run(self, t_u, u, q0, t_end: float | None = None, rate: float | None = None,
             **kw) -> PlantRecord:

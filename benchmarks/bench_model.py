@@ -46,7 +46,7 @@ from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.model import Crane  # noqa: E402
 from planner.model.spec import load_spec  # noqa: E402
 from planner.trajectory import Trajectory, evaluate  # noqa: E402
-from problems import crane_ids, crane_path  # noqa: E402
+from planner.problems import crane_ids, crane_path  # noqa: E402
 
 SEED = 20240611
 KIN_NUMBER, KIN_REPEAT = 2000, 7       # (b) timeit loops

@@ -3,7 +3,7 @@
 The public API (everything else is reachable through the subpackages)::
 
     from planner import Crane, PlanRequest, plan, evaluate
-    crane = Crane.from_id("s100f")                      # a machine of problems/cranes/
+    crane = Crane.from_id("s100f")                      # a machine of planner/problems/cranes/
     res = plan(crane, PlanRequest((6, -1, 0), (3, 2.5, 1.5)), method="nlp")
     verdict = evaluate(crane, res.trajectory)          # the one judge of every method
 

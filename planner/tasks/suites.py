@@ -2,7 +2,7 @@
 references).
 
 On-disk format (TOML; lengths in m, times in s, energies in J, angles in rad or '30deg'; tip
-points (r, z, slew) in the crane's frame 0, DESIGN.md CONTRACT: tip coordinates):
+points (r, z, slew) in the crane's frame 0, docs/design.md, "CONTRACT: tip coordinates"):
 
 ``[suite]``
     ``id``, ``crane`` (machine id), ``description``, ``source`` (provenance of the numbers).

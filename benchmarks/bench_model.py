@@ -3,7 +3,7 @@
 
     python benchmarks/bench_model.py [--out benchmarks/results]
 
-For every shipped machine (problems.crane_ids()) this measures
+For every shipped machine (planner.problems.crane_ids()) this measures
 
 a) model build time ``Crane(load_spec(path))`` (includes compiling the stroke map, which the
    constructor uses for its actuator checks) and the first-call (compile) time of the numeric

@@ -305,7 +305,7 @@ def load_crane(crane_id: str) -> CraneSpec:
 
 
 def _resolve(crane_id: str) -> str:
-    return str(crane_file(crane_id))
+    return str(crane_file(crane_id).resolve())
 
 
 @lru_cache(maxsize=16)

@@ -47,9 +47,10 @@ def crane_path(crane_id: str) -> Path:
 
 
 def crane_file(crane_id_or_path) -> Path:
-    """The spec file of a shipped machine id or of a path to a ``.toml`` file (absolute)."""
+    """The spec file of a shipped machine id, or the path given when it names a ``.toml``
+    file; a KeyError lists the known ids otherwise."""
     given = _given_file(crane_id_or_path)
-    return given.resolve() if given is not None else crane_path(str(crane_id_or_path))
+    return given if given is not None else crane_path(str(crane_id_or_path))
 
 
 def task_ids() -> list[str]:

@@ -54,6 +54,7 @@ from planner.bench.suites import build_suite  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.library.store import LibraryStore  # noqa: E402
 from planner.methods.nlp import MoveNLP  # noqa: E402
+from planner.problems import task_path  # noqa: E402
 from planner.simulation.dynamic.claims import replay_move, stored_commands  # noqa: E402
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant  # noqa: E402
 
@@ -72,7 +73,7 @@ def log(*a):
 # ------------------------------------------------------------------------------ the library
 def subset_suite(path: Path) -> Path:
     """The task file of the library subset (the shipped forwarder cycle with fewer points)."""
-    src = (ROOT / "problems" / "tasks" / "forwarder-cycle.toml").read_text(encoding="utf-8")
+    src = task_path("forwarder-cycle").read_text(encoding="utf-8")
     for a, b in (('id = "forwarder-cycle"', 'id = "forwarder-cycle-claims"'),
                  ("r = [4.0, 5.0, 6.0, 7.0, 8.0]", "r = [4.0, 6.0, 8.0]"),
                  ('slew = ["-100deg", "-50deg", "0deg", "50deg", "100deg"]',

@@ -3,7 +3,7 @@
 
     python benchmarks/bench_model.py [--out benchmarks/results]
 
-For every shipped machine (problems.crane_ids()) this measures
+For every shipped machine (planner.problems.crane_ids()) this measures
 
 a) model build time ``Crane(load_spec(path))`` (includes compiling the stroke map, which the
    constructor uses for its actuator checks) and the first-call (compile) time of the numeric
@@ -46,7 +46,7 @@ from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.model import Crane  # noqa: E402
 from planner.model.spec import load_spec  # noqa: E402
 from planner.trajectory import Trajectory, evaluate  # noqa: E402
-from problems import crane_ids, crane_path  # noqa: E402
+from planner.problems import crane_ids, crane_path  # noqa: E402
 
 SEED = 20240611
 KIN_NUMBER, KIN_REPEAT = 2000, 7       # (b) timeit loops

@@ -68,7 +68,7 @@ from planner.methods.ruckig import NO_JERK, rest_to_rest, switch_times  # noqa: 
 from planner.methods.topp import raw_retime, retime  # noqa: E402
 from planner.model import Crane  # noqa: E402
 from planner.trajectory import evaluate  # noqa: E402
-from problems import crane_ids  # noqa: E402
+from planner.problems import crane_ids  # noqa: E402
 
 SEED = 15
 TOPP_MOVES, RUCKIG_MOVES = 4, 6     # per machine

@@ -54,7 +54,7 @@ SMALL, S, OUT, T_START = study(SMALL_SETTINGS, FULL_SETTINGS)  # reads CRANE_NB_
 # Seed 000 gives the joint ranges and speeds of the Cranab 850 but its figure with the link
 # lengths is lost. `tools/fit_cranab850.py` fitted the boom-foot height d0, the boom d1 and
 # the outer boom d2 so that the seed's DP (Δ = 0.01 m, telescope grid 0.01 m, q = 5, speed
-# limits only) reproduces Table 8.1; the spec `problems/cranes/cranab850.toml` carries the
+# limits only) reproduces Table 8.1; the spec `planner/problems/cranes/cranab850.toml` carries the
 # result, the fit record is `benchmarks/results/cranab850_fit.json`.
 
 # %%

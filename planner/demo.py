@@ -18,8 +18,6 @@ DEFAULT_CRANE = "s100f"
 def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = True) -> dict:
     """Write the demo into ``out`` (created). Returns a JSON-ready summary."""
 
-    from problems import crane_ids
-
     from planner.bounds import lower_bound
     from planner.io import atomic_write_text
     from planner.io import progress as progress_bar
@@ -28,6 +26,7 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
     from planner.model import Crane
     from planner.geometry.paths import Line
     from planner.plots import trajectory_figure, workspace_extent, workspace_figure
+    from planner.problems import crane_ids
     from planner.trajectory import evaluate
 
     out = Path(out)

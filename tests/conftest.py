@@ -1,4 +1,5 @@
-"""Shared fixtures: the shipped machines (problems/cranes/*.toml), each once per session.
+"""Shared fixtures: the shipped machines (planner/problems/cranes/*.toml), each once per
+session.
 
 ``crane`` runs a test on every machine; ``cranab850``, ``umea_lab``, ``s100f`` and ``cat215b``
 name one. ``random_configs`` draws joint configurations inside a machine's limits.
@@ -8,7 +9,7 @@ import pytest
 from hypothesis import settings
 
 from planner import Crane
-from problems import crane_ids
+from planner.problems import crane_ids
 
 settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True,
                           print_blob=True)

@@ -33,7 +33,7 @@ from planner.methods.dp import dp
 from planner.model import Crane
 from planner.geometry.paths import Line
 from planner.model.spec import parse_spec
-from problems import crane_path
+from planner.problems import crane_path
 
 POINTS = dict(A=(1.5, 1.0, 0.0), B=(5.5, 1.0, 0.0), C=(5.5, -3.0, 0.0))
 MOVES = (("A", "B"), ("B", "C"), ("A", "C"))

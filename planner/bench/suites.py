@@ -1,4 +1,4 @@
-"""The benchmark's task suites: a task file (problems/tasks/<name>.toml, read by
+"""The benchmark's task suites: a task file (planner/problems/tasks/<name>.toml, read by
 :mod:`planner.tasks.suites`) plus its ``[bench]`` table, and per method its runner or why it
 does not apply ("n/a"). Tip points are (r, z, slew) [m, m, rad] in the crane's frame 0.
 
@@ -7,7 +7,7 @@ does not apply ("n/a"). Tip points are (r, z, slew) [m, m, rad] in the crane's f
 | ``seed000-abc`` | cranab850 | A–B, B–C, A–C (seed 000, Tables 8.1/8.2), straight lines |
 | ``seed002-hvd`` | s100f | seed 002's timed cycles h, v, d, 0.5 and 1 m/s per axis (cycles.py) |
 | ``seed003-paths`` | umea-lab | seed 003's circle and parabola (α = −45°, see seed003_paths.md) |
-| ``forwarder-cycle`` | s100f | a seeded sample of problems/tasks/forwarder-cycle.toml; headboard |
+| ``forwarder-cycle`` | s100f | a seeded sample of the shipped forwarder-cycle.toml; headboard |
 
 The ``[bench]`` table of a task file (read here):
 

@@ -1,5 +1,5 @@
 """The verdict of the discrepancy workflow: ``explained`` | ``named`` | ``ambiguous`` |
-``unexplained`` (DESIGN "CONTRACT: command line").
+``unexplained`` (docs/design.md, "CONTRACT: command line").
 
 * **explained** — no effect earns a name, and the nominal residual is noise: every channel's
   held-out mean square within :func:`noise_bound` (never 4 or more: a channel's RMS ≥ 2 σ),

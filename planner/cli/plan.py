@@ -1,5 +1,5 @@
 """``plan CRANE --start --goal``: one move with a registered method (planner.methods), judged
-by evaluate(); JSON keys per DESIGN.md (CONTRACT: command line).
+by evaluate(); JSON keys per docs/design.md, "CONTRACT: command line" (all: docs/json-keys.md).
 
 Limits in the result: ``max_limit_violation`` is the largest relative excess over the limit
 kinds the method plans with, listed in ``checked_limits`` (e.g. the DP: position, velocity,
@@ -31,7 +31,7 @@ CONTROL_RATE_HZ = 50.0  # the valve commands of a plan stored with --out FILE.h5
 
 def cmd_plan(args):
     """Plan one move with a registered method (planner.methods.registry); JSON keys per
-    DESIGN.md. Failures come back as a status with a reason."""
+    docs/design.md, "CONTRACT: command line". Failures come back as a status with a reason."""
     check_outputs(args)   # before a long solve
     crane = Crane.from_id(args.crane)
     method = args.method

@@ -6,13 +6,12 @@ import dataclasses
 import math
 import sys
 
-from problems import crane_ids, load_crane
-
 from planner.bounds import lower_bound
 from planner.cli.common import CLIError, add_json_arg, emit, output_arg, point_arg
 from planner.io import atomic_write_text
-from planner.model import Crane
+from planner.model import Crane, load_crane
 from planner.model.urdf import urdf_xml
+from planner.problems import crane_ids
 from planner.plots import FigureFormatError, figure_format, workspace_extent, workspace_figure
 
 

@@ -1,6 +1,6 @@
 """Build a library of ready-to-replay moves for a machine's work cycle.
 
-A task suite (problems/tasks/<name>.toml) expands to moves (id, start tip, goal tip). For every
+A suite (planner/problems/tasks/<name>.toml) expands to moves (id, start tip, goal tip). For every
 move (one task, :func:`plan_move`: the minimum-time solve shared by its objectives) and
 objective a worker plans the move with a registered method (default ``nlp``; ``time``:
 the minimum-time move; ``energy``: the least pump energy within 1.2 × the minimum time, for the

@@ -92,8 +92,8 @@ def _option(name: str, value):
 @dataclass(frozen=True)
 class PlanRequest:
     """One move to plan. ``start``/``goal``: tip positions (r [m], z [m], slew [rad]) in the
-    spec's frame 0 (DESIGN.md, CONTRACT: tip coordinates). ``objective``: "time" or "energy";
-    ``path``: "free" (any joint path) or "line" (the straight tip line start → goal);
+    spec's frame 0 (docs/design.md, "CONTRACT: tip coordinates"). ``objective``: "time" or
+    "energy"; ``path``: "free" (any joint path) or "line" (the straight tip line start → goal);
     ``duration`` [s]: fixed or maximum duration where the method takes one; ``tip_speed``
     [m/s]: the path speed of path-following methods; ``obstacles``: objects of
     :mod:`planner.geometry.obstacles`; ``options``: method-specific settings (grid sizes,

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -24,8 +23,9 @@ from planner.model.hydraulics import OUTPUTS, hydraulics
 from planner.model.numeric import Batched
 from planner.model.kinematics import (UnreachableError, cylindrical, ik_planar, joint_transforms,
                          planar_chain, tip_position)
+from planner.problems import crane_file
 
-__all__ = ["Crane", "UnreachableError"]
+__all__ = ["Crane", "UnreachableError", "load_crane"]
 
 
 def _batch(a, n):
@@ -297,12 +297,15 @@ class Crane:
         return f"Crane({self.spec.id!r}, joints={self.names})"
 
 
+def load_crane(crane_id: str) -> CraneSpec:
+    """Validated :class:`~planner.model.spec.CraneSpec` of a shipped machine id (see
+    :func:`planner.problems.crane_ids`) or of a path to a TOML file; KeyError for an unknown id,
+    SpecError for a malformed file."""
+    return load_spec(crane_file(crane_id))
+
+
 def _resolve(crane_id: str) -> str:
-    from problems import crane_path
-    p = Path(crane_id)
-    if p.suffix == ".toml" and p.exists():
-        return str(p.resolve())
-    return str(crane_path(crane_id))
+    return str(crane_file(crane_id).resolve())
 
 
 @lru_cache(maxsize=16)

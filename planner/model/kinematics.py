@@ -1,9 +1,9 @@
 """Forward kinematics (symbolic, from the DH table) and the analytic knuckle-boom IK.
 
-Conventions (DESIGN.md, CONTRACT tip coordinates): standard DH, A_i = Rot_z(θ_i)·Trans_z(d_i)·
-Trans_x(a_i)·Rot_x(α_i); joint i moves about / along z of frame i; the tip is the origin of the
-last frame. Tip coordinates (r, z, slew) are cylindrical in frame 0: r = sqrt(x² + y²), z, slew =
-atan2(y, x).
+Conventions (docs/design.md, "CONTRACT: tip coordinates"): standard DH,
+A_i = Rot_z(θ_i)·Trans_z(d_i)·Trans_x(a_i)·Rot_x(α_i); joint i moves about / along z of frame i;
+the tip is the origin of the last frame. Tip coordinates (r, z, slew) are cylindrical in
+frame 0: r = sqrt(x² + y²), z, slew = atan2(y, x).
 
 The IK is derived from the forward kinematics itself (no second hand-written geometry): at slew
 zero the boom and jib rotate about parallel horizontal axes, so in the vertical plane of motion

@@ -1,7 +1,7 @@
 """Machine specifications: TOML -> validated, immutable dataclasses.
 
-A crane file (problems/cranes/*.toml) holds a ``[crane]`` table, one ``[[joint]]`` table per
-joint in chain order (DH row, limits, link inertia, actuator), ``[payload]``, ``[pump]`` and an
+A crane file (planner/problems/cranes/*.toml) holds a ``[crane]`` table, one ``[[joint]]`` table
+per joint in chain order (DH row, limits, link inertia, actuator), ``[payload]``, ``[pump]`` and an
 optional ``[transformer]``. Every table carries a ``source`` string (provenance of its numbers).
 Units are SI; angles may also be written as strings such as ``"123deg"``.
 

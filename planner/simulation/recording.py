@@ -1,5 +1,6 @@
-"""The measured-data CSV (CONTRACT, DESIGN.md), once: the :class:`Recording` it holds, reading
-(with every rejection naming line, column, value and what is allowed), writing, and sensor noise.
+"""The measured-data CSV (docs/design.md, "CONTRACT: measured-data CSV"), once: the
+:class:`Recording` it holds, reading (with every rejection naming line, column, value and what
+is allowed), writing, and sensor noise.
 
 Columns: ``t`` [s] first; ``u_<joint>`` (valve command in effect at t, −1…1); ``q_<joint>``
 [rad | m]; ``p_<joint>_a``, ``p_<joint>_b`` [Pa, absolute] for every actuator (rotary drives:

@@ -1,1 +1,1 @@
-"""Task suites (TOML under problems/tasks/) and work cycles."""
+"""Task suites (TOML under planner/problems/tasks/) and work cycles."""

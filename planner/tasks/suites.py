@@ -1,7 +1,8 @@
-"""Task suites: problems/tasks/<name>.toml -> moves (and the suite's obstacles and references).
+"""Task suites: planner/problems/tasks/<name>.toml -> moves (and the suite's obstacles and
+references).
 
 On-disk format (TOML; lengths in m, times in s, energies in J, angles in rad or '30deg'; tip
-points (r, z, slew) in the crane's frame 0, DESIGN.md CONTRACT: tip coordinates):
+points (r, z, slew) in the crane's frame 0, docs/design.md, "CONTRACT: tip coordinates"):
 
 ``[suite]``
     ``id``, ``crane`` (machine id), ``description``, ``source`` (provenance of the numbers).
@@ -52,7 +53,7 @@ from planner.geometry.paths import Line, Waypoints, circle, parabola
 from planner.model.spec import SpecError
 from planner.tasks.cycles import CYCLES, cycle
 from planner.units import parse_angle
-from problems import TASKS
+from planner.problems import task_path
 
 __all__ = ["Move", "TaskFile", "suite_path", "load_suite", "load_task_file", "PATH_KINDS"]
 
@@ -99,14 +100,7 @@ class TaskFile:
 def suite_path(name: str) -> Path:
     """The file of a shipped suite (by name) or a path to a .toml; KeyError naming the known
     suites otherwise."""
-    p = Path(name)
-    if p.suffix == ".toml" and p.exists():
-        return p
-    p = TASKS / f"{name}.toml"
-    if not p.exists():
-        known = ", ".join(sorted(x.stem for x in TASKS.glob("*.toml")))
-        raise KeyError(f"unknown task suite '{name}'; known: {known} (or a path to a .toml)")
-    return p
+    return task_path(name)
 
 
 class _Reader:

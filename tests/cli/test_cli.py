@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from planner.cli import main
+from planner.problems import crane_path
 from planner.units import parse_point
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,7 +56,7 @@ def test_problems_show_json(capsys):
     rc, out, err = _run(capsys, "problems", "show", "s100f", "--json", "-")
     assert rc == 0
     d = json.loads(out)
-    toml = tomllib.loads((ROOT / "problems" / "cranes" / "s100f.toml").read_text("utf-8"))
+    toml = tomllib.loads(crane_path("s100f").read_text("utf-8"))
     assert d["id"] == "s100f"
     assert [j["name"] for j in d["joints"]] == ["slew", "boom", "jib", "tele"]
     assert d["pump"]["max_flow"] == toml["pump"]["max_flow"]
@@ -75,7 +76,7 @@ def test_problems_show_text(capsys):
 
 
 def test_problems_show_by_path(capsys):
-    p = ROOT / "problems" / "cranes" / "cranab850.toml"
+    p = crane_path("cranab850")
     rc, out, _ = _run(capsys, "problems", "show", str(p), "--json", "-")
     assert rc == 0
     assert json.loads(out)["id"] == "cranab850"

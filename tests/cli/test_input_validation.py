@@ -9,7 +9,6 @@ import json
 import math
 import tomllib
 import tracemalloc
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,10 +24,10 @@ from planner.methods import dp as dp_module
 from planner.methods.dp import dp, grid_bytes
 from planner.model.effects import effect_from_dict, parse_effect
 from planner.model.spec import SpecError, parse_spec
+from planner.problems import crane_path
 from planner.trajectory import Trajectory
 from planner.units import check_tip, parse_point
 
-ROOT = Path(__file__).resolve().parents[2]
 A, B = "1.5,1.0,0", "5.5,-3.0,0"          # a cranab850 move
 
 
@@ -160,7 +159,7 @@ def test_dp_far_unreachable_start_answers_unreachable_quickly(capsys, start):
 # ------------------------------------------------------------------ 8: units sanity
 @pytest.fixture(scope="module")
 def umea() -> dict:
-    return tomllib.loads((ROOT / "problems" / "cranes" / "umea-lab.toml").read_text("utf-8"))
+    return tomllib.loads(crane_path("umea-lab").read_text("utf-8"))
 
 
 def test_pump_flow_in_litres_per_minute_is_refused(umea):

@@ -13,7 +13,7 @@ from planner.methods.laws_energy import (JLA, POptimal, QOptimal, cylinder_setup
                                          jla_gradient)
 from planner.model.spec import parse_spec
 from planner.trajectory import evaluate
-from problems import crane_path
+from planner.problems import crane_path
 
 
 @pytest.fixture(scope="module")

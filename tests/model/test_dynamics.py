@@ -11,7 +11,7 @@ from planner import Crane
 from planner.model.dynamics import rnea
 from planner.model.kinematics import joint_transforms
 from planner.model.spec import parse_spec
-from problems import crane_path
+from planner.problems import crane_path
 
 from tests.conftest import random_configs
 

@@ -11,7 +11,7 @@ from planner import Crane
 from planner.model import flows, valves
 from planner.model.hydraulics import OUTPUTS
 from planner.model.spec import parse_spec
-from problems import crane_path
+from planner.problems import crane_path
 
 from tests.conftest import MACHINES, random_configs
 

@@ -9,7 +9,7 @@ from planner import Crane
 from planner.model.hydraulics import ACTIVE_FLOW
 from planner.model.spec import parse_spec
 from planner.trajectory import Trajectory, evaluate
-from problems import crane_path
+from planner.problems import crane_path
 
 
 def min_jerk(q0, q1, T, rate=50.0):

@@ -2,7 +2,7 @@
 the field and what is allowed (planner/spec.py), including the geometric checks done when the
 model is built (planner.model.Crane._check_actuators, planner.model.kinematics.planar_chain).
 
-All cases start from the valid problems/cranes/umea-lab.toml (joints: 0 slew/rotary,
+All cases start from the valid planner/problems/cranes/umea-lab.toml (joints: 0 slew/rotary,
 1 boom/triangle, 2 jib/lever, 3 tele/telescope) and change one thing.
 """
 from __future__ import annotations
@@ -10,15 +10,15 @@ from __future__ import annotations
 import copy
 import math
 import tomllib
-from pathlib import Path
 
 import pytest
 
 from planner.model import Crane
 from planner.model.spec import SpecError, load_spec, parse_spec
+from planner.problems import crane_path
 from planner.units import parse_angle
 
-UMEA = Path(__file__).resolve().parents[2] / "problems" / "cranes" / "umea-lab.toml"
+UMEA = crane_path("umea-lab")
 FILE = "x.toml"
 JOINT_KEYS = ["actuator", "com", "dh", "inertia", "limits", "mass", "name", "source", "type"]
 

@@ -19,7 +19,7 @@ from planner.simulation.dynamic.simulate import exudyn_to_csv, simulate_trajecto
 from planner.simulation.plant import respond
 from planner.simulation.recording import read_measured_csv
 from planner.simulation.replay import stroke_stops
-from problems import crane_path
+from planner.problems import crane_path
 
 from tests.conftest import random_configs
 

@@ -1,4 +1,4 @@
-"""The catalogue of effects a nominal crane model can miss (DESIGN "Core ideas" 3).
+"""The catalogue of effects a nominal crane model can miss (docs/design.md, "Core ideas" 3).
 
 Each effect is one class (:class:`Effect`, see :mod:`planner.model.effects.base`): its
 parameters (unit, plausible range, neutral value), its injection into the "true" plant, its

@@ -322,7 +322,8 @@ class Effect:
 
 def is_slew(crane, i: int) -> bool:
     """True for the slew: the first joint of every crane spec turns the crane about the
-    vertical axis of frame 0 (DESIGN "tip coordinates"), so gravity does not depend on it."""
+    vertical axis of frame 0 (docs/design.md, "CONTRACT: tip coordinates"), so gravity does not
+    depend on it."""
     return i == 0
 
 

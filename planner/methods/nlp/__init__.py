@@ -17,6 +17,8 @@
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from planner.geometry.obstacles import Plate, Wall
 from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
 from planner.methods.nlp.energy import energy_optimal, pareto_front
@@ -85,6 +87,17 @@ class NLPPlanner(Planner):
         for n in paid:
             n.build_twins()   # adds its seconds to the NLP's build_time_s
         return sum(n.build_time_s for n in paid)
+
+    def library_request(self, crane, move, objective: str, *, time_result=None,
+                        settings) -> PlanRequest:
+        """The plain library request (:meth:`Planner.library_request`) with the NLP's own
+        options: ``intervals`` (``settings.intervals``) and, for an entry after the move's
+        minimum-time one, ``time_result`` (the energy NLP's warm start and incumbent, reused
+        instead of solved again)."""
+        req = super().library_request(crane, move, objective, time_result=time_result,
+                                      settings=settings)
+        return replace(req, options=dict(req.options, intervals=settings.intervals,
+                                         time_result=time_result))
 
     def clear(self) -> None:
         """Forget the NLPs built in this process (a timed build then starts from scratch)."""

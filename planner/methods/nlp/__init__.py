@@ -10,6 +10,10 @@
   (obstacles, line, curve); :mod:`~planner.methods.nlp.stagewise`: the FATROP solver on the
   stage-ordered problem (``MoveNLP(solver="auto" | "ipopt" | "fatrop")``);
 - :mod:`~planner.methods.nlp.guess`: its warm starts (and :func:`stretch`);
+  :mod:`~planner.methods.nlp.activity`: the load-sensing activity mask of its energy rounds;
+  :mod:`~planner.methods.nlp.twins`: the same NLP under other solver settings;
+  :mod:`~planner.methods.nlp.pump`: its pump rows and pump energy — collaborators that
+  MoveNLP holds and gives what they use (its layout, bounds, crane, options);
 - :mod:`~planner.methods.nlp.energy`: :func:`energy_optimal`, :func:`pareto_front`;
 - :mod:`~planner.methods.nlp.kinematic`: :func:`kinematic_line_nlp` (seed 000's setting).
 

@@ -20,6 +20,12 @@ compiled cache) and reuses them for every move; its seconds are in the summary
 first entry written. Tasks carry only the move and the options; the driver gathers results
 as they complete and is the only writer.
 
+Records: :class:`BuildSettings` (what is fixed for the whole build), :class:`MoveJob` (one
+task: a move and the objectives it lacks) and :class:`EntryResult` (one planned entry, as the
+worker returns it), all frozen and picklable. Each method turns the settings into its own
+request (:meth:`~planner.methods.base.Planner.library_request`: the plain request by default,
+the NLP adds its intervals and the minimum-time result that warm-starts its energy entry).
+
 Faults: one build per file (:mod:`planner.library.lock`: a second one is told the first one's
 pid); Ctrl-C or SIGTERM stops the build within seconds, ends the workers, completes the entry
 being written and leaves a resumable file; local workers die with a killed driver
@@ -28,19 +34,82 @@ refused before any file is created.
 """
 from __future__ import annotations
 
+import math
 import signal
 import time as _time
 from contextlib import nullcontext
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from planner.io import progress
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
-from planner.methods import PlanRequest, UnsupportedRequest, get, plan
+from planner.methods import UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
 OBJECTIVES = ("time", "energy")
 ENERGY_BUDGET = 1.2  # energy entries: least energy within 1.2 × the minimum time
+
+
+# ------------------------------------------------------------------------------ records
+@dataclass(frozen=True)
+class BuildSettings:
+    """What is fixed for a whole build and every worker of it (picklable: shipped to local
+    and Dask workers). ``crane_id``: the machine; ``suite``: the task suite's name (stored
+    with every entry); ``method``: the registered planning method; ``objectives``: the build's
+    objectives (:data:`OBJECTIVES`); ``intervals``: the NLP's N; ``robustness``: score every
+    entry's open-loop robustness; ``obstacles``: the suite's; ``energy_budget``: an energy
+    entry's duration limit as a multiple of the move's minimum time. Each method turns these
+    into its own request (:meth:`~planner.methods.base.Planner.library_request`)."""
+    crane_id: str
+    suite: str = ""
+    method: str = "nlp"
+    objectives: tuple = ("time",)
+    intervals: int = 40
+    robustness: bool = True
+    obstacles: tuple = ()
+    energy_budget: float = ENERGY_BUDGET
+
+    def __post_init__(self):
+        object.__setattr__(self, "objectives", tuple(self.objectives))
+        object.__setattr__(self, "obstacles", tuple(self.obstacles))
+
+
+@dataclass(frozen=True)
+class MoveJob:
+    """One task of a build: the entries of ``move`` for ``objectives`` (those the library
+    lacks), planned under ``settings`` by :func:`plan_move`."""
+    settings: BuildSettings
+    move: Move
+    objectives: tuple
+
+    def __post_init__(self):
+        object.__setattr__(self, "objectives", tuple(self.objectives))
+
+
+@dataclass(frozen=True)
+class EntryResult:
+    """One planned entry as a worker hands it to the driver (the single writer): the fields
+    of the stored entry (``trajectory`` and ``evaluation`` when ok, else None) and the
+    figures stored as its attributes (``solve_s``, ``cpu_s``, ``build_s`` [s],
+    ``clearance_m`` [m], ``energy_winner``; None where not measured). ``iterations``: the
+    method's own count (not stored)."""
+    id: str
+    start: tuple
+    goal: tuple
+    objective: str
+    method: str
+    status: str = ""
+    reason: str = ""
+    trajectory: object = None
+    evaluation: object = None
+    robustness: float = math.nan
+    clearance_m: float | None = None
+    solve_s: float | None = None
+    cpu_s: float | None = None
+    build_s: float | None = None
+    iterations: int = 0
+    energy_winner: str | None = None
 
 
 # ------------------------------------------------------------------------------ worker side
@@ -52,125 +121,121 @@ def clear_planner_caches() -> None:
         get(name).clear()
 
 
-def check_method(method: str, moves, objectives, obstacles) -> None:
+def check_method(settings: BuildSettings, crane, moves) -> None:
     """Refuse, before anything is written, a method that cannot plan the suite's requests
     (UnsupportedRequest / KeyError with the reason)."""
-    p = get(method)
+    p = get(settings.method)
     if moves:
-        for o in objectives:
-            p.check(_request(moves[0], o, 40, obstacles, 1.0 if o == "energy" else None))
+        for o in settings.objectives:
+            p.check(p.library_request(crane, moves[0], o, settings=settings))
 
 
-def _request(move: Move, objective: str, N: int, obstacles, duration=None, time_result=None):
-    return PlanRequest(move.start, move.goal, objective=objective, path="free",
-                       duration=duration, obstacles=obstacles,
-                       options=dict(intervals=N, time_result=time_result))
-
-
+@dataclass(frozen=True)
 class WorkerSetup:
     """What a worker builds once, before its first task: the machine model and the planning
     method's solvers for every objective of the build (:meth:`Planner.prepare`: loaded from the
-    compiled cache when there is an entry, built otherwise). Picklable: it is shipped to
-    every worker, local or remote."""
-
-    def __init__(self, crane_id: str, method: str, objectives, N: int, obstacles, move):
-        self.crane_id, self.method, self.objectives = crane_id, method, tuple(objectives)
-        self.N, self.obstacles, self.move = N, tuple(obstacles), move
+    compiled cache when there is an entry, built otherwise) for requests like ``move``'s (None:
+    nothing to prepare). Picklable: it is shipped to every worker, local or remote."""
+    settings: BuildSettings
+    move: Move | None = None
 
     def __call__(self) -> dict:
         from planner.model import Crane
-        crane = Crane.from_id(self.crane_id)
-        p = get(self.method)
+        crane = Crane.from_id(self.settings.crane_id)
+        p = get(self.settings.method)
         built = 0.0
         if self.move is not None:
-            for o in self.objectives:
-                built += p.prepare(crane, _request(self.move, o, self.N, self.obstacles,
-                                                   1.0 if o == "energy" else None))
+            for o in self.settings.objectives:
+                built += p.prepare(crane, p.library_request(crane, self.move, o,
+                                                            settings=self.settings))
         return dict(solver_build_s=built)
 
 
-def plan_entry(crane_id: str, move: Move, objective: str, N: int = 40,
-               robustness: bool = True, obstacles: tuple = (), method: str = "nlp") -> dict:
-    """Plan one library entry with the registered ``method`` (runs in a worker): ``time`` the
-    minimum-time move, ``energy`` the least pump energy within ENERGY_BUDGET × that time. Never
-    raises for planning failures: they come back as a status with a reason."""
-    return plan_move(crane_id, move, (objective,), N, robustness, obstacles, method)[0]
+def plan_entry(settings: BuildSettings, move: Move, objective: str) -> EntryResult:
+    """Plan one library entry with the registered ``settings.method`` (runs in a worker):
+    ``time`` the minimum-time move, ``energy`` the least pump energy within
+    ``settings.energy_budget`` × that time. Never raises for planning failures: they come back
+    as a status with a reason."""
+    return plan_move(MoveJob(settings, move, (objective,)))[0]
 
 
-def plan_move(crane_id: str, move: Move, objectives, N: int = 40, robustness: bool = True,
-              obstacles: tuple = (), method: str = "nlp") -> list:
-    """The entries of one move for each of ``objectives`` (a list of :func:`plan_entry`
-    results, in that order). The minimum-time move is solved once and serves every objective:
-    the time entry is it, the energy entry's budget and warm start come from it (a move with
-    both entries used to solve it twice). ``solve_s`` and ``cpu_s`` of each entry count from
-    the move's start, so the shared minimum-time solve is in each."""
+def plan_move(job: MoveJob) -> list:
+    """The entries of ``job.move`` for each of ``job.objectives`` (:class:`EntryResult`, in
+    that order). The minimum-time move is solved once and serves every objective: the time
+    entry is it, the energy entry's budget and warm start come from it (a move with both
+    entries used to solve it twice). ``solve_s`` and ``cpu_s`` of each entry count from the
+    move's start, so the shared minimum-time solve is in each."""
     from planner.model import Crane
     t0, c0 = _time.perf_counter(), _time.process_time()
-    outs = [dict(id=f"{move.id}:{o}", start=move.start, goal=move.goal, objective=o,
-                 method=method) for o in objectives]
+    st, move = job.settings, job.move
+    outs = [EntryResult(id=f"{move.id}:{o}", start=move.start, goal=move.goal, objective=o,
+                        method=st.method) for o in job.objectives]
     try:
-        crane = Crane.from_id(crane_id)
-        rt = plan(crane, _request(move, "time", N, obstacles), method)
+        crane = Crane.from_id(st.crane_id)
+        p = get(st.method)
+        rt = plan(crane, p.library_request(crane, move, "time", settings=st), st.method)
     except Exception as e:  # a failed move must never stop the build: record why
         return [_failed(out, e, t0) for out in outs]
     done = []
     for out in outs:
         try:
-            done.append(_entry(crane, move, out, rt, N, robustness, obstacles, method, t0, c0))
+            res = rt
+            if rt.ok and out.objective == "energy":
+                res = plan(crane, p.library_request(crane, move, "energy", time_result=rt,
+                                                    settings=st), st.method)
+                out = replace(out, energy_winner=res.stats.get("energy_winner"))
+            done.append(_entry(crane, st, out, rt, res, t0, c0))
         except Exception as e:
             done.append(_failed(out, e, t0))
     return done
 
 
-def _failed(out: dict, e: Exception, t0: float) -> dict:
+def _failed(out: EntryResult, e: Exception, t0: float) -> EntryResult:
     if isinstance(e, UnsupportedRequest):
-        return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
-    return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
-                solve_s=_time.perf_counter() - t0)
+        return replace(out, status="unsupported", reason=str(e),
+                       solve_s=_time.perf_counter() - t0)
+    return replace(out, status="error", reason=f"{type(e).__name__}: {e}",
+                   solve_s=_time.perf_counter() - t0)
 
 
-def _entry(crane, move: Move, out: dict, rt, N, robustness, obstacles, method, t0, c0) -> dict:
-    """One entry of :func:`plan_move` from the move's minimum-time result ``rt``."""
+def _entry(crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> EntryResult:
+    """One entry of :func:`plan_move`: the plan ``res`` of its objective (``rt``, the move's
+    minimum-time result, for the time entry) judged, with its feed-forward and robustness."""
     from planner.feedforward import commands
     from planner.trajectory import evaluate
-    res = rt
-    if rt.ok and out["objective"] == "energy":
-        res = plan(crane, _request(move, "energy", N, obstacles,
-                                   duration=ENERGY_BUDGET * rt.duration_s, time_result=rt),
-                   method)
-        out["energy_winner"] = res.stats.get("energy_winner")
     if not res.ok:
-        return dict(out, status=res.status, reason=res.reason, solve_s=_time.perf_counter() - t0)
+        return replace(out, status=res.status, reason=res.reason,
+                       solve_s=_time.perf_counter() - t0)
     traj = res.trajectory
     verdict = evaluate(crane, traj)  # the judge sees the plan itself
     if verdict.max_limit_violation > 1e-3:
         worst = max(verdict.violations, key=verdict.violations.get)
-        return dict(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
-                    f"{100 * verdict.max_limit_violation:.2f} %",
-                    solve_s=_time.perf_counter() - t0)
+        return replace(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
+                       f"{100 * verdict.max_limit_violation:.2f} %",
+                       solve_s=_time.perf_counter() - t0)
     # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
     # derived channels (strokes, pressures, pump) on those samples
     clear = float("nan")
-    if obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
+    if st.obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
         from planner.geometry.paths import tip_to_xyz
         cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
-        clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
+        clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in st.obstacles)
     # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
     # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
     traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
     ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
     rob = float("nan")
-    if robustness:
+    if st.robustness:
         from planner.simulation.replay import robustness as robust
         rob = float(robust(crane, traj_u)["score_m"])
-    return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
-                robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
-                iterations=res.stats.get("iterations", 0),
-                # CPU seconds of the worker process (its own threads included) and the
-                # seconds spent building solvers (0: the worker's set-up had built them)
-                cpu_s=_time.process_time() - c0,
-                build_s=float(rt.stats.get("build_time_s", 0.0)
-                              + (res.stats.get("build_time_s", 0.0) if res is not rt else 0)))
+    return replace(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
+                   robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
+                   iterations=res.stats.get("iterations", 0),
+                   # CPU seconds of the worker process (its own threads included) and the
+                   # seconds spent building solvers (0: the worker's set-up had built them)
+                   cpu_s=_time.process_time() - c0,
+                   build_s=float(rt.stats.get("build_time_s", 0.0)
+                                 + (res.stats.get("build_time_s", 0.0) if res is not rt else 0)))
 
 
 # ------------------------------------------------------------------------------ driver side
@@ -219,16 +284,17 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
         check_scheduler(scheduler)
     crane = Crane.from_id(crane_id)
     meta, moves = load_suite(suite)
-    obstacles = meta["obstacles"]
     if limit is not None:
         moves = moves[:limit]
-    check_method(method, moves, objectives, obstacles)
+    settings = BuildSettings(crane.spec.id, suite, method, objectives, N, robustness,
+                             meta["obstacles"])
+    check_method(settings, crane, moves)
     prepared_s = 0.0
     if compile and moves:   # the solvers built (and stored) once, before any worker starts
+        p = get(method)
         for o in objectives:
-            prepared_s += get(method).prepare(crane, _request(moves[0], o, N, obstacles,
-                                                              1.0 if o == "energy" else None),
-                                              compile=True)
+            prepared_s += p.prepare(crane, p.library_request(crane, moves[0], o,
+                                                             settings=settings), compile=True)
     out = Path(out)
     if out.exists() and not out.is_file():
         raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
@@ -236,8 +302,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     t0 = _time.perf_counter()
     state = dict(todo=[], counts={}, written=0, skipped=0, setup=[], first_entry_t=None,
                  setup_done_t=None)
-    setup = WorkerSetup(crane.spec.id, method, objectives, N, obstacles,
-                        moves[0] if moves else None)
+    setup = WorkerSetup(settings, moves[0] if moves else None)
     with SignalGuard() as guard:
         if scheduler:   # connected (and its workers set up) before any file is touched
             from planner.library.cluster import DaskPool
@@ -253,23 +318,24 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                     db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
                           else LibraryStore.create(out, crane.spec))
                     with db:
-                        _fill(db, crane, suite, moves, objectives, obstacles, N, robustness,
-                              method, pool, progress, guard, state, setup)
+                        _fill(db, settings, moves, pool, guard, state, setup,
+                              show_progress=progress)
                         info = db.info()
         except Interrupted as e:
-            e.summary = _summary(out, crane, suite, moves, objectives, state, t0,
-                                 status="interrupted", signal=signal.Signals(e.signum).name)
+            e.summary = _summary(out, settings, moves, state, t0, status="interrupted",
+                                 signal=signal.Signals(e.signum).name)
             raise
-    return _summary(out, crane, suite, moves, objectives, state, t0, status="ok", info=info,
+    return _summary(out, settings, moves, state, t0, status="ok", info=info,
                     prepare_s=prepared_s)
 
 
-def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:
+def _summary(out, settings: BuildSettings, moves, state, t0, **kw) -> dict:
     status = kw.pop("status")
     first = state.get("first_entry_t")
     done = state.get("setup_done_t")
-    return dict(status=status, library=str(out), crane=crane.spec.id, suite=suite,
-                moves=len(moves), objectives=list(objectives), planned=len(state["todo"]),
+    return dict(status=status, library=str(out), crane=settings.crane_id, suite=settings.suite,
+                moves=len(moves), objectives=list(settings.objectives),
+                planned=len(state["todo"]),
                 skipped_existing=state["skipped"], written=state["written"],
                 statuses=state["counts"], seconds=_time.perf_counter() - t0,
                 workers=state.get("setup", []),
@@ -278,10 +344,12 @@ def _summary(out, crane, suite, moves, objectives, state, t0, **kw) -> dict:
                 first_entry_s=None if first is None or done is None else first - done, **kw)
 
 
-def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method, pool,
-          show_progress, guard, state, setup=None) -> None:
-    """Plan the entries ``db`` lacks and write each as it arrives (``state`` is kept current so
-    that an interrupted build can still say what it wrote)."""
+def _fill(db, settings: BuildSettings, moves, pool, guard, state, setup=None, *,
+          show_progress: bool = True) -> None:
+    """Plan the entries ``db`` lacks (one :class:`MoveJob` per move, on ``pool`` or, None, in
+    this process after its ``setup``) and write each as it arrives (``state`` is kept current
+    so that an interrupted build can still say what it wrote)."""
+    objectives = settings.objectives
     done = set(db.ids())
     todo = [(m, o) for m in moves for o in objectives if f"{m.id}:{o}" not in done]
     # one task per move with all its missing objectives (the minimum-time solve shared); the
@@ -292,45 +360,43 @@ def _fill(db, crane, suite, moves, objectives, obstacles, N, robustness, method,
     tasks = sorted(per_move.values(), key=lambda mo: "energy" not in mo[1])
     state["todo"] = todo
     state["skipped"] = len(moves) * len(objectives) - len(todo)
-    bar = progress(len(todo), f"library {crane.spec.id}", "entry", enabled=show_progress)
+    bar = progress(len(todo), f"library {settings.crane_id}", "entry",
+                   enabled=show_progress)
     counts = state["counts"]
-    crane_id = crane.spec.id
 
-    def write(r):
-        traj = r.pop("trajectory", None)
-        ev = r.pop("evaluation", None)
+    def write(r: EntryResult):
         with guard.critical():  # a signal waits until the entry is complete
             if state["first_entry_t"] is None:
                 state["first_entry_t"] = _time.perf_counter()
-            db.add(r["id"], traj, start=r["start"], goal=r["goal"], objective=r["objective"],
-                   method=r["method"], status=r["status"], reason=r.get("reason", ""),
-                   evaluation=ev, robustness=r.get("robustness", float("nan")),
-                   attrs=dict(solve_s=r.get("solve_s"), cpu_s=r.get("cpu_s"),
-                              build_s=r.get("build_s"), suite=suite,
-                              energy_winner=r.get("energy_winner"),
-                              clearance_m=r.get("clearance_m")))
+            db.add(r.id, r.trajectory, start=r.start, goal=r.goal, objective=r.objective,
+                   method=r.method, status=r.status, reason=r.reason,
+                   evaluation=r.evaluation, robustness=r.robustness,
+                   attrs=dict(solve_s=r.solve_s, cpu_s=r.cpu_s, build_s=r.build_s,
+                              suite=settings.suite, energy_winner=r.energy_winner,
+                              clearance_m=r.clearance_m))
             state["written"] += 1
-            counts[r["status"]] = counts.get(r["status"], 0) + 1
+            counts[r.status] = counts.get(r.status, 0) + 1
             bar.update(1)
 
-    args = [(crane_id, m, tuple(objs), N, robustness, obstacles, method) for m, objs in tasks]
-    if not args:
+    jobs = [MoveJob(settings, m, tuple(objs)) for m, objs in tasks]
+    if not jobs:
         bar.close()
         return
     try:
         if pool is None:   # in this process: its set-up first, timed like a worker's
             state["setup"] = [run_setup(setup)]
             state["setup_done_t"] = _time.perf_counter()
-            for a in args:
-                for r in plan_move(*a):
+            for job in jobs:
+                for r in plan_move(job):
                     write(r)
         else:
-            for rs in pool.imap_unordered(plan_move, args):
+            for rs in pool.imap_unordered(plan_move, [(job,) for job in jobs]):
                 for r in rs:
                     write(r)
     finally:
         bar.close()
 
 
-__all__ = ["plan_entry", "plan_move", "WorkerSetup", "build", "check_method", "check_scheduler", "clear_planner_caches",
-           "BuildError", "OBJECTIVES"]
+__all__ = ["BuildSettings", "MoveJob", "EntryResult", "plan_entry", "plan_move", "WorkerSetup",
+           "build", "check_method", "check_scheduler", "clear_planner_caches", "BuildError",
+           "OBJECTIVES", "ENERGY_BUDGET"]

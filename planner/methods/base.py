@@ -225,6 +225,24 @@ class Planner(ABC):
         start. Returns the seconds it took; default: nothing to build."""
         return 0.0
 
+    def library_request(self, crane, move, objective: str, *, time_result: PlanResult | None
+                        = None, settings) -> PlanRequest:
+        """The request a library build (:mod:`planner.library.build`) plans for the
+        ``objective`` entry of ``move`` (its ``start`` and ``goal`` tips) on ``crane``.
+        ``settings``: the build's fixed settings (:class:`planner.library.build.BuildSettings`;
+        read here: ``obstacles``, ``energy_budget``); ``time_result``: the move's minimum-time
+        result, given for every entry after it. Default: the plain request — free path, the
+        suite's obstacles, and for an objective other than time whose duration this method
+        reads (:meth:`reads`) the limit ``energy_budget`` × the minimum time (before that time
+        is known, when the build checks or prepares the method, × 1 s). A method overrides
+        it to add its own options."""
+        duration = None
+        if objective != "time" and self.reads("duration", objective):
+            t_min = time_result.duration_s if time_result is not None else 1.0
+            duration = settings.energy_budget * t_min
+        return PlanRequest(move.start, move.goal, objective=objective, path="free",
+                           duration=duration, obstacles=settings.obstacles)
+
     @abstractmethod
     def plan(self, crane, request: PlanRequest) -> PlanResult:
         """Plan ``request`` on ``crane``; failures come back as a status, not an exception."""

@@ -203,18 +203,18 @@ def test_a_move_with_both_objectives_solves_minimum_time_once_and_gives_the_same
     """One task per move: the time entry and the energy entry from one shared minimum-time
     solve are the entries the objectives give planned one by one (the oracle), and the
     NLP's minimum-time problem is solved once instead of twice."""
-    from planner.library.build import plan_entry, plan_move
+    from planner.library.build import BuildSettings, MoveJob, plan_entry, plan_move
     from planner.methods.nlp.move import MoveNLP
     from planner.tasks.suites import load_suite
     move = load_suite("forwarder-cycle")[1][3]
-    kw = dict(N=10, robustness=False, obstacles=())
-    alone = [plan_entry("s100f", move, o, **kw) for o in ("time", "energy")]
+    st = BuildSettings("s100f", objectives=("time", "energy"), intervals=10, robustness=False)
+    alone = [plan_entry(st, move, o) for o in ("time", "energy")]
     calls, solve = [], MoveNLP.solve
     monkeypatch.setattr(MoveNLP, "solve", lambda self, *a, **k: (
         calls.append(self.objective), solve(self, *a, **k))[1])
-    both = plan_move("s100f", move, ("time", "energy"), **kw)
+    both = plan_move(MoveJob(st, move, ("time", "energy")))
     assert calls.count("time") == 1 and calls.count("energy") >= 1
     for a, b in zip(alone, both):
-        assert (a["id"], a["status"], b["status"]) == (b["id"], "ok", "ok")
-        assert np.array_equal(a["trajectory"].t, b["trajectory"].t)
-        assert np.array_equal(a["trajectory"].q, b["trajectory"].q)
+        assert (a.id, a.status, b.status) == (b.id, "ok", "ok")
+        assert np.array_equal(a.trajectory.t, b.trajectory.t)
+        assert np.array_equal(a.trajectory.q, b.trajectory.q)

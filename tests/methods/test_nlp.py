@@ -240,8 +240,8 @@ def test_energy_rounds_started_warm_reach_the_cold_answer(s100f, monkeypatch):
     T = 1.2 * rt.duration_s
     en = MoveNLP(s100f, "energy", "free", N=12)
     rounds = []
-    real = en._still_optimal
-    monkeypatch.setattr(en, "_still_optimal", lambda *a: rounds.append(1) or real(*a))
+    real = en.activity.still_optimal
+    monkeypatch.setattr(en.activity, "still_optimal", lambda *a: rounds.append(1) or real(*a))
     got = {}
     for warm in ("0", "1"):
         monkeypatch.setenv("CRANE_PLANNER_NLP_WARM_ROUNDS", warm)
@@ -272,20 +272,20 @@ def test_activity_round_ends_when_the_new_functions_already_hold(s100f):
                         ubx=en.ubw, lbg=en.lbg, ubg=en.ubg)
         assert en.solver.stats()["return_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
         return sol
-    mask = en._activity(en._last)
+    mask = en.activity.mask(en._last)
     sol = solve(mask, en._last)
     g = np.asarray(sol["g"]).ravel()[lay.rows("pressure")] - 1e3   # rows without the big M
     off = np.flatnonzero(mask == 0)
-    node = off // (s100f.n + int(en._dbl.sum()))
+    node = off // (s100f.n + int((~en.acts.single).sum()))
     held = off[g[off] > 1e-3]
     broken = off[(g[off] < -1e-2) & (node > 0) & (node < en.N)]   # inner nodes: flow there
     broken = broken[np.argsort(g[broken])]                          # the most broken first
     assert held.size and broken.size
     new = mask.copy()
     new[held] = 1
-    assert en._still_optimal(sol, mask, new)
+    assert en.activity.still_optimal(sol, mask, new)
     again = solve(new, np.asarray(sol["x"]).ravel())
     assert float(again["f"]) == pytest.approx(float(sol["f"]), rel=1e-5)
     new[broken[0]] = 1
-    assert not en._still_optimal(sol, mask, new)
+    assert not en.activity.still_optimal(sol, mask, new)
     assert float(solve(new, np.asarray(sol["x"]).ravel())["f"]) > float(sol["f"]) * (1 + 1e-5)

@@ -10,12 +10,18 @@
   (obstacles, line, curve); :mod:`~planner.methods.nlp.stagewise`: the FATROP solver on the
   stage-ordered problem (``MoveNLP(solver="auto" | "ipopt" | "fatrop")``);
 - :mod:`~planner.methods.nlp.guess`: its warm starts (and :func:`stretch`);
+  :mod:`~planner.methods.nlp.activity`: the load-sensing activity mask of its energy rounds;
+  :mod:`~planner.methods.nlp.twins`: the same NLP under other solver settings;
+  :mod:`~planner.methods.nlp.pump`: its pump rows and pump energy — collaborators that
+  MoveNLP holds and gives what they use (its layout, bounds, crane, options);
 - :mod:`~planner.methods.nlp.energy`: :func:`energy_optimal`, :func:`pareto_front`;
 - :mod:`~planner.methods.nlp.kinematic`: :func:`kinematic_line_nlp` (seed 000's setting).
 
 :class:`NLPPlanner` is registered as ``nlp`` when this package is imported.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 from planner.geometry.obstacles import Plate, Wall
 from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
@@ -85,6 +91,17 @@ class NLPPlanner(Planner):
         for n in paid:
             n.build_twins()   # adds its seconds to the NLP's build_time_s
         return sum(n.build_time_s for n in paid)
+
+    def library_request(self, crane, move, objective: str, *, time_result=None,
+                        settings) -> PlanRequest:
+        """The plain library request (:meth:`Planner.library_request`) with the NLP's own
+        options: ``intervals`` (``settings.intervals``) and, for an entry after the move's
+        minimum-time one, ``time_result`` (the energy NLP's warm start and incumbent, reused
+        instead of solved again)."""
+        req = super().library_request(crane, move, objective, time_result=time_result,
+                                      settings=settings)
+        return replace(req, options=dict(req.options, intervals=settings.intervals,
+                                         time_result=time_result))
 
     def clear(self) -> None:
         """Forget the NLPs built in this process (a timed build then starts from scratch)."""

@@ -2,8 +2,12 @@
 
 A load-sensing pump raises its pressure only for the functions that draw flow; which ones do at
 each node is a parameter of the NLP (the mask), taken from the guess and grown from each
-solution, re-solving while it grows (≤ 4 rounds, :meth:`MoveNLP._solve_from`). A grown mask
-needs no new round when the solution already meets the pressure rows it switches on.
+solution, re-solving while it grows (≤ 4 rounds, :meth:`MoveNLP._solve_from
+<planner.methods.nlp.move.MoveNLP>`). A grown mask needs no new round when the solution already
+meets the pressure rows it switches on.
+
+The mask's order: per node, first every actuator extending (piston side), then every
+double-acting one retracting (annulus side): :func:`mask_size` entries in all.
 """
 from __future__ import annotations
 
@@ -11,14 +15,26 @@ import numpy as np
 
 from planner.model.hydraulics import ACTIVE_FLOW
 
-__all__ = ["ActivityRounds"]
+__all__ = ["Activity", "mask_size"]
 
 
-class ActivityRounds:
-    """Mixin of :class:`~planner.methods.nlp.move.MoveNLP` (uses its crane, layout and the
-    actuator areas ``_Aa``, ``_Ab``, ``_dbl``)."""
+def mask_size(n: int, acts, N: int) -> int:
+    """Entries of the activity mask of an NLP with ``N`` intervals on ``n`` joints with the
+    actuators ``acts`` (:func:`~planner.model.flows.actuator_table`): per node one per joint
+    and one more per double-acting actuator."""
+    return (N + 1) * (n + int((~acts.single).sum()))
 
-    def _activity(self, w) -> np.ndarray:
+
+class Activity:
+    """The activity mask of one built move NLP: its ``crane``, its variable ``layout``
+    (:class:`~planner.methods.nlp.transcription.Layout`: the node states "X" and the
+    "pressure" rows) and its actuator table ``acts``."""
+
+    def __init__(self, crane, layout, acts):
+        self.crane, self.layout = crane, layout
+        self.Aa, self.Ab, self.dbl = acts.area_a, acts.area_b, ~acts.single
+
+    def mask(self, w) -> np.ndarray:
         """Which functions draw pump flow at each node (per direction) in the primal ``w``:
         the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
         crane, n = self.crane, self.crane.n
@@ -26,11 +42,11 @@ class ActivityRounds:
         _, dxdq = crane.stroke(X[:n].T)
         xd = dxdq * X[n:2 * n].T
         eps = ACTIVE_FLOW * crane.spec.pump.max_flow
-        pos = (self._Aa * xd > eps).astype(float)
-        neg = (-self._Ab[self._dbl] * xd[:, self._dbl] > eps).astype(float)
+        pos = (self.Aa * xd > eps).astype(float)
+        neg = (-self.Ab[self.dbl] * xd[:, self.dbl] > eps).astype(float)
         return np.hstack([pos, neg]).ravel()
 
-    def _still_optimal(self, sol, mask, new) -> bool:
+    def still_optimal(self, sol, mask, new) -> bool:
         """True when the solution ``sol`` (solved with activity ``mask``) already meets the
         load-sensing pressure rows of the functions ``new`` switches on: those rows were
         relaxed by the big M, so without it their value is theirs minus 1e3 [MPa]; if each is

@@ -54,7 +54,8 @@ ENV_MODE = "CRANE_PLANNER_NLP_CACHE"
 FORMAT = 1
 # the modules whose source writes the NLP's expressions: a change to any invalidates every key
 _SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "methods/nlp/limits.py",
-            "methods/nlp/tip.py", "methods/nlp/stagewise.py",
+            "methods/nlp/tip.py", "methods/nlp/stagewise.py", "methods/nlp/pump.py",
+            "methods/nlp/activity.py",
             "model/__init__.py",
             "model/kinematics.py", "model/actuators.py", "model/dynamics.py",
             "model/hydraulics.py", "model/spec.py", "geometry/obstacles.py")
@@ -182,7 +183,7 @@ def build_or_load(nlp, mode: str | None, formulation: dict, build) -> str:
     key, desc = entry_key(nlp.crane.spec, **formulation)
     got = load_entry(key, formulation["ipopt"])
     if got is not None:
-        nlp.solver, nlp._energy_fn, s = got
+        nlp.solver, nlp.energy_fn, s = got
         nlp.layout, nlp.lbw, nlp.ubw, nlp.lbg, nlp.ubg = (s["layout"], s["lbw"], s["ubw"],
                                                          s["lbg"], s["ubg"])
         nlp.nw = nlp.layout.nw
@@ -195,7 +196,7 @@ def build_or_load(nlp, mode: str | None, formulation: dict, build) -> str:
         structure["stages"] = dict(wperm=nlp.solver.wperm, gperm=nlp.solver.gperm,
                                    equality=nlp.solver.equality)
     try:
-        store_entry(key, desc, nlp.solver, nlp._energy_fn, structure)
+        store_entry(key, desc, nlp.solver, nlp.energy_fn, structure)
     except RuntimeError as e:
         nlp.cache_error = str(e)
         return "no-compiler" if compiler() is None else "compile-failed"

@@ -8,8 +8,9 @@
   move meets (a guess through a wall leaves IPOPT in a poor local optimum);
 - :func:`path_guess`: a coarse DP along a tip path retimed by TOPP-RA (line and curve modes);
 - :func:`stretch`: any trajectory slowed uniformly to a longer duration;
-- :class:`Guesses`: the move NLP's guess methods (``guess_from``, ``default_guess``, the Ruckig
-  move it shares with the exact-move check), mixed into :class:`~planner.methods.nlp.move.MoveNLP`.
+- :class:`Guesses`: one move NLP's guesses (``guess_from``, ``default_guess``, the Ruckig
+  move it shares with the exact-move check), held by :class:`~planner.methods.nlp.move.MoveNLP`
+  as ``guesses``.
 """
 from __future__ import annotations
 
@@ -95,8 +96,16 @@ def path_guess(crane, path) -> Trajectory:
 
 
 class Guesses:
-    """The move NLP's primal guesses (a mixin of :class:`~planner.methods.nlp.move.MoveNLP`:
-    uses its crane, N, layout, bounds, path and curve)."""
+    """The primal guesses of one built move NLP on ``crane``: its variable ``layout``
+    (:class:`~planner.methods.nlp.transcription.Layout`), variable bounds ``lbw``/``ubw``,
+    ``N`` intervals, ``path`` ("free", "line" or "curve") and ``curve`` (the curve of the
+    curve mode, else None). Keeps the Ruckig move of the last move asked for: the default
+    guess and the exact-move check share it."""
+
+    def __init__(self, crane, layout, lbw, ubw, N: int, path: str, curve=None):
+        self.crane, self.layout, self.lbw, self.ubw = crane, layout, lbw, ubw
+        self.N, self.path, self.curve = N, path, curve
+        self._plain = (None, None)   # (key, plain_traj result) of the last move: built once
 
     def guess_from(self, traj) -> np.ndarray:
         """Primal guess from any Trajectory (resampled to the NLP's grid; slacks at bounds)."""
@@ -104,7 +113,7 @@ class Guesses:
         t = np.linspace(traj.t[0], traj.t[-1], N + 1)
         q, qd, qdd, _ = traj.sample(t)
         h = (t[-1] - t[0]) / N
-        w0 = np.zeros(self.nw)
+        w0 = np.zeros(lay.nw)
         lay.pack(w0, "X", np.vstack([q.T, qd.T, qdd.T]))
         lay.pack(w0, "U", np.diff(qdd, axis=0).T / h)
         lay.pack(w0, "T", traj.duration)
@@ -134,21 +143,21 @@ class Guesses:
             lb = lower_bound(crane, start, goal, **GUESS_BOUND)
             geo = self.curve if self.path == "curve" else Line(start, goal)
             return self.guess_from(path_guess(crane, geo)), lb
-        lb = self._bound(start, goal, q_ends)
-        return self._plain_guess(start, goal, lb, q_ends), lb
+        lb = self.bound(start, goal, q_ends)
+        return self.plain_guess(start, goal, lb, q_ends), lb
 
-    def _bound(self, start, goal, q_ends=(None, None)):
+    def bound(self, start, goal, q_ends=(None, None)):
         """The coarse lower bound the guess is taken at (fixed joint ends when given)."""
         qs, qg = q_ends
         return lower_bound(self.crane, None if qs is not None else start,
                            None if qg is not None else goal, q_start=qs, q_goal=qg,
                            **GUESS_BOUND)
 
-    def _plain_guess(self, start, goal, lb, q_ends=(None, None)):
+    def plain_guess(self, start, goal, lb, q_ends=(None, None)):
         """Ruckig rest-to-rest at the bound's best telescopes, slowed to the pump bound."""
-        return self.guess_from(self._plain_traj(start, goal, lb, q_ends)[0])
+        return self.guess_from(self.plain_traj(start, goal, lb, q_ends)[0])
 
-    def _plain_traj(self, start, goal, lb, q_ends=(None, None)):
+    def plain_traj(self, start, goal, lb, q_ends=(None, None)):
         """(the guess trajectory: Ruckig slowed to 1.05 × the combined bound when faster, the
         Ruckig move itself). Kept for the last move: the guess and the exact-move check share it."""
         qk = tuple(None if q is None else tuple(map(float, q)) for q in q_ends)

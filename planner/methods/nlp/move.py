@@ -40,13 +40,14 @@ forwarder moves), so the exact move is returned when faster (``stats["winner"] =
 from __future__ import annotations
 
 import time as _time
+from functools import partial
 
 import casadi as ca
 import numpy as np
 
 from planner.bounds import lower_bound
 from planner.geometry.paths import tip_to_xyz, xyz_to_tip
-from planner.methods.nlp.activity import ActivityRounds
+from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, step
@@ -71,7 +72,7 @@ AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IP
 PUMP_MARGIN = {"time": 0.005, "energy": 0.02, "blend": 0.02}
 
 
-class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
+class MoveNLP:
     """One NLP structure for a crane; ``solve(start, goal, ...)`` many times.
 
     objective: "time" | "energy" | "blend"; path: "free" | "line" | a curve with a symbolic
@@ -80,7 +81,11 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
     SOLVERS`). ``layout`` names the decision variables ("X" = [q; q̇; q̈] per node, "U" the
     jerk per interval, "T" the duration per node, energy objectives per check point the flow
     slacks "sp<k>"/"sm<k>" and the pump pressure "p<k>", curve mode "TH") and the constraint
-    blocks."""
+    blocks. Its collaborators, each given what it needs: ``guesses``
+    (:class:`~planner.methods.nlp.guess.Guesses`), ``activity`` (the load-sensing mask,
+    :class:`~planner.methods.nlp.activity.Activity`), ``twins`` (the same formulation under
+    other solver settings, :class:`~planner.methods.nlp.twins.SolverTwins`); the pump rows
+    are written by :class:`~planner.methods.nlp.pump.PumpRows` while it is built."""
 
     def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float | None = None,
@@ -100,11 +105,8 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
             raise ValueError(f"path must be 'free', 'line' or a Curve, not {path!r}")
         self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
         self.obstacles = tuple(obstacles)
-        n = crane.n
         self.L = crane.limit_arrays()
-        acts = self._acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
-        self._Aa, self._Ab, self._dbl = acts.area_a, acts.area_b, ~acts.single
-        self._n_act = (N + 1) * (n + int(self._dbl.sum()))  # activity mask: node, actuator, sign
+        self.acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
         ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
         t0 = _time.perf_counter()
         if solver not in SOLVERS:
@@ -119,18 +121,26 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         self.fallback = solver == "auto" and self.solver_name == "fatrop"
         if self.fallback:   # fail fast: its solves take ~20–40 iterations
             ipopt["max_iter"] = min(ipopt["max_iter"], AUTO_FATROP_ITER)
-        self._twin_args = (crane, objective, path, N, pump, reg, pump_margin, obstacles,
-                           ipopt_options, cache)
-        self._twin = self._warm = None
+        self.twins = SolverTwins(
+            partial(type(self), crane, objective, self.curve if self.curve is not None else path,
+                    N=N, pump=pump, reg=reg, pump_margin=pump_margin, obstacles=obstacles,
+                    ipopt_options=ipopt_options, cache=cache),
+            objective, ipopt_options)
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
                            pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
                            solver=self.solver_name)
         self.cache_status = build_or_load(
             self, "off" if path == "curve" else cache, formulation,
             lambda: self._build(reg, pump_margin, ipopt))
-        self.build_time_s = _time.perf_counter() - t0
+        self.built_s = _time.perf_counter() - t0
         self._last = None
-        self._plain = (None, None)   # (key, _plain_traj result) of the last move: built once
+        self.guesses = Guesses(crane, self.layout, self.lbw, self.ubw, N, path, self.curve)
+        self.activity = Activity(crane, self.layout, self.acts)
+
+    @property
+    def build_time_s(self) -> float:
+        """Seconds this NLP's build took (its own and its twins' built so far)."""
+        return self.built_s + self.twins.build_time_s
 
     def _build(self, reg, pump_margin, ipopt):
         """Write the NLP's expressions and let CasADi derive its functions (the in-memory
@@ -138,7 +148,8 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         crane, N, path, objective = self.crane, self.N, self.path, self.objective
         n, L = crane.n, self.L
         lay = self.layout = Layout()
-        par = lay.parameters(start=3, goal=3, T_max=1, lam=1, payload=1, activity=self._n_act)
+        par = lay.parameters(start=3, goal=3, T_max=1, lam=1, payload=1,
+                             activity=mask_size(n, self.acts, N))
         # ---- variables: node states, jerk per interval, duration (exact integration inside)
         jmax = np.where(np.isfinite(L["qddd_max"]), L["qddd_max"], 1e3)
         xlo = np.concatenate([L["q_min"], L["qd_min"], -L["qdd_max"]])
@@ -196,8 +207,9 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         TH = add_curve(lay, crane.f_fk, self.curve, X, n, N) if path == "curve" else None
         if path == "line":
             add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
-        energy = self._add_pump_and_energy(pts, mids, hs[0], par["payload"], par["activity"],
-                                           pump_margin)
+        pump_rows = PumpRows(crane, self.acts, N, objective, path, self.pump, pump_margin,
+                             stagewise=self.solver_name == "fatrop")
+        energy = pump_rows.add(lay, pts, mids, hs[0], par["payload"], par["activity"])
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
         # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
         smooth = reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
@@ -212,7 +224,7 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
             u0, u1 = self.curve.u_range
             lay.add_var("TH", TH, min(u0, u1), max(u0, u1))  # last block: θ per node
         wv = lay.w
-        self._energy_fn = ca.Function("E", [wv, lay.P], [energy])
+        self.energy_fn = ca.Function("E", [wv, lay.P], [energy])
         self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
         problem = {"x": wv, "p": lay.P, "f": f, "g": lay.g}
         self.solver = None
@@ -229,6 +241,26 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         start here; prefer ``layout.slice("U")``)."""
         return self.layout.slice("U").start
 
+    # ------------------------------------------------------------------------ collaborators
+    def guess_from(self, traj) -> np.ndarray:
+        """Primal guess from any Trajectory (:meth:`Guesses.guess_from
+        <planner.methods.nlp.guess.Guesses.guess_from>`)."""
+        return self.guesses.guess_from(traj)
+
+    def default_guess(self, start, goal, q_ends=(None, None)):
+        """(primal guess, lower bound) of a move (:meth:`Guesses.default_guess
+        <planner.methods.nlp.guess.Guesses.default_guess>`)."""
+        return self.guesses.default_guess(start, goal, q_ends)
+
+    def build_twins(self) -> float:
+        """Build now the twins this NLP's solves will use (:meth:`SolverTwins.build
+        <planner.methods.nlp.twins.SolverTwins.build>`). Returns seconds."""
+        return self.twins.build()
+
+    def _name(self, solver) -> str:
+        """How an error names ``solver``: this NLP's own solver, or the IPOPT twin."""
+        return self.solver_name.upper() if solver is self.solver else "IPOPT"
+
     # ------------------------------------------------------------------------ formulation
     def _at(self, X, U, k, hh):
         """(q, q̇, q̈) at time hh into interval k (exact under its constant jerk)."""
@@ -244,7 +276,7 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         its switch times only: between them every joint is a cubic, which the quintic
         interpolation reproduces exactly."""
         try:
-            exact = self._plain_traj(start, goal, lb, q_ends)[1]
+            exact = self.guesses.plain_traj(start, goal, lb, q_ends)[1]
         except ValueError:
             return res
         if res.ok and exact.duration >= res.duration_s * (1 - 1e-6):
@@ -315,7 +347,7 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         obstacle on a fine resampling."""
         try:
             lb = lower_bound(self.crane, start, goal)
-            guesses = [self._plain_guess(start, goal, lb)]
+            guesses = [self.guesses.plain_guess(start, goal, lb)]
             if vias(self.obstacles, start, goal):
                 guesses.append(self.guess_from(over_obstacles_guess(self.crane, self.obstacles,
                                                                     start, goal, lb)))
@@ -370,7 +402,7 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
         pars = dict(start=tip_to_xyz(np.asarray(start, float)),
                     goal=tip_to_xyz(np.asarray(goal, float)),
                     T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
-        mask = self._activity(guess)
+        mask = self.activity.mask(guess)
         lbw, ubw = self.lbw.copy(), self.ubw.copy()
         X0 = self.layout.slice("X").start
         for k, q in zip((0, self.N), q_ends):   # joint ends: fixed by their bounds
@@ -384,9 +416,10 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
             fixed = self.solver_name == "fatrop" and any(q is not None for q in q_ends)
             tries = (True,) if fixed else (False, True) if self.fallback else (False,)
             # later energy rounds: warm from the last solution and multipliers, cold if that fails
-            attempts = ([(self._warm_twin, dict(lam_x0=sol["lam_x"], lam_g0=sol["lam_g"]))]
+            attempts = ([(self.twins.warm, dict(lam_x0=sol["lam_x"], lam_g0=sol["lam_g"]))]
                         if _round and warm_rounds() else [])   # solvers built on first use
-            attempts += [(self._ipopt_twin if twin else lambda: self.solver, {}) for twin in tries]
+            attempts += [(self.twins.ipopt if twin else lambda: self.solver, {})
+                         for twin in tries]
             for k, (get_solver, warm) in enumerate(attempts):
                 solver = get_solver()
                 try:
@@ -405,8 +438,8 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
             w = np.array(sol["x"]).ravel()
             if ist not in STATUS_OK or self.objective == "time":
                 break
-            new = np.maximum(mask, self._activity(w))   # keep functions once seen active
-            if np.array_equal(new, mask) or self._still_optimal(sol, mask, new):
+            new = np.maximum(mask, self.activity.mask(w))   # keep functions once seen active
+            if np.array_equal(new, mask) or self.activity.still_optimal(sol, mask, new):
                 break
             mask, guess = new, w
         if ist not in STATUS_OK:
@@ -427,7 +460,7 @@ class MoveNLP(Guesses, SolverTwins, ActivityRounds, PumpRows):
                           + (("pump_flow",) if self.pump else ()),
                           meta=dict(N=N, path=self.path, ipopt_status=ist))
         self._last = w
-        E = float(self._energy_fn(w, P)) if self.objective != "time" else float("nan")
+        E = float(self.energy_fn(w, P)) if self.objective != "time" else float("nan")
         return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
                           iterations=iters, ipopt_status=ist,
                           solver=self._name(solver).lower(),

@@ -2,6 +2,8 @@
 objectives, the load-sensing pump pressure per node and the pump energy (trapezoid rule)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 import numpy as np
 
@@ -10,17 +12,31 @@ from planner.methods.nlp.limits import pump_draw
 __all__ = ["PumpRows"]
 
 
+@dataclass(frozen=True)
 class PumpRows:
-    """Mixin of :class:`~planner.methods.nlp.move.MoveNLP` (uses its crane, N, layout, path,
-    objective, pump, solver name and the actuator table ``_acts`` with its areas ``_Aa``,
-    ``_Ab``, ``_dbl``)."""
+    """How one move NLP writes its pump rows: its ``crane``, actuator table ``acts``
+    (:func:`~planner.model.flows.actuator_table`), ``N`` intervals, ``objective`` ("time",
+    "energy", "blend"), ``path`` ("free", "line", "curve"), whether the ``pump`` limit
+    holds, the share of Q_max kept free (``margin``) and whether every row must stay inside
+    its own stage (``stagewise``: the FATROP solver)."""
+    crane: object
+    acts: object
+    N: int
+    objective: str
+    path: str
+    pump: bool
+    margin: float
+    stagewise: bool = False
 
-    def _add_pump_and_energy(self, pts, mids, h, payload, act_mask, pump_margin):
-        """Pump flow slacks and limit at every check point; for the energy objectives the
-        load-sensing pump pressure per node and the pump energy (trapezoid rule), returned
-        (0 when not needed)."""
-        crane, spec, lay, n, N = self.crane, self.crane.spec, self.layout, self.crane.n, self.N
-        Aa, Ab, dbl = self._Aa, self._Ab, self._dbl
+    def add(self, lay, pts, mids, h, payload, act_mask):
+        """Pump flow slacks and limit at every check point (``pts``: (q, q̇, q̈) at the nodes,
+        ``mids`` at the interval midpoints) into the layout ``lay``; for the energy
+        objectives the load-sensing pump pressure per node (``act_mask``: the activity
+        parameter, :mod:`planner.methods.nlp.activity`) and the pump energy (trapezoid rule,
+        interval ``h``, ``payload`` parameter), returned (0 when not needed)."""
+        crane, spec, n, N = self.crane, self.crane.spec, self.crane.n, self.N
+        pump_margin = self.margin
+        Aa, Ab, dbl = self.acts.area_a, self.acts.area_b, ~self.acts.single
         n_dbl = int(dbl.sum())
         Qm = spec.pump.max_flow
         need_energy = self.objective in ("energy", "blend")
@@ -32,10 +48,10 @@ class PumpRows:
             # Hessian costs half: measured 22 vs 45 ms per solve on umea-lab, N = 40)
             # (FATROP: a row may only use its own stage's variables, so the midpoint's own)
             J = [crane.f_stroke(q)[1] for q, _, _ in pts]
-            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.solver_name == "fatrop"
+            Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.stagewise
                   else [(J[k] + J[k + 1]) / 2 for k in range(N)])
             for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
-                lay.add_con("pump", pump_draw(Jk, v, self._acts, Qm), -ca.inf, 1 - pump_margin,
+                lay.add_con("pump", pump_draw(Jk, v, self.acts, Qm), -ca.inf, 1 - pump_margin,
                             stage=(k % (N + 1), 1))
             return 0
         checks = pts + mids if self.pump else pts

@@ -1,4 +1,5 @@
-"""The move NLP's twins: the same formulation under other solver settings, built on first use.
+"""The move NLP's twins: the same formulation under other solver settings, built on first use
+(:class:`SolverTwins`, held by :class:`~planner.methods.nlp.move.MoveNLP` as ``twins``).
 
 - the IPOPT twin: the fallback of ``solver="auto"`` when FATROP fails (the same variables and
   rows);
@@ -26,37 +27,36 @@ def warm_rounds() -> bool:
 
 
 class SolverTwins:
-    """Mixin of :class:`~planner.methods.nlp.move.MoveNLP`: its twins, built on first use
-    from the constructor arguments it keeps in ``_twin_args``."""
+    """The twins of one move NLP, each built on first use by ``make(**change)`` (the NLP's own
+    constructor with its arguments, ``change`` replacing some: a picklable
+    ``functools.partial``), for an NLP of ``objective`` whose IPOPT options were
+    ``ipopt_options``. ``build_time_s``: the seconds the twins built so far add to their NLP's
+    build (the warm twin's; the IPOPT twin is a fallback, its cost is the failed solve's)."""
 
-    def _twin_of(self, **change):
-        c, o, p, N, pump, reg, pm, obs, io, cache = self._twin_args
-        kw = dict(N=N, pump=pump, reg=reg, pump_margin=pm, obstacles=obs, ipopt_options=io,
-                  cache=cache, solver="ipopt")
-        return type(self)(c, o, p, **dict(kw, **change))
+    def __init__(self, make, objective: str, ipopt_options: dict | None = None):
+        self.make, self.objective, self.ipopt_options = make, objective, ipopt_options
+        self.ipopt_nlp = self.warm_nlp = None
+        self.build_time_s = 0.0
 
-    def _ipopt_twin(self):
+    def ipopt(self):
         """The IPOPT solver of the same formulation: ``solver="auto"``'s fallback."""
-        if self._twin is None:
-            self._twin = self._twin_of()
-        return self._twin.solver
+        if self.ipopt_nlp is None:
+            self.ipopt_nlp = self.make(solver="ipopt")
+        return self.ipopt_nlp.solver
 
-    def _warm_twin(self):
+    def warm(self):
         """The IPOPT solver of the same formulation with the :data:`WARM_ROUND` options."""
-        if self._warm is None:
-            io = self._twin_args[8]
-            self._warm = self._twin_of(ipopt_options=dict(io or {}, **WARM_ROUND))
-            self.build_time_s += self._warm.build_time_s
-        return self._warm.solver
+        if self.warm_nlp is None:
+            io = self.ipopt_options
+            self.warm_nlp = self.make(solver="ipopt",
+                                      ipopt_options=dict(io or {}, **WARM_ROUND))
+            self.build_time_s += self.warm_nlp.build_time_s
+        return self.warm_nlp.solver
 
-    def build_twins(self) -> float:
-        """Build now the twins this NLP's solves will use (the warm twin of an energy or blend
+    def build(self) -> float:
+        """Build now the twins the NLP's solves will use (the warm twin of an energy or blend
         NLP), so that a worker's set-up pays for them, not its first move. Returns seconds."""
-        if self.objective == "time" or not warm_rounds() or self._warm is not None:
+        if self.objective == "time" or not warm_rounds() or self.warm_nlp is not None:
             return 0.0
-        self._warm_twin()
-        return self._warm.build_time_s
-
-    def _name(self, solver) -> str:
-        """How an error names ``solver``: this NLP's own solver, or the IPOPT twin."""
-        return self.solver_name.upper() if solver is self.solver else "IPOPT"
+        self.warm()
+        return self.warm_nlp.build_time_s

@@ -217,10 +217,16 @@ class Elementwise:
     def __call__(self, *args):
         if len(args) != self.f.n_in():
             raise TypeError(f"{self.f.name()} takes {self.f.n_in()} inputs, got {len(args)}")
-        arrs = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in args))
-        shape = arrs[0].shape
-        flat = [a.ravel() for a in arrs]         # a copy only where an input was broadcast
-        N = flat[0].size
+        arrs = [np.asarray(a, dtype=float) for a in args]
+        shape = np.broadcast_shapes(*(a.shape for a in arrs))
+        flat = []
+        for a in arrs:
+            if a.shape != shape:                 # broadcast: one strided copy
+                b = np.empty(shape)
+                b[...] = a
+                a = b
+            flat.append(a.ravel())               # a view where the input is contiguous
+        N = int(np.prod(shape))
         res = [np.empty(N) for _ in range(self.f.n_out())]
         start = 0
         while start < N:

@@ -260,3 +260,21 @@ def test_faces_keep_shapes_and_broadcast():
     big = np.random.default_rng(2).uniform(-1, 1, (5000, 4))     # several compiled maps
     np.testing.assert_array_equal(valves.command_to_stroke_rate(vp, big)[-3:],
                                   valves.command_to_stroke_rate(vp, big[-3:]))
+
+
+def test_elementwise_face_without_a_compiler_is_the_same_function(monkeypatch):
+    """CRANE_PLANNER_JIT=0 (or no C compiler): the interpreted maps give the compiled
+    faces' values; a function with a non-scalar input is refused by name."""
+    from planner.model.numeric import Elementwise
+    vp = valves.valve_params(Crane.from_id("umea-lab"))
+    xd = np.random.default_rng(8).normal(0, 0.05, (300, 4))
+    compiled = valves.stroke_rate_to_command(vp, xd)
+    monkeypatch.setenv("CRANE_PLANNER_JIT", "0")
+    face = Elementwise(vph.function("valve_command"))
+    assert not face.compiled
+    plain = face(xd, vp.flow_gain, vp.deadband, vp.area_extend, vp.area_retract)
+    for a, b in zip(compiled, plain):
+        np.testing.assert_allclose(a, b, rtol=1e-15, atol=0)
+    x = ca.SX.sym("x", 2)
+    with pytest.raises(ValueError, match="vec: input 0 must be a scalar"):
+        Elementwise(ca.Function("vec", [x], [x]))

@@ -185,8 +185,9 @@ class Elementwise:
     """Evaluate a scalar SX function ``f`` (every input and output 1×1) elementwise on numpy
     arrays: ``self(*args)`` broadcasts the args against each other and returns a list of
     arrays of the broadcast shape, one per output. The map is compiled at each of ``sizes``
-    on first use (:func:`jit_map`); a batch runs on the smallest that holds it (the largest
-    in a loop), the unused tail of the last evaluation ignored."""
+    on first use (:func:`jit_map`); a batch runs on the smallest size that holds it (the
+    largest in turns; a smaller one in turns where the next would be mostly padding), the
+    unused tail of an evaluation ignored. Not thread-safe (one set of buffers per size)."""
 
     def __init__(self, f: ca.Function, sizes: tuple = (16, 128, 1024, 8192)):
         for i in range(f.n_in()):

@@ -16,6 +16,7 @@ writes <DIR>/valve_replay.md and .json.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -87,12 +88,14 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--save", required=True, help="npz of this run's results and timings")
     ap.add_argument("--compare", help="npz of another checkout's run")
+    ap.add_argument("--compare-label", default="other", help="what that run was, for the report")
     ap.add_argument("--out", help="directory for valve_replay.md / .json")
     a = ap.parse_args(argv)
     arrays, timing = run(a.repeat)
     np.savez(a.save, **arrays, _timing=np.array(dumps(timing)))
     rows = ["| machine | feed-forward ms | replay ms | robustness ms |"
-            + (" other: feed-forward / replay / robustness ms |" if a.compare else ""),
+            + (f" {a.compare_label}: feed-forward / replay / robustness ms |" if a.compare
+               else ""),
             "| --- | --- | --- | --- |" + (" --- |" if a.compare else "")]
     other, diff = None, {}
     if a.compare:
@@ -112,13 +115,15 @@ def main(argv=None):
         rows.append(row)
     text = "\n".join(rows)
     if diff:
-        text += "\n\nLargest difference to the other run: " + ", ".join(
+        text += f"\n\nLargest difference to {a.compare_label}: " + ", ".join(
             f"{k} {v:.2g}" for k, v in sorted(diff.items()))
+    text += ("\n\nLoad average (1 min) at the end of this run: "
+             f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs.")
     print(text)
     if a.out:
         out = Path(a.out)
-        atomic_write_text(out / "valve_replay.json", dumps(dict(timing=timing, other=other,
-                                                                 max_difference=diff)))
+        atomic_write_text(out / "valve_replay.json", dumps(dict(
+            timing=timing, other=other, other_label=a.compare_label, max_difference=diff)))
         atomic_write_text(out / "valve_replay.md", "# Fast replay with the compiled valve "
                           "faces (issue 26)\n\n" + __doc__.split("\n\n")[0] + "\n\n" + text
                           + "\n")

@@ -2,7 +2,9 @@
 
 Per actuator i with stroke rate ẋ and required force F = τ / (dx/dq) (virtual work):
 * pump flow drawn (direction-dependent areas): Q = A_a·ẋ⁺ + A_b·ẋ⁻ for double-acting,
-  Q = A_a·ẋ⁺ for single-acting (lowering returns oil to tank under gravity, draws nothing);
+  Q = A_a·ẋ⁺ for single-acting (lowering returns oil to tank under gravity, draws nothing) —
+  the metered flow of the one valve definition (:func:`planner.model.valve_physics.
+  metered_flow`) with the area the pump fills while retracting;
 * chamber pressures from the force, assuming ideal load-holding valves on the loaded side:
   F ≥ 0: p_a = (F + A_b·p_t)/A_a, p_b = p_t;  F < 0: p_b = (A_a·p_t − F)/A_b, p_a = p_t;
 * load pressure seen by the LS line: the meter-in chamber's pressure (p_a extending, p_b
@@ -21,6 +23,7 @@ from __future__ import annotations
 import casadi as ca
 
 from planner.model.spec import CraneSpec
+from planner.model.valve_physics import metered_flow
 
 ACTIVE_FLOW = 1e-4  # fraction of the pump's max flow below which a function counts as idle
 
@@ -54,13 +57,11 @@ def hydraulics(spec: CraneSpec, x, xd, force):
             pb = ca.if_else(F >= 0, pt, (Aa * pt - F) / Ab)
         if i == htg:
             k = ht.ratio * spec.joints[hs].actuator.area_b / Aa
-            Q = Aa * ca.fmax(v - k * xd[hs], 0)
-        elif i == hs:
-            Q = Aa * ca.fmax(v, 0)
-        elif single:
-            Q = Aa * ca.fmax(v, 0)
+            Q = metered_flow(v - k * xd[hs], Aa, 0.0)
+        elif i == hs or single:
+            Q = metered_flow(v, Aa, 0.0)
         else:
-            Q = Aa * ca.fmax(v, 0) + Ab * ca.fmax(-v, 0)
+            Q = metered_flow(v, Aa, Ab)
         pL = ca.if_else(v > 0, pa, ca.if_else(v < 0, pb, 0))
         p_a.append(pa)
         p_b.append(pb)

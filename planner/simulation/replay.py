@@ -47,7 +47,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.feedforward import commands
-from planner.model.valves import command_to_stroke_rate, draws_pump, metered_flow, valve_params
+from planner.model.valves import steady_flows, valve_params
 from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
                                         ValveDeadband, ValveSet, as_effects, quasi_static)
 from planner.trajectory import Trajectory
@@ -198,9 +198,7 @@ def stroke_rates(crane, u, plant=Plant()):
     The sharing factor is 1 while the pump keeps up, Q_max/ΣQ when it does not."""
     u = np.atleast_2d(np.asarray(u, float))
     vp, qmax = plant_valves(crane, plant)
-    xd = command_to_stroke_rate(vp, u)
-    Q = metered_flow(vp, xd)
-    draws = draws_pump(vp, u)                             # single-acting lowering: to tank
+    xd, Q, draws = steady_flows(vp, u)                    # single-acting lowering: to tank
     demand = np.sum(np.where(draws, Q, 0.0), axis=1)
     share = np.where(demand > qmax, qmax / np.where(demand > qmax, demand, 1.0), 1.0)
     xd = np.where(draws, xd * share[:, None], xd)

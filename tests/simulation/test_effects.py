@@ -45,7 +45,10 @@ def test_catalogue_has_the_contract_names_and_json(capsys):
             else:
                 assert len(v) == 2 and v[0] < v[1]
     assert by["flow_gain"]["parameters"]["joint"] and "joint" not in by["time_delay"]["parameters"]
-    assert catalogue() == cat_json
+    # the catalogue, plus the plants that apply each effect (every effect has one)
+    assert catalogue() == [{k: v for k, v in e.items() if k != "plants"} for e in cat_json]
+    assert all(e["plants"] for e in cat_json)
+    assert by["bulk_modulus"]["plants"] == ["exudyn"] and "fast" in by["flow_gain"]["plants"]
 
 
 @pytest.mark.parametrize("text,match", [

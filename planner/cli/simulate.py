@@ -8,9 +8,8 @@ import sys
 from planner.cli.common import CLIError, add_json_arg, emit, output_arg, read_trajectory
 from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
-from planner.simulation.dynamic.exudyn_plant import PlantDiverged
-from planner.simulation.dynamic.simulate import exudyn_to_csv
 from planner.simulation.plant import simulate_to_csv
+from planner.simulation.plants import PLANTS, PlantDiverged, applying, plant_to_csv
 from planner.simulation.replay import Plant
 from planner.units import parse_angle
 
@@ -45,13 +44,15 @@ def cmd_simulate(args):
             effects.append(parse_effect(text, crane))
         except ValueError as e:
             raise CLIError(f"--effect {text!r}: {e}") from None
-    dyn = [e.name for e in effects if e.stage == "dynamics"]
-    if dyn and args.plant != "exudyn":
-        raise CLIError(f"--effect {dyn[0]}: acts on the oil's dynamics, which only the dynamic "
-                       "plant has; add --plant exudyn")
+    for e in effects:
+        where = applying(e)
+        if args.plant not in where:
+            raise CLIError(f"--effect {e.name}: the {args.plant} plant cannot apply it (it acts "
+                           f"through {', '.join(e.own_hooks())}); add "
+                           + " or ".join(f"--plant {p}" for p in where))
     traj = read_trajectory(crane, args.trajectory)
-    if args.plant == "exudyn":
-        return _simulate_exudyn(args, crane, traj, effects)
+    if args.plant != "fast":
+        return _simulate_dynamic(args, crane, traj, effects)
     plant = Plant(flow_gain_scale=args.flow_gain, pump_flow_scale=args.pump_flow)
     summary = simulate_to_csv(crane, traj, args.out, plant=plant, rate=args.rate,
                               noise=noise_levels(args.noise), seed=args.seed, effects=effects)
@@ -62,29 +63,28 @@ def cmd_simulate(args):
     return 0
 
 
-def _simulate_exudyn(args, crane, traj, effects):
-    """``--plant exudyn``: the independent dynamic plant; a run that diverges or times out
-    writes nothing and exits with status 3 (its status and failure time in the JSON)."""
+def _simulate_dynamic(args, crane, traj, effects):
+    """``--plant exudyn`` (or another registered dynamic plant); a run that diverges or times
+    out writes nothing and exits with status 3 (its status and failure time in the JSON)."""
     if args.flow_gain != 1.0 or args.pump_flow != 1.0:
-        raise CLIError("--flow-gain/--pump-flow apply to the fast plant; with --plant exudyn "
-                       "use --effect flow_gain:… or --effect pump_flow_limit:…")
+        raise CLIError(f"--flow-gain/--pump-flow apply to the fast plant; with --plant "
+                       f"{args.plant} use --effect flow_gain:… or --effect pump_flow_limit:…")
     try:
-        summary = exudyn_to_csv(crane, traj, args.out, rate=args.rate,
-                                noise=noise_levels(args.noise), seed=args.seed, effects=effects)
+        summary = plant_to_csv(crane, traj, args.out, args.plant, rate=args.rate,
+                               noise=noise_levels(args.noise), seed=args.seed, effects=effects)
     except PlantDiverged as e:
-        emit(args, dict(status=e.status, reason=e.reason, t_fail_s=e.t_fail, plant="exudyn"))
+        emit(args, dict(status=e.status, reason=e.reason, t_fail_s=e.t_fail, plant=args.plant))
         print(f"error: {e}; nothing written", file=sys.stderr)
         return 3
     emit(args, summary)
     if not args.json:
-        print(f"measured data written to {args.out} (Exudyn plant): {summary['samples']} "
+        print(f"measured data written to {args.out} ({args.plant} plant): {summary['samples']} "
               f"samples, max tip drift {1e3 * summary['max_tip_error_m']:.1f} mm")
     return 0
 
 
 def cmd_effects_list(args):
     from planner.model.effects import CATALOGUE
-    from planner.simulation.plants import applying
     cat = [dict(e, plants=applying(CATALOGUE[e["name"]])) for e in catalogue()]
     emit(args, cat)
     if not args.json:
@@ -111,7 +111,7 @@ def add_parsers(sub) -> None:
                         "coulomb_friction:joint=boom,force=3000 (see 'effects list')")
     p.add_argument("--seed", type=int, default=0, help="noise seed (0)")
     p.add_argument("--rate", type=float, default=50.0, help="command rate [Hz] (50)")
-    p.add_argument("--plant", choices=("fast", "exudyn"), default="fast",
+    p.add_argument("--plant", choices=sorted(PLANTS), default="fast",
                    help="fast: the quasi-static replay (default); exudyn: the independent "
                         "dynamic plant (multibody + pressure dynamics, needs [dynamics])")
     p.add_argument("--flow-gain", type=float, default=1.0, help="plant valve gain scale (1.0)")

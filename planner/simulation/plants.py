@@ -40,7 +40,16 @@ from planner.model.effects import as_effects, effect_from_dict, refuse
 from planner.model.effects.hooks import DYNAMIC_HOOKS, QUASI_STATIC_HOOKS
 
 __all__ = ["PlantRecord", "BasePlant", "FastPlant", "PLANTS", "plant_class", "make_plant",
-           "applying"]
+           "applying", "PlantDiverged", "plant_to_csv"]
+
+
+class PlantDiverged(RuntimeError):
+    """A plant run that stopped early: ``status`` ("diverged" | "timeout"), ``t_fail`` [s]
+    and the reason."""
+
+    def __init__(self, status: str, t_fail: float, reason: str, plant: str = "dynamic"):
+        super().__init__(f"{plant} plant {status} at t = {t_fail:.4f} s: {reason}")
+        self.status, self.t_fail, self.reason, self.plant = status, t_fail, reason, plant
 
 
 @dataclass
@@ -189,3 +198,33 @@ def _elsewhere(effect, here: str) -> str:
     others = [p for p in applying(effect) if p != here]
     return (f"plants that apply it: {', '.join(others)}" if others
             else "no registered plant applies it")
+
+
+def plant_to_csv(crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
+                 seed: int = 0, effects=(), **run_kw) -> dict:
+    """What ``crane-planner simulate --plant NAME`` does for a registered plant: replay
+    ``traj``'s commands (its own ``u`` on a uniform grid, else the feed-forward at ``rate``)
+    on the plant with the hidden ``effects``, and write the measured-data CSV at ``rate``.
+    Nothing is written when the run stops early: :class:`PlantDiverged` is raised. Returns a
+    JSON-ready summary (``effects``: what each effect did, with its hooks)."""
+    from planner.feedforward import commands
+    from planner.simulation.recording import noise_levels
+    p = make_plant(plant, crane, effects)
+    if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
+        t_u, u, src = np.asarray(traj.t, float), np.asarray(traj.u, float), "trajectory"
+    else:
+        ff = commands(crane, traj, rate)
+        t_u, u, src = np.asarray(ff.t, float), np.asarray(ff.u, float), f"feedforward@{rate:g}Hz"
+    rec = p.run(t_u, u, traj.q[0], t_end=float(max(traj.t[-1], t_u[-1])), rate=rate, **run_kw)
+    if not rec.ok:
+        raise PlantDiverged(rec.status, rec.t_fail, rec.reason, plant)
+    cols = rec.recording().with_noise(crane, noise, seed).to_csv(out, crane)
+    q_plan = traj.sample(np.clip(rec.t, traj.t[0], traj.t[-1]))[0]
+    tip_err = np.linalg.norm(crane.fk(rec.q_true) - crane.fk(q_plan), axis=1)
+    extra = {k: rec.meta[k] for k in ("steps", "wall_s") if k in rec.meta}
+    if "step" in rec.meta:
+        extra["step_s"] = rec.meta["step"]
+    return dict(status="ok", plant=plant, out=str(out), samples=len(rec.t), columns=cols,
+                commands=src, effects=p.report(), noise=noise_levels(noise), seed=seed,
+                max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),
+                **extra)

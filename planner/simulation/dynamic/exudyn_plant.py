@@ -38,19 +38,10 @@ from planner.model.kinematics import joint_transforms
 from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.simulation.dynamic.circuit import Circuit
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
-from planner.simulation.plants import BasePlant, PlantRecord
+from planner.simulation.plants import BasePlant, PlantDiverged, PlantRecord
 from planner.simulation.replay import stroke_stops, valve_set
 
 __all__ = ["StrokeTable", "tree_parameters", "DynamicRun", "ExudynPlant", "PlantDiverged"]
-
-
-class PlantDiverged(RuntimeError):
-    """A dynamic simulation that stopped early: ``status`` ("diverged" | "timeout"),
-    ``t_fail`` [s] and the reason."""
-
-    def __init__(self, status: str, t_fail: float, reason: str):
-        super().__init__(f"dynamic plant {status} at t = {t_fail:.4f} s: {reason}")
-        self.status, self.t_fail, self.reason = status, t_fail, reason
 
 
 def _aslist(a) -> list:

@@ -7,7 +7,7 @@ import numpy as np
 
 from planner.feedforward import commands
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant, PlantDiverged
-from planner.simulation.recording import Recording, noise_levels
+from planner.simulation.plants import plant_to_csv
 from planner.trajectory import Trajectory
 
 __all__ = ["trajectory_commands", "slowed", "simulate_trajectory", "exudyn_to_csv"]
@@ -54,24 +54,8 @@ def simulate_trajectory(crane, traj: Trajectory, rate: float = 50.0, effects=(),
 
 def exudyn_to_csv(crane, traj: Trajectory, out, rate: float = 50.0, noise=None, seed: int = 0,
                   effects=(), max_wall_s: float = 600.0) -> dict:
-    """What ``crane-planner simulate --plant exudyn`` does: replay ``traj``'s commands on the
-    Exudyn plant with the hidden ``effects`` and write the measured-data CSV at ``rate`` (the
-    command grid). Nothing is written when the run fails: :class:`PlantDiverged` (status,
-    t_fail) is raised. Returns a JSON-ready summary like the fast plant's."""
-    plant = ExudynPlant(crane, effects)
-    run, t_u, u, src = simulate_trajectory(crane, traj, rate, plant=plant,
-                                           max_wall_s=max_wall_s)
-    if not run.ok:
-        raise PlantDiverged(run.status, run.t_fail, run.reason)
-    t = np.arange(t_u[0], run.t[-1] + 1e-9, 1.0 / rate)
-    q, p_a, p_b, u_s = run.sample(t)
-    q_s, pa_s, pb_s = plant.sense(q, p_a, p_b, t)
-    rec = Recording(t, u_s, q_s, pa_s, pb_s).with_noise(crane, noise, seed)
-    cols = rec.to_csv(out, crane)
-    q_plan = traj.sample(np.clip(t, traj.t[0], traj.t[-1]))[0]
-    tip_err = np.linalg.norm(crane.fk(q) - crane.fk(q_plan), axis=1)
-    return dict(status="ok", plant="exudyn", out=str(out), samples=len(t), columns=cols,
-                commands=src, effects=[e.to_dict() for e in plant.effects],
-                noise=noise_levels(noise), seed=seed,
-                max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),
-                steps=run.meta["steps"], step_s=run.meta["step"], wall_s=run.wall_s)
+    """What ``crane-planner simulate --plant exudyn`` does
+    (:func:`planner.simulation.plants.plant_to_csv` on the Exudyn plant): nothing is written
+    when the run fails (:class:`PlantDiverged`: status, t_fail)."""
+    return plant_to_csv(crane, traj, out, "exudyn", rate=rate, noise=noise, seed=seed,
+                        effects=effects, max_wall_s=max_wall_s)

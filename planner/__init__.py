@@ -11,7 +11,7 @@ Layers: :mod:`planner.model` (spec, kinematics, dynamics, hydraulics) → :mod:`
 (laws, DP, TOPP-RA, Ruckig, NLP behind one registry) → products (:mod:`planner.library`,
 :mod:`planner.simulation`, :mod:`planner.calibration`, :mod:`planner.bench`, :mod:`planner.cli`).
 """
-from planner.methods import PlanRequest, PlanResult, plan
+from planner.methods import PlanRequest, PlanResult, PlanStatus, plan
 from planner.model import Crane, UnreachableError
 from planner.model.spec import CraneSpec, SpecError, load_spec
 from planner.trajectory import Trajectory, evaluate
@@ -19,7 +19,7 @@ from planner.version import __version__
 
 __all__ = ["Crane", "CraneSpec", "SpecError", "UnreachableError", "load_spec", "Trajectory",
            "evaluate", "plan", "PlanRequest", "PlanResult", "LibraryStore", "Discrepancy",
-           "__version__"]
+           "PlanStatus", "__version__"]
 
 _LAZY = {"LibraryStore": "planner.library.store", "Discrepancy": "planner.calibration.discrepancy"}
 

@@ -10,10 +10,32 @@ Every planning method (local laws, Bellman DP, TOPP-RA, Ruckig, the NLPs) is a
     if res.ok:
         res.trajectory          # planner.trajectory.Trajectory, judged by evaluate()
 
-A result's ``status`` is ``"ok"`` or a short code (``"infeasible"``, ``"unreachable"``,
-``"stalled"``, ``"max_iter"``, …) with a human ``reason``; method-specific figures (iterations,
-the DP's joint path, the laws' β statistics, …) live in ``stats`` and read as attributes
-(``res.iterations`` is ``res.stats["iterations"]``).
+A result's ``status`` is a :class:`PlanStatus` — a ``str`` enum, so ``res.status == "ok"``
+holds and JSON writes the plain code — with a human ``reason`` when it is not ``ok``; an unknown
+code is refused when the result is made. The codes (the JSON ``status`` key, docs/json-keys.md):
+
+- ``ok``: a trajectory that keeps the limits the method plans with;
+- ``infeasible``: the method shows that no trajectory meets its limits or the duration asked
+  for (no path through the DP graph, no TOPP-RA timing, IPOPT's infeasibility verdict, a time
+  budget below the minimum time);
+- ``unreachable``: the start, the goal or a point of the path lies outside the workspace;
+- ``stalled``: a local law stopped moving along its path (joints saturated or at a limit);
+- ``timeout``: the method ran past its time limit (a law's move time, IPOPT's wall time);
+- ``max_iter``: the solver reached its iteration limit;
+- ``restoration_failed``: IPOPT's restoration phase failed;
+- ``failed``: the solver stopped without a solution for another reason, named in ``reason``;
+- ``error``: the solver raised an error, its message in ``reason``;
+- ``invalid``: the solver refused the problem it was given (Ruckig's input check);
+- ``obstacle``: the solution passes through an obstacle between the check points;
+- ``violation``: a limit is still exceeded beyond the method's tolerance after its refinement
+  rounds (TOPP-RA);
+- ``limits``: the solver converged, but evaluate() finds a limit broken between the check
+  points (the energy NLP's candidates, library entries);
+- ``unsupported``: the method does not plan the request — a library entry's code; ``plan()``
+  raises :class:`UnsupportedRequest` instead.
+
+Method-specific figures (iterations, the DP's joint path, the laws' β statistics, …) live in
+``stats`` and read as attributes (``res.iterations`` is ``res.stats["iterations"]``).
 
 A request the method cannot plan at all (an objective or path kind it does not support, a
 missing option, an option it would ignore, a value outside what is allowed) raises
@@ -27,6 +49,7 @@ Registering a planner once (:func:`planner.methods.registry.register`) makes it 
 """
 from __future__ import annotations
 
+import enum
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
@@ -35,8 +58,8 @@ from typing import Any, ClassVar, Mapping
 
 from planner.units import check_tip
 
-__all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "Planner",
-           "UnsupportedRequest"]
+__all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "PlanStatus",
+           "Planner", "UnsupportedRequest"]
 
 OBJECTIVES = ("time", "energy")
 PATHS = ("free", "line")
@@ -53,6 +76,41 @@ OPTION_RULES = {
     "window": (True, 1, 1000, "DP telescope steps per stage"),
     "tele0": (False, -100.0, 100.0, "start telescope [m]"),
 }
+
+
+class PlanStatus(enum.StrEnum):
+    """The result code of a plan (the JSON ``status`` key): ``ok`` or why there is no
+    trajectory. A ``str``: it compares equal to its code and JSON writes the code; each member's
+    ``meaning`` is its one-line description (the list in the module doc)."""
+    OK = "ok", "a trajectory that keeps the limits the method plans with"
+    INFEASIBLE = "infeasible", "no trajectory meets the limits or the duration asked for"
+    UNREACHABLE = "unreachable", "the start, the goal or a point of the path is out of reach"
+    STALLED = "stalled", "a local law stopped moving along its path"
+    TIMEOUT = "timeout", "the method ran past its time limit"
+    MAX_ITER = "max_iter", "the solver reached its iteration limit"
+    RESTORATION_FAILED = "restoration_failed", "IPOPT's restoration phase failed"
+    FAILED = "failed", "the solver stopped without a solution for another reason"
+    ERROR = "error", "the solver raised an error"
+    INVALID = "invalid", "the solver refused the problem it was given"
+    OBSTACLE = "obstacle", "the solution passes through an obstacle between the check points"
+    VIOLATION = "violation", "a limit is still exceeded after the refinement rounds"
+    LIMITS = "limits", "converged, but evaluate() finds a limit broken between check points"
+    UNSUPPORTED = "unsupported", "the method does not plan the request (library entries)"
+
+    def __new__(cls, code: str, meaning: str):
+        member = str.__new__(cls, code)
+        member._value_ = code
+        member.meaning = meaning
+        return member
+
+    @classmethod
+    def of(cls, code) -> "PlanStatus":
+        """``code`` as a member; ValueError naming it and the allowed codes otherwise."""
+        try:
+            return cls(code)
+        except ValueError:
+            raise ValueError(f"status {code!r}: allowed {', '.join(m.value for m in cls)}") \
+                from None
 
 
 class UnsupportedRequest(ValueError):
@@ -134,13 +192,13 @@ class PlanRequest:
 
 
 class PlanResult:
-    """What every method returns: ``status`` ("ok" or a short failure code), ``reason``,
+    """What every method returns: ``status`` (a :class:`PlanStatus`: ok or why not), ``reason``,
     ``trajectory`` (:class:`~planner.trajectory.Trajectory` when ok), ``duration_s`` [s],
     ``solve_time_s`` [s], ``method`` (registry name, set by :func:`plan`), ``warnings`` and
     ``stats`` (method-specific figures; any other keyword given to the constructor lands there
     and reads back as an attribute)."""
 
-    def __init__(self, status: str, reason: str = "", trajectory=None, *,
+    def __init__(self, status: PlanStatus | str, reason: str = "", trajectory=None, *,
                  duration_s: float = math.nan, solve_time_s: float = 0.0, method: str = "",
                  warnings=(), stats: Mapping[str, Any] | None = None, **extra: Any):
         self.status = status
@@ -154,8 +212,16 @@ class PlanResult:
         self.stats.update(extra)
 
     @property
+    def status(self) -> PlanStatus:
+        return self.__dict__["_status"]
+
+    @status.setter
+    def status(self, code: PlanStatus | str) -> None:
+        self.__dict__["_status"] = PlanStatus.of(code)   # an unknown code is refused here
+
+    @property
     def ok(self) -> bool:
-        return self.status == "ok"
+        return self.status is PlanStatus.OK
 
     def __getattr__(self, name: str):
         # only reached when normal lookup fails: method-specific figures live in ``stats``

@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.geometry.paths import Line, Path
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
@@ -254,7 +255,7 @@ class MaxLift(Law):
 LAWS = {c.name: c for c in (LeastNorm, MaxVelocity, MaxLift)}
 
 
-def _result(status: str, reason: str = "", **kw) -> PlanResult:
+def _result(status: PlanStatus, reason: str = "", **kw) -> PlanResult:
     """A law's result: status "ok", "unreachable" (start not reachable), "stalled" (the law
     stopped moving along the path) or "timeout"; stats ``min_beta`` (least path-speed ratio β)
     and ``max_path_error_m``; the trajectory's ``meta`` holds the β statistics."""
@@ -297,9 +298,9 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                 k = ok[np.argmin(np.abs(grid[ok] - tele))]
                 q, reason = qs[k:k + 1], rs[k:k + 1]
         if reason[0]:
-            return _result("unreachable", f"start tip (r={start[0]:.3f} m, z={start[1]:.3f} m,"
-                             f" slew={start[2]:.3f} rad) is unreachable: {reason[0]}",
-                             solve_time_s=_time.perf_counter() - t_start)
+            return _result(PlanStatus.UNREACHABLE, f"start tip (r={start[0]:.3f} m, "
+                           f"z={start[1]:.3f} m, slew={start[2]:.3f} rad) is unreachable: "
+                           f"{reason[0]}", solve_time_s=_time.perf_counter() - t_start)
         q = q[0]
     else:
         q = np.asarray(q0, float).copy()
@@ -336,11 +337,11 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
         qd_prev = qd
         stall = stall + 1 if beta < 1e-3 else 0
         if stall > rate:  # a full second without progress
-            return _result("stalled", f"{law.name} stopped at s = {s:.3f} m of "
+            return _result(PlanStatus.STALLED, f"{law.name} stopped at s = {s:.3f} m of "
                              f"{path.length:.3f} m (joints saturated or at their limits)",
                              solve_time_s=_time.perf_counter() - t_start)
         if t > max_time:
-            return _result("timeout", f"{law.name} did not finish within {max_time:.1f} s",
+            return _result(PlanStatus.TIMEOUT, f"{law.name} did not finish within {max_time:.1f} s",
                              solve_time_s=_time.perf_counter() - t_start)
     traj = Trajectory(np.array(Ts), np.array(Qs), joint_names=tuple(crane.names),
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
@@ -349,7 +350,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                                 start_q=Qs[0].tolist(),
                                 min_beta=float(min(betas)), mean_beta=float(np.mean(betas)),
                                 path=path.name, path_length_m=path.length))
-    return _result("ok", trajectory=traj, duration_s=t, min_beta=float(min(betas)),
+    return _result(PlanStatus.OK, trajectory=traj, duration_s=t, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
 
@@ -389,7 +390,7 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
                       limits=("position", "velocity", "pump_flow"),
                       meta=dict(law=law.name, rate_hz=rate, min_beta=float(min(betas)),
                                 mean_beta=float(np.mean(betas))))
-    return _result("ok", trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
+    return _result(PlanStatus.OK, trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
 

@@ -36,7 +36,7 @@ from pathlib import Path
 from planner.io import progress
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
-from planner.methods import PlanRequest, UnsupportedRequest, get, plan
+from planner.methods import PlanRequest, PlanStatus, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
 OBJECTIVES = ("time", "energy")
@@ -124,8 +124,9 @@ def plan_move(crane_id: str, move: Move, objectives, N: int = 40, robustness: bo
 
 def _failed(out: dict, e: Exception, t0: float) -> dict:
     if isinstance(e, UnsupportedRequest):
-        return dict(out, status="unsupported", reason=str(e), solve_s=_time.perf_counter() - t0)
-    return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
+        return dict(out, status=PlanStatus.UNSUPPORTED, reason=str(e),
+                    solve_s=_time.perf_counter() - t0)
+    return dict(out, status=PlanStatus.ERROR, reason=f"{type(e).__name__}: {e}",
                 solve_s=_time.perf_counter() - t0)
 
 
@@ -145,7 +146,7 @@ def _entry(crane, move: Move, out: dict, rt, N, robustness, obstacles, method, t
     verdict = evaluate(crane, traj)  # the judge sees the plan itself
     if verdict.max_limit_violation > 1e-3:
         worst = max(verdict.violations, key=verdict.violations.get)
-        return dict(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
+        return dict(out, status=PlanStatus.LIMITS, reason=f"evaluate(): {worst} exceeded by "
                     f"{100 * verdict.max_limit_violation:.2f} %",
                     solve_s=_time.perf_counter() - t0)
     # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
@@ -163,7 +164,7 @@ def _entry(crane, move: Move, out: dict, rt, N, robustness, obstacles, method, t
     if robustness:
         from planner.simulation.replay import robustness as robust
         rob = float(robust(crane, traj_u)["score_m"])
-    return dict(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
+    return dict(out, status=PlanStatus.OK, reason="", trajectory=traj_u, evaluation=ev,
                 robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
                 iterations=res.stats.get("iterations", 0),
                 # CPU seconds of the worker process (its own threads included) and the

@@ -186,11 +186,11 @@ def check_scheduler(scheduler: str) -> None:
     if scheduler.startswith("local:"):
         n = scheduler.split(":", 1)[1]
         if not n.isdigit() or int(n) < 1:
-            raise BuildError(f"--scheduler {scheduler!r}: local:N needs N >= 1 workers")
+            raise BuildError(f"`scheduler` {scheduler!r}: local:N needs N >= 1 workers")
     try:
         import dask.distributed  # noqa: F401  (only checked here; used by library.cluster)
     except ImportError:
-        raise BuildError(f"--scheduler {scheduler}: Dask is not installed; install the "
+        raise BuildError(f"`scheduler` {scheduler}: Dask is not installed; install the "
                          "'cluster' extra: pip install 'crane-planner[cluster]'") from None
 
 
@@ -232,7 +232,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                                               compile=True)
     out = Path(out)
     if out.exists() and not out.is_file():
-        raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
+        raise BuildError(f"`out` {out}: not a regular file (a library is an HDF5 file)")
     out.parent.mkdir(parents=True, exist_ok=True)  # the lock file lives next to it
     t0 = _time.perf_counter()
     state = dict(todo=[], counts={}, written=0, skipped=0, setup=[], first_entry_t=None,

@@ -118,7 +118,7 @@ class UnsupportedRequest(ValueError):
     it would ignore), or a field of the request is outside what is allowed."""
 
 
-def _positive(name: str, flag: str, unit: str, value):
+def _positive(name: str, unit: str, value):
     """``value`` as a finite float > 0, or None when not given; UnsupportedRequest otherwise."""
     if value is None:
         return None
@@ -127,8 +127,7 @@ def _positive(name: str, flag: str, unit: str, value):
     except (TypeError, ValueError):
         v = math.nan
     if not (math.isfinite(v) and v > 0):
-        raise UnsupportedRequest(f"{name} = {value!r} {unit} ({flag}): allowed a finite number "
-                                 f"> 0")
+        raise UnsupportedRequest(f"`{name}` = {value!r} {unit}: allowed a finite number > 0")
     return v
 
 
@@ -137,12 +136,11 @@ def _option(name: str, value):
     if value is None or name not in OPTION_RULES:
         return value
     integer, lo, hi, what = OPTION_RULES[name]
-    flag = "--" + name.replace("_", "-")
     kind = "an integer" if integer else "a number"
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
         math.isfinite(value) and lo <= value <= hi and (not integer or value == int(value))
     if not ok:
-        raise UnsupportedRequest(f"{name} = {value!r} ({flag}, {what}): allowed {kind} in "
+        raise UnsupportedRequest(f"`{name}` = {value!r} ({what}): allowed {kind} in "
                                  f"[{lo:g}, {hi:g}]")
     return int(value) if integer else float(value)
 
@@ -173,9 +171,9 @@ class PlanRequest:
                 raise UnsupportedRequest(str(e)) from None
             object.__setattr__(self, name, tip)
         object.__setattr__(self, "duration",
-                           _positive("duration", "--duration", "s", self.duration))
+                           _positive("duration", "s", self.duration))
         object.__setattr__(self, "tip_speed",
-                           _positive("tip_speed", "--tip-speed", "m/s", self.tip_speed))
+                           _positive("tip_speed", "m/s", self.tip_speed))
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
         object.__setattr__(self, "options", MappingProxyType(
             {k: _option(k, v) for k, v in dict(self.options).items()}))
@@ -265,21 +263,21 @@ class Planner(ABC):
     def check(self, request: PlanRequest) -> None:
         """Raise :class:`UnsupportedRequest` when this method cannot plan ``request``."""
         if request.objective not in self.objectives:
-            raise UnsupportedRequest(f"--objective {request.objective}: {self.name} plans "
+            raise UnsupportedRequest(f"`objective` {request.objective}: {self.name} plans "
                                      f"{' or '.join(self.objectives)}")
         if request.path not in self.paths:
-            raise UnsupportedRequest(f"--path {request.path}: {self.name} plans "
+            raise UnsupportedRequest(f"`path` {request.path}: {self.name} plans "
                                      f"{' or '.join(self.paths)} paths")
         if request.obstacles and not self.obstacles:
             raise UnsupportedRequest(f"{self.name} does not keep clear of obstacles; "
-                                     "use --method nlp")
-        for fld, flag in (("duration", "--duration"), ("tip_speed", "--tip-speed")):
+                                     "use `method` nlp")
+        for fld in ("duration", "tip_speed"):
             if getattr(request, fld) is not None and not self.reads(fld, request.objective):
                 uses = getattr(self, f"uses_{fld}")
-                where = (f" (it reads it for --objective {' or '.join(uses)})"
+                where = (f" (it reads it for `objective` {' or '.join(uses)})"
                          if isinstance(uses, tuple) and uses else "")
-                raise UnsupportedRequest(f"{flag} {getattr(request, fld):g}: {self.name} "
-                                         f"--objective {request.objective} does not read it"
+                raise UnsupportedRequest(f"`{fld}` {getattr(request, fld):g}: {self.name} "
+                                         f"`objective` {request.objective} does not read it"
                                          f"{where}; leave it out rather than have it ignored")
 
     def clear(self) -> None:

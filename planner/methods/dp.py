@@ -130,7 +130,7 @@ def _too_fast(T, start, w, dt, tip_speed, length) -> str:
     v = tip_speed * dt / worst
     return (f"tip speed {tip_speed:.4g} m/s (duration {length / tip_speed:.4g} s) is too fast "
             f"for the limits along this line: on this grid the fastest constant tip speed is "
-            f"{v:.4g} m/s; allowed: --tip-speed <= {v:.4g} m/s or --duration >= "
+            f"{v:.4g} m/s; allowed: `tip_speed` <= {v:.4g} m/s or `duration` >= "
             f"{length / v:.4g} s")
 
 
@@ -192,8 +192,8 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         raise UnsupportedRequest(
             f"dp grid {N} stages × {M1} telescope nodes × {2 * window + 1} window steps "
             f"(path {path.length:.3g} m, step {path.length / N:.3g} m) needs ~{need / 2 ** 30:.1f}"
-            f" GiB; allowed up to {MAX_BYTES / 2 ** 30:.1f} GiB: use a larger --step or "
-            "--tele-step, a smaller --window, or a shorter move")
+            f" GiB; allowed up to {MAX_BYTES / 2 ** 30:.1f} GiB: use a larger `step` or "
+            "`tele_step`, a smaller `window`, or a shorter move")
     s = path.stations(n=N)
     tips = path.tip(s)
     teles = np.zeros(1) if tr is None else np.linspace(tr[0], tr[1], M1)
@@ -331,8 +331,8 @@ class DPPlanner(Planner):
         super().check(request)
         if request.objective == "energy" and \
                 (request.tip_speed is None) == (request.duration is None):
-            raise UnsupportedRequest("--method dp --objective energy needs exactly one of "
-                                     "--tip-speed V [m/s] or --duration T [s] (the clock it "
+            raise UnsupportedRequest("`method` dp with `objective` energy needs exactly one "
+                                     "of `tip_speed` [m/s] or `duration` [s] (the clock it "
                                      "saves energy on)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:

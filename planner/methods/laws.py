@@ -407,7 +407,7 @@ class LawPlanner(Planner):
     def __init__(self, law_cls):
         self.law_cls = law_cls
         self.name = f"law:{law_cls.name}"
-        self.description = f"local law {law_cls.name} along the tip line at --tip-speed"
+        self.description = f"local law {law_cls.name} along the tip line at a set tip speed"
 
     def check(self, request: PlanRequest) -> None:
         """Also refuses a move whose nominal control-step count (line length / tip speed ·
@@ -422,9 +422,9 @@ class LawPlanner(Planner):
         steps = length / speed * rate
         if steps > MAX_STEPS:
             raise UnsupportedRequest(
-                f"--tip-speed {speed:g} m/s: {self.name} would take {steps:.3g} control steps "
+                f"`tip_speed` {speed:g} m/s: {self.name} would take {steps:.3g} control steps "
                 f"for the {length:.3g} m line at {rate:g} Hz; allowed at most {MAX_STEPS} "
-                f"(--tip-speed >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
+                f"(`tip_speed` >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:
         speed = request.tip_speed if request.tip_speed is not None else DEFAULT_TIP_SPEED

@@ -66,9 +66,9 @@ def test_the_hydraulic_frequency_follows_the_analytic_law(s100f):
 def test_quasi_static_paths_refuse_them_naming_the_effect(s100f, tmp_path, capsys):
     u = np.zeros((3, s100f.n))
     q0 = 0.5 * (s100f.limit_arrays()["q_min"] + s100f.limit_arrays()["q_max"])
-    with pytest.raises(ValueError, match="bulk_modulus.*--plant exudyn"):
+    with pytest.raises(ValueError, match="bulk_modulus.*`plant` = exudyn"):
         respond(s100f, [0.0, 0.5, 1.0], u, q0, [BulkModulus(scale=0.5)])
-    with pytest.raises(ValueError, match="grapple_swing.*--plant exudyn"):
+    with pytest.raises(ValueError, match="grapple_swing.*`plant` = exudyn"):
         respond(s100f, [0.0, 0.5, 1.0], u, q0, [make("grapple_swing", length=1.0)])
     with pytest.raises(ValueError, match="hose_volume.*quasi-static model cannot fit"):
         Discrepancy(s100f, candidates=["flow_gain", "hose_volume"])

@@ -422,7 +422,7 @@ def quasi_static(effects) -> tuple:
     for e in effects:
         if e.stage == "dynamics":
             raise ValueError(f"effect {e.name}: changes the oil's dynamics (stage 'dynamics'), "
-                             "which only the dynamic plant has; simulate with --plant exudyn "
+                             "which only the dynamic plant has; simulate on it (`plant` = exudyn) "
                              "(the quasi-static plant and model cannot show it, so the "
                              f"quasi-static model cannot fit it; fittable: {', '.join(fittable())})")
     return effects

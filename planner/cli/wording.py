@@ -7,9 +7,8 @@ prints such a text it passes it through :func:`cli_text`, which writes each name
 flag that sets it ("--tip-speed -1 m/s: allowed a finite number > 0"); a ``name = value``
 becomes ``--flag value``. The mapping is :data:`FLAGS` (every command) and
 :data:`COMMAND_FLAGS` (one command's own names, first); a field without a flag is left as
-written. tests/cli/test_wording.py checks that every flag named here exists on its command,
-and tests/test_architecture.py that no module outside ``planner/cli/`` writes a flag into a
-message.
+written. tests/cli/test_wording.py checks that every flag named here exists on its command
+and that no module outside ``planner/cli/`` writes a flag into a message.
 """
 from __future__ import annotations
 

@@ -240,8 +240,10 @@ class Planner(ABC):
     ``"law:jla"``), ``objectives`` and ``paths`` (the first is the default path kind),
     ``obstacles`` (True when it honours :attr:`PlanRequest.obstacles`), ``uses_duration`` /
     ``uses_tip_speed`` (whether it reads those fields: True for every objective, or the tuple
-    of objectives it reads them for; :meth:`check` refuses a field it would ignore), and
-    implement :meth:`plan`."""
+    of objectives it reads them for; :meth:`check` refuses a field it would ignore),
+    ``tolerance`` (the largest relative limit excess, evaluate()'s ``max_limit_violation`` at
+    1 kHz, that an ``ok`` trajectory of the method may show; 1e-3 unless it says otherwise),
+    and implement :meth:`plan`."""
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     objectives: ClassVar[tuple] = ("time",)
@@ -249,6 +251,7 @@ class Planner(ABC):
     obstacles: ClassVar[bool] = False
     uses_duration: ClassVar[bool | tuple] = False
     uses_tip_speed: ClassVar[bool | tuple] = False
+    tolerance: ClassVar[float] = 1e-3
 
     @property
     def default_path(self) -> str:

@@ -58,6 +58,10 @@ class Law(ABC):
         """Telescope value the law needs at the start tip (None: any)."""
         return None
 
+    def missing(self, crane) -> str:
+        """What this machine lacks for the law ("" when it has everything)."""
+        return ""
+
     @abstractmethod
     def rates(self, crane, st: Step, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Joint rates [rad/s | m/s] and the command scale β."""
@@ -218,6 +222,15 @@ class MaxLift(Law):
             raise ValueError(f"max_lift needs rc, zc, rho_min, rho_max (crane '{crane.spec.id}' "
                              "has no [laws] max_lift table)")
         return p
+
+    def missing(self, crane) -> str:
+        if crane.chain.tele is None:
+            return "it moves a telescope, and the machine has none"
+        try:
+            self._params(crane)
+        except ValueError as e:
+            return str(e)
+        return ""
 
     def tele_of(self, crane, r, z):
         """(d3, ∂d3/∂r, ∂d3/∂z) at tip (r, z) — the seed's cubic d3(ρ)."""
@@ -427,8 +440,14 @@ class LawPlanner(Planner):
                 f"(`tip_speed` >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:
+        """Raises :class:`UnsupportedRequest` when the machine lacks what the law needs (the
+        ``max_lift`` law's [laws] table and a telescope)."""
+        law = self.law_cls()
+        why = law.missing(crane)
+        if why:
+            raise UnsupportedRequest(f"{self.name} does not plan on {crane.spec.id}: {why}")
         speed = request.tip_speed if request.tip_speed is not None else DEFAULT_TIP_SPEED
-        return follow(crane, Line(request.start, request.goal), self.law_cls(), speed,
+        return follow(crane, Line(request.start, request.goal), law, speed,
                       rate=request.option("rate", 100.0), tele0=request.option("tele0"))
 
 

@@ -43,7 +43,8 @@ missing option, an option it would ignore, a value outside what is allowed) rais
 where the request is made (:class:`PlanRequest`: finite tips with the slew in ±π, positive
 finite duration and tip speed, the common options in :data:`OPTION_RULES`), the method's own
 conditions in :meth:`Planner.check`; the CLI, ``library build`` and the bench all go through
-both.
+both. Messages name a field as the Python caller writes it, in backticks (```tip_speed` = -1
+m/s: allowed a finite number > 0``); the CLI prints the flag instead (:mod:`planner.cli.wording`).
 Registering a planner once (:func:`planner.methods.registry.register`) makes it available to
 ``crane-planner plan --method``, the benchmark and ``library build``.
 """

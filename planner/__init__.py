@@ -17,15 +17,15 @@ Layers: :mod:`planner.model` (spec, kinematics, dynamics, hydraulics) → :mod:`
 :mod:`planner.simulation`, :mod:`planner.calibration`, :mod:`planner.bench`, :mod:`planner.cli`);
 docs/design.md describes them, the models and the contracts.
 """
-from planner.methods import PlanRequest, PlanResult, UnsupportedRequest, plan
+from planner.methods import PlanRequest, PlanResult, PlanStatus, UnsupportedRequest, plan
 from planner.model import Crane, UnreachableError
 from planner.model.spec import CraneSpec, SpecError, load_spec
 from planner.trajectory import Trajectory, evaluate
 from planner.version import __version__
 
 __all__ = ["Crane", "CraneSpec", "SpecError", "UnreachableError", "load_spec", "Trajectory",
-           "evaluate", "plan", "PlanRequest", "PlanResult", "UnsupportedRequest", "LibraryStore",
-           "Discrepancy", "__version__"]
+           "evaluate", "plan", "PlanRequest", "PlanResult", "PlanStatus", "UnsupportedRequest",
+           "LibraryStore", "Discrepancy", "__version__"]
 
 _LAZY = {"LibraryStore": "planner.library.store", "Discrepancy": "planner.calibration.discrepancy"}
 

@@ -11,6 +11,7 @@ import dataclasses
 import time as _time
 from dataclasses import dataclass, field
 
+from planner.methods.base import PlanStatus
 from planner.methods.nlp import MoveNLP
 from planner.model import Crane
 
@@ -46,9 +47,9 @@ class Settings:
 
 @dataclass
 class Outcome:
-    """What a runner returns: ``status`` ("ok" or a failure code) and ``reason``; when ok the
-    trajectory ``pieces`` [(t0 [s], Trajectory)], ``notes`` for the report and ``info`` (method
-    figures kept in the row)."""
+    """What a runner returns: ``status`` (a :class:`~planner.methods.base.PlanStatus`) and
+    ``reason``; when ok the trajectory ``pieces`` [(t0 [s], Trajectory)], ``notes`` for the
+    report and ``info`` (method figures kept in the row)."""
     status: str
     reason: str = ""
     pieces: list = field(default_factory=list)    # [(t0 [s], Trajectory)]
@@ -65,7 +66,7 @@ def outcome_of(res, t0: float = 0.0, **info) -> Outcome:
     trajectory as the one piece (starting at ``t0`` [s]) with ``info``, or its failure."""
     if not res.ok:
         return Outcome(res.status, res.reason or res.status)
-    return Outcome("ok", pieces=[(t0, res.trajectory)], info=info)
+    return Outcome(PlanStatus.OK, pieces=[(t0, res.trajectory)], info=info)
 
 
 class Ctx:

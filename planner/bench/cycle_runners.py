@@ -16,6 +16,7 @@ from contextlib import contextmanager
 
 from planner.bench.context import Outcome
 from planner.geometry.paths import Line
+from planner.methods.base import PlanStatus
 from planner.methods.dp import dp
 from planner.methods.nlp import stretch
 from planner.methods.topp import retime
@@ -57,7 +58,7 @@ def dp_chain(ctx, move, tele_start=None):
         results.append(r)
         pieces.append((sec.t0, r.trajectory))
         tele = float(r.path_q[-1][crane.chain.tele])
-    return Outcome("ok", pieces=pieces, notes=notes,
+    return Outcome(PlanStatus.OK, pieces=pieces, notes=notes,
                    info=dict(tele_step_m=ts,
                              start_tele_m=float(results[0].path_q[0][crane.chain.tele]))), results
 
@@ -83,7 +84,7 @@ def topp_dp_cycle(ctx, move):
         if not t.ok:
             return Outcome(t.status, f"section {k + 1}: {t.reason}")
         pieces.append((sec.t0, t.trajectory))
-    return Outcome("ok", pieces=pieces)
+    return Outcome(PlanStatus.OK, pieces=pieces)
 
 
 @contextmanager
@@ -119,8 +120,8 @@ def nlp_energy_cycle(ctx, move):
         if not rt.ok:
             return Outcome(rt.status, f"section {k + 1} ({lab}), time NLP: {rt.reason}")
         if rt.duration_s > T * (1 + 1e-9):
-            return Outcome("infeasible", f"section {k + 1} ({lab}) needs {rt.duration_s:.2f} s "
-                           f"rest to rest, the cycle gives {T:.2f} s")
+            return Outcome(PlanStatus.INFEASIBLE, f"section {k + 1} ({lab}) needs "
+                           f"{rt.duration_s:.2f} s rest to rest, the cycle gives {T:.2f} s")
         best = stretch(rt.trajectory, T)
         e_best = evaluate(crane, best).energy_J
         with _pinned(ne, ti, tele):
@@ -131,8 +132,8 @@ def nlp_energy_cycle(ctx, move):
             if ev.max_limit_violation <= 1e-3 and ev.energy_J < e_best:
                 best, win = re.trajectory, "nlp"
         if tele is not None and abs(best.q[0, ti] - tele) > 1e-9:
-            return Outcome("error", f"section {k + 1}: the telescope pin did not hold")
+            return Outcome(PlanStatus.ERROR, f"section {k + 1}: the telescope pin did not hold")
         pieces.append((sec.t0, best))
         winners.append(win)
         tele = float(best.q[-1, ti])
-    return Outcome("ok", pieces=pieces, info=dict(section_winners=winners))
+    return Outcome(PlanStatus.OK, pieces=pieces, info=dict(section_winners=winners))

@@ -107,8 +107,8 @@ def applicability(suite, spec_file: str, listed, not_applicable: dict, default_r
         out["law:max_lift"] = (f"{crane_id} has no [laws] max_lift table: seed 000's "
                                "maximum-lifting-capacity circle is defined for the Cranab 850 only")
     if settings.quick and callable(out.get("nlp:energy-path")):
-        out["nlp:energy-path"] = ("skipped with --quick (≈ 1 min per cycle: an energy NLP per "
-                                  "section)")
+        out["nlp:energy-path"] = ("skipped in a quick run (≈ 1 min per cycle: an energy NLP "
+                                  "per section)")
     return out
 
 

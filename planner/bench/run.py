@@ -37,6 +37,7 @@ from planner.bench.report import DEFAULT_RESULTS, global_vs_local, nlp_vs_laws, 
 from planner.bench.suites import SUITE_NAMES, build_suite
 from planner.bounds import lower_bound
 from planner.geometry.paths import tip_to_xyz
+from planner.methods.base import PlanStatus
 from planner.model import Crane, UnreachableError
 from planner.trajectory import LIMIT_KINDS, evaluate
 
@@ -71,9 +72,9 @@ def machine_info() -> dict:
 
 
 # ------------------------------------------------------------------------------ one run
-def _status_of(e: Exception) -> str:
-    return "unreachable" if isinstance(e, UnreachableError) else \
-        "invalid" if isinstance(e, ValueError) else "error"
+def _status_of(e: Exception) -> PlanStatus:
+    return PlanStatus.UNREACHABLE if isinstance(e, UnreachableError) else \
+        PlanStatus.INVALID if isinstance(e, ValueError) else PlanStatus.ERROR
 
 
 def timed_run(runner, ctx, move, repeats: int):

@@ -14,7 +14,7 @@ among its own candidates (as ``topp:law`` does); the verdict comes only from
 from __future__ import annotations
 
 from planner.bench.context import BASE_KINDS, Outcome, outcome_of
-from planner.methods.base import PlanRequest
+from planner.methods.base import PlanRequest, PlanStatus
 from planner.methods.dp import dp
 from planner.methods.laws import LAWS, follow, follow_command
 from planner.methods.laws_energy import LAWS_ENERGY
@@ -148,7 +148,7 @@ def topp_law(ctx, move):
         if best is None or t.trajectory.duration < best[1].trajectory.duration:
             best = (name, t)
     if best is None:
-        return Outcome("infeasible", "no law path could be retimed: " + "; ".join(
+        return Outcome(PlanStatus.INFEASIBLE, "no law path could be retimed: " + "; ".join(
             f"{k}: {v}" for k, v in per.items()), info=dict(per_law_s=per))
     return outcome_of(best[1], law=best[0], per_law_s=per)
 

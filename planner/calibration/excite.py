@@ -106,25 +106,25 @@ def parse_candidates(crane, text: str, joint: str | None = None, seed: int = 0) 
         name, _, j = item.partition("@")
         name, j = name.strip(), (j.strip() or joint)
         if name not in CATALOGUE:
-            raise ValueError(f"--separate: unknown effect {name!r}; known: "
+            raise ValueError(f"`text`: unknown effect {name!r}; known: "
                              f"{', '.join(CATALOGUE)}")
         cls = CATALOGUE[name]
         if cls.per_joint and not j:
-            raise ValueError(f"--separate: {name} acts on one joint: write {name}@JOINT or "
-                             f"give --joint (joints: {', '.join(crane.names)})")
+            raise ValueError(f"`text`: {name} acts on one joint: write {name}@JOINT or "
+                             f"give `joint` (joints: {', '.join(crane.names)})")
         if j and j not in crane.names:
-            raise ValueError(f"--separate: unknown joint {j!r} for {name}; joints of "
+            raise ValueError(f"`text`: unknown joint {j!r} for {name}; joints of "
                              f"{crane.spec.id}: {', '.join(crane.names)}")
         if cls.trial_range is None:
-            raise ValueError(f"--separate: {name} has no trial magnitude to design with")
+            raise ValueError(f"`text`: {name} has no trial magnitude to design with")
         out.append(cls.trial(crane, rng, j if cls.per_joint else None))
     if len(out) < 2:
-        raise ValueError(f"--separate {text!r}: name at least two effects, e.g. "
+        raise ValueError(f"`text` {text!r}: name at least two effects, e.g. "
                          "viscous_friction@swing,coulomb_friction@swing")
     return tuple(out)
 
 
-def candidates_from_result(crane, result: dict, where: str = "--from") -> tuple:
+def candidates_from_result(crane, result: dict, where: str = "result") -> tuple:
     """The candidates of an ``ambiguous`` discrepancy result (the dict its JSON holds) at the
     values each was fitted to: a design for them separates the effects at the magnitudes the
     data showed (a weak effect needs a stronger design than its trial magnitude suggests)."""
@@ -273,7 +273,7 @@ def _unseparated(pairs: dict, signal: dict, duration: float) -> list:
                 f"(of {a}'s own signal {s:.1f} σ², {100 * share:.1f} %) on the best design "
                 f"found; below the verdict's tie floor {TIE_FLOOR:g} σ², so from these "
                 f"{duration:.0f} s the pair stays ambiguous; "
-                + (f"about {need:g} s of the same sequence would separate it (--max-duration)"
+                + (f"about {need:g} s of the same sequence would separate it"
                    if need else f"no recording shorter than {MAX_NEEDED_S:g} s would"))))
     return out
 

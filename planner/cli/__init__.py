@@ -8,6 +8,8 @@ argument parsing, a call into the package and the printing: :mod:`~planner.cli.p
 (problems, bound), :mod:`~planner.cli.plan`, :mod:`~planner.cli.library`,
 :mod:`~planner.cli.simulate` (simulate, effects), :mod:`~planner.cli.discrepancy`,
 :mod:`~planner.cli.studies` (bench, demo); :mod:`~planner.cli.common` has what they share.
+The package's messages name fields (`tip_speed`); :mod:`~planner.cli.wording` prints them as
+the flags that set them (--tip-speed).
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import sys
 from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
                          studies)
 from planner.cli.common import CLIError, package_version
+from planner.cli.wording import cli_text
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
 
@@ -77,10 +80,10 @@ def main(argv=None) -> int:
               "that was not complete", file=sys.stderr)
         return 130
     except (SpecError, UnreachableError, CLIError, ValueError, OSError) as e:
-        print(f"crane-planner: error: {e}", file=sys.stderr)
+        print(f"crane-planner: error: {cli_text(e, args.command)}", file=sys.stderr)
         return 2
     except KeyError as e:
-        print(f"crane-planner: error: {e.args[0]}", file=sys.stderr)
+        print(f"crane-planner: error: {cli_text(e.args[0], args.command)}", file=sys.stderr)
         return 2
     return rc or 0
 

@@ -62,7 +62,9 @@ def cmd_excite(args):
         for k, v in d.pairs.items():
             print(f"  {k}: {v:.1f}")
         for u in d.unseparated:
-            print(f"  not separated: {u['why']}")
+            need = u["duration_needed_s"]
+            print(f"  not separated: {u['why']}"
+                  + (f" (--max-duration {need:g})" if need else ""))
     return 0
 
 

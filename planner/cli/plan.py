@@ -18,6 +18,7 @@ import time
 from planner.bounds import lower_bound
 from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
                                 output_arg, point_arg)
+from planner.cli.wording import cli_text
 from planner.feedforward import commands
 from planner.io import missing_dirs
 from planner.geometry.obstacles import Wall
@@ -62,9 +63,9 @@ def cmd_plan(args):
     if "nlp_cache" in res.stats:
         out["nlp_cache"] = res.stats["nlp_cache"]
     if not res.ok:
-        out.update(status=res.status, reason=res.reason)
+        out.update(status=res.status, reason=cli_text(res.reason, "plan"))
         emit(args, out)
-        print(f"{method}: {res.status}: {res.reason}", file=sys.stderr)
+        print(f"{method}: {res.status}: {out['reason']}", file=sys.stderr)
         return 3
     ev = evaluate(crane, res.trajectory)
     checked = set(ev.checked)
@@ -74,7 +75,7 @@ def cmd_plan(args):
         raise CLIError(str(e)) from None
     bound = (lb.combined_s if "acceleration" in checked else
              max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))
-    warnings = list(res.warnings)
+    warnings = [cli_text(w, "plan") for w in res.warnings]
     if ev.duration < bound * (1 - 1e-6):   # possible only by exceeding a limit (tolerances)
         warnings.append(f"duration {ev.duration:.4f} s is below the lower bound {bound:.4f} s "
                         f"by {100 * (1 - ev.duration / bound):.3f} %: the plan exceeds a limit "

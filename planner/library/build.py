@@ -44,7 +44,7 @@ from pathlib import Path
 from planner.io import progress
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
-from planner.methods import UnsupportedRequest, get, plan
+from planner.methods import PlanStatus, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
 OBJECTIVES = ("time", "energy")
@@ -192,9 +192,9 @@ def plan_move(job: MoveJob) -> list:
 
 def _failed(out: EntryResult, e: Exception, t0: float) -> EntryResult:
     if isinstance(e, UnsupportedRequest):
-        return replace(out, status="unsupported", reason=str(e),
+        return replace(out, status=PlanStatus.UNSUPPORTED, reason=str(e),
                        solve_s=_time.perf_counter() - t0)
-    return replace(out, status="error", reason=f"{type(e).__name__}: {e}",
+    return replace(out, status=PlanStatus.ERROR, reason=f"{type(e).__name__}: {e}",
                    solve_s=_time.perf_counter() - t0)
 
 
@@ -210,7 +210,7 @@ def _entry(crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> Entry
     verdict = evaluate(crane, traj)  # the judge sees the plan itself
     if verdict.max_limit_violation > 1e-3:
         worst = max(verdict.violations, key=verdict.violations.get)
-        return replace(out, status="limits", reason=f"evaluate(): {worst} exceeded by "
+        return replace(out, status=PlanStatus.LIMITS, reason=f"evaluate(): {worst} exceeded by "
                        f"{100 * verdict.max_limit_violation:.2f} %",
                        solve_s=_time.perf_counter() - t0)
     # stored: the plan sampled at the 50 Hz control rate with its valve commands, and the
@@ -228,7 +228,7 @@ def _entry(crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> Entry
     if st.robustness:
         from planner.simulation.replay import robustness as robust
         rob = float(robust(crane, traj_u)["score_m"])
-    return replace(out, status="ok", reason="", trajectory=traj_u, evaluation=ev,
+    return replace(out, status=PlanStatus.OK, reason="", trajectory=traj_u, evaluation=ev,
                    robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
                    iterations=res.stats.get("iterations", 0),
                    # CPU seconds of the worker process (its own threads included) and the
@@ -250,11 +250,11 @@ def check_scheduler(scheduler: str) -> None:
     if scheduler.startswith("local:"):
         n = scheduler.split(":", 1)[1]
         if not n.isdigit() or int(n) < 1:
-            raise BuildError(f"--scheduler {scheduler!r}: local:N needs N >= 1 workers")
+            raise BuildError(f"`scheduler` {scheduler!r}: local:N needs N >= 1 workers")
     try:
         import dask.distributed  # noqa: F401  (only checked here; used by library.cluster)
     except ImportError:
-        raise BuildError(f"--scheduler {scheduler}: Dask is not installed; install the "
+        raise BuildError(f"`scheduler` {scheduler}: Dask is not installed; install the "
                          "'cluster' extra: pip install 'crane-planner[cluster]'") from None
 
 
@@ -297,7 +297,7 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                                                              settings=settings), compile=True)
     out = Path(out)
     if out.exists() and not out.is_file():
-        raise BuildError(f"--out {out}: not a regular file (a library is an HDF5 file)")
+        raise BuildError(f"`out` {out}: not a regular file (a library is an HDF5 file)")
     out.parent.mkdir(parents=True, exist_ok=True)  # the lock file lives next to it
     t0 = _time.perf_counter()
     state = dict(todo=[], counts={}, written=0, skipped=0, setup=[], first_entry_t=None,

@@ -236,8 +236,8 @@ def write_single_entry(path, crane, traj: Trajectory, *, entry_id: str, start, g
         except (StoreError, OSError):
             n = 0  # not a library (or unreadable): replaced like any other output file
         if n > 1:
-            raise StoreError(f"{path} is a library of {n} entries; plan --out writes a "
-                             "one-entry database: choose another file name")
+            raise StoreError(f"{path} is a library of {n} entries; a one-entry database "
+                             "replaces only a file of at most one: choose another file name")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
@@ -286,7 +286,7 @@ def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row) -> list[
     if rate is not None:
         from planner.model import Crane  # the CasADi model: only to resample
         if spec is None:
-            raise StoreError(f"{db.path}: no embedded crane spec; --rate needs the model")
+            raise StoreError(f"{db.path}: no embedded crane spec; `rate` needs the model")
         crane = Crane(spec)
     ext = {"csv": ".csv", "ros": ".json", "ros-yaml": ".yaml"}[fmt]
     used: set = set()
@@ -331,11 +331,11 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
         raise StoreError(f"export format must be one of {', '.join(EXPORT_FORMATS)}, "
                          f"got {fmt!r}")
     if rate is not None and fmt not in ("csv", "ros", "ros-yaml"):
-        raise StoreError(f"--rate applies to the csv and ros formats, not {fmt!r}")
+        raise StoreError(f"`rate` applies to the csv and ros formats, not {fmt!r}")
     if rate is not None and not (math.isfinite(rate) and rate > 0):
-        raise StoreError(f"--rate {rate}: must be a positive number of Hz")
+        raise StoreError(f"`rate` {rate}: must be a positive number of Hz")
     if units_row and fmt != "csv":
-        raise StoreError(f"--units-row applies to the csv format, not {fmt!r}")
+        raise StoreError(f"`units_row` applies to the csv format, not {fmt!r}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []

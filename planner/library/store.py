@@ -309,6 +309,8 @@ class LibraryStore:
         if entry_id in self._idset:
             raise StoreError(f"{self.path}: entry '{entry_id}' exists already (ids are unique)")
         start, goal = _tip3("start", start), _tip3("goal", goal)
+        if isinstance(status, str):
+            status = str(status)   # a PlanStatus member is stored as its plain code (h5py)
         for k, v in (("objective", objective), ("method", method), ("status", status)):
             _check_text(k, v, allow_empty=(k != "status"))
         if status == "ok" and traj is None:

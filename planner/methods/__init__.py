@@ -4,8 +4,9 @@
 :mod:`planner.methods.registry` finds a method by name (``plan(crane, request, method=...)``).
 Every method returns a :class:`~planner.trajectory.Trajectory` inside its :class:`PlanResult`.
 """
-from planner.methods.base import PlanRequest, PlanResult, Planner, UnsupportedRequest
+from planner.methods.base import (PlanRequest, PlanResult, PlanStatus, Planner,
+                                  UnsupportedRequest)
 from planner.methods.registry import available, get, plan, register, unregister
 
-__all__ = ["PlanRequest", "PlanResult", "Planner", "UnsupportedRequest", "available", "get",
-           "plan", "register", "unregister"]
+__all__ = ["PlanRequest", "PlanResult", "PlanStatus", "Planner", "UnsupportedRequest",
+           "available", "get", "plan", "register", "unregister"]

@@ -10,10 +10,32 @@ Every planning method (local laws, Bellman DP, TOPP-RA, Ruckig, the NLPs) is a
     if res.ok:
         res.trajectory          # planner.trajectory.Trajectory, judged by evaluate()
 
-A result's ``status`` is ``"ok"`` or a short code (``"infeasible"``, ``"unreachable"``,
-``"stalled"``, ``"max_iter"``, …) with a human ``reason``; method-specific figures (iterations,
-the DP's joint path, the laws' β statistics, …) live in ``stats`` and read as attributes
-(``res.iterations`` is ``res.stats["iterations"]``).
+A result's ``status`` is a :class:`PlanStatus` — a ``str`` enum, so ``res.status == "ok"``
+holds and JSON writes the plain code — with a human ``reason`` when it is not ``ok``; an unknown
+code is refused when the result is made. The codes (the JSON ``status`` key, docs/json-keys.md):
+
+- ``ok``: a trajectory that keeps the limits the method plans with;
+- ``infeasible``: the method shows that no trajectory meets its limits or the duration asked
+  for (no path through the DP graph, no TOPP-RA timing, IPOPT's infeasibility verdict, a time
+  budget below the minimum time);
+- ``unreachable``: the start, the goal or a point of the path lies outside the workspace;
+- ``stalled``: a local law stopped moving along its path (joints saturated or at a limit);
+- ``timeout``: the method ran past its time limit (a law's move time, IPOPT's wall time);
+- ``max_iter``: the solver reached its iteration limit;
+- ``restoration_failed``: IPOPT's restoration phase failed;
+- ``failed``: the solver stopped without a solution for another reason, named in ``reason``;
+- ``error``: the solver raised an error, its message in ``reason``;
+- ``invalid``: the solver refused the problem it was given (Ruckig's input check);
+- ``obstacle``: the solution passes through an obstacle between the check points;
+- ``violation``: a limit is still exceeded beyond the method's tolerance after its refinement
+  rounds (TOPP-RA);
+- ``limits``: the solver converged, but evaluate() finds a limit broken between the check
+  points (the energy NLP's candidates, library entries);
+- ``unsupported``: the method does not plan the request — a library entry's code; ``plan()``
+  raises :class:`UnsupportedRequest` instead.
+
+Method-specific figures (iterations, the DP's joint path, the laws' β statistics, …) live in
+``stats`` and read as attributes (``res.iterations`` is ``res.stats["iterations"]``).
 
 A request the method cannot plan at all (an objective or path kind it does not support, a
 missing option, an option it would ignore, a value outside what is allowed) raises
@@ -21,12 +43,14 @@ missing option, an option it would ignore, a value outside what is allowed) rais
 where the request is made (:class:`PlanRequest`: finite tips with the slew in ±π, positive
 finite duration and tip speed, the common options in :data:`OPTION_RULES`), the method's own
 conditions in :meth:`Planner.check`; the CLI, ``library build`` and the bench all go through
-both.
+both. Messages name a field as the Python caller writes it, in backticks (```tip_speed` = -1
+m/s: allowed a finite number > 0``); the CLI prints the flag instead (:mod:`planner.cli.wording`).
 Registering a planner once (:func:`planner.methods.registry.register`) makes it available to
 ``crane-planner plan --method``, the benchmark and ``library build``.
 """
 from __future__ import annotations
 
+import enum
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
@@ -35,8 +59,8 @@ from typing import Any, ClassVar, Mapping
 
 from planner.units import check_tip
 
-__all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "Planner",
-           "UnsupportedRequest"]
+__all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "PlanStatus",
+           "Planner", "UnsupportedRequest"]
 
 OBJECTIVES = ("time", "energy")
 PATHS = ("free", "line")
@@ -55,12 +79,47 @@ OPTION_RULES = {
 }
 
 
+class PlanStatus(enum.StrEnum):
+    """The result code of a plan (the JSON ``status`` key): ``ok`` or why there is no
+    trajectory. A ``str``: it compares equal to its code and JSON writes the code; each member's
+    ``meaning`` is its one-line description (the list in the module doc)."""
+    OK = "ok", "a trajectory that keeps the limits the method plans with"
+    INFEASIBLE = "infeasible", "no trajectory meets the limits or the duration asked for"
+    UNREACHABLE = "unreachable", "the start, the goal or a point of the path is out of reach"
+    STALLED = "stalled", "a local law stopped moving along its path"
+    TIMEOUT = "timeout", "the method ran past its time limit"
+    MAX_ITER = "max_iter", "the solver reached its iteration limit"
+    RESTORATION_FAILED = "restoration_failed", "IPOPT's restoration phase failed"
+    FAILED = "failed", "the solver stopped without a solution for another reason"
+    ERROR = "error", "the solver raised an error"
+    INVALID = "invalid", "the solver refused the problem it was given"
+    OBSTACLE = "obstacle", "the solution passes through an obstacle between the check points"
+    VIOLATION = "violation", "a limit is still exceeded after the refinement rounds"
+    LIMITS = "limits", "converged, but evaluate() finds a limit broken between check points"
+    UNSUPPORTED = "unsupported", "the method does not plan the request (library entries)"
+
+    def __new__(cls, code: str, meaning: str):
+        member = str.__new__(cls, code)
+        member._value_ = code
+        member.meaning = meaning
+        return member
+
+    @classmethod
+    def of(cls, code) -> "PlanStatus":
+        """``code`` as a member; ValueError naming it and the allowed codes otherwise."""
+        try:
+            return cls(code)
+        except ValueError:
+            raise ValueError(f"status {code!r}: allowed {', '.join(m.value for m in cls)}") \
+                from None
+
+
 class UnsupportedRequest(ValueError):
     """The method does not plan this request (objective, path kind, missing option, an option
     it would ignore), or a field of the request is outside what is allowed."""
 
 
-def _positive(name: str, flag: str, unit: str, value):
+def _positive(name: str, unit: str, value):
     """``value`` as a finite float > 0, or None when not given; UnsupportedRequest otherwise."""
     if value is None:
         return None
@@ -69,8 +128,7 @@ def _positive(name: str, flag: str, unit: str, value):
     except (TypeError, ValueError):
         v = math.nan
     if not (math.isfinite(v) and v > 0):
-        raise UnsupportedRequest(f"{name} = {value!r} {unit} ({flag}): allowed a finite number "
-                                 f"> 0")
+        raise UnsupportedRequest(f"`{name}` = {value!r} {unit}: allowed a finite number > 0")
     return v
 
 
@@ -79,12 +137,11 @@ def _option(name: str, value):
     if value is None or name not in OPTION_RULES:
         return value
     integer, lo, hi, what = OPTION_RULES[name]
-    flag = "--" + name.replace("_", "-")
     kind = "an integer" if integer else "a number"
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
         math.isfinite(value) and lo <= value <= hi and (not integer or value == int(value))
     if not ok:
-        raise UnsupportedRequest(f"{name} = {value!r} ({flag}, {what}): allowed {kind} in "
+        raise UnsupportedRequest(f"`{name}` = {value!r} ({what}): allowed {kind} in "
                                  f"[{lo:g}, {hi:g}]")
     return int(value) if integer else float(value)
 
@@ -115,9 +172,9 @@ class PlanRequest:
                 raise UnsupportedRequest(str(e)) from None
             object.__setattr__(self, name, tip)
         object.__setattr__(self, "duration",
-                           _positive("duration", "--duration", "s", self.duration))
+                           _positive("duration", "s", self.duration))
         object.__setattr__(self, "tip_speed",
-                           _positive("tip_speed", "--tip-speed", "m/s", self.tip_speed))
+                           _positive("tip_speed", "m/s", self.tip_speed))
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
         object.__setattr__(self, "options", MappingProxyType(
             {k: _option(k, v) for k, v in dict(self.options).items()}))
@@ -134,13 +191,13 @@ class PlanRequest:
 
 
 class PlanResult:
-    """What every method returns: ``status`` ("ok" or a short failure code), ``reason``,
+    """What every method returns: ``status`` (a :class:`PlanStatus`: ok or why not), ``reason``,
     ``trajectory`` (:class:`~planner.trajectory.Trajectory` when ok), ``duration_s`` [s],
     ``solve_time_s`` [s], ``method`` (registry name, set by :func:`plan`), ``warnings`` and
     ``stats`` (method-specific figures; any other keyword given to the constructor lands there
     and reads back as an attribute)."""
 
-    def __init__(self, status: str, reason: str = "", trajectory=None, *,
+    def __init__(self, status: PlanStatus | str, reason: str = "", trajectory=None, *,
                  duration_s: float = math.nan, solve_time_s: float = 0.0, method: str = "",
                  warnings=(), stats: Mapping[str, Any] | None = None, **extra: Any):
         self.status = status
@@ -154,8 +211,16 @@ class PlanResult:
         self.stats.update(extra)
 
     @property
+    def status(self) -> PlanStatus:
+        return self.__dict__["_status"]
+
+    @status.setter
+    def status(self, code: PlanStatus | str) -> None:
+        self.__dict__["_status"] = PlanStatus.of(code)   # an unknown code is refused here
+
+    @property
     def ok(self) -> bool:
-        return self.status == "ok"
+        return self.status is PlanStatus.OK
 
     def __getattr__(self, name: str):
         # only reached when normal lookup fails: method-specific figures live in ``stats``
@@ -176,8 +241,10 @@ class Planner(ABC):
     ``"law:jla"``), ``objectives`` and ``paths`` (the first is the default path kind),
     ``obstacles`` (True when it honours :attr:`PlanRequest.obstacles`), ``uses_duration`` /
     ``uses_tip_speed`` (whether it reads those fields: True for every objective, or the tuple
-    of objectives it reads them for; :meth:`check` refuses a field it would ignore), and
-    implement :meth:`plan`."""
+    of objectives it reads them for; :meth:`check` refuses a field it would ignore),
+    ``tolerance`` (the largest relative limit excess, evaluate()'s ``max_limit_violation`` at
+    1 kHz, that an ``ok`` trajectory of the method may show; 1e-3 unless it says otherwise),
+    and implement :meth:`plan`."""
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     objectives: ClassVar[tuple] = ("time",)
@@ -185,6 +252,7 @@ class Planner(ABC):
     obstacles: ClassVar[bool] = False
     uses_duration: ClassVar[bool | tuple] = False
     uses_tip_speed: ClassVar[bool | tuple] = False
+    tolerance: ClassVar[float] = 1e-3
 
     @property
     def default_path(self) -> str:
@@ -199,21 +267,21 @@ class Planner(ABC):
     def check(self, request: PlanRequest) -> None:
         """Raise :class:`UnsupportedRequest` when this method cannot plan ``request``."""
         if request.objective not in self.objectives:
-            raise UnsupportedRequest(f"--objective {request.objective}: {self.name} plans "
+            raise UnsupportedRequest(f"`objective` {request.objective}: {self.name} plans "
                                      f"{' or '.join(self.objectives)}")
         if request.path not in self.paths:
-            raise UnsupportedRequest(f"--path {request.path}: {self.name} plans "
+            raise UnsupportedRequest(f"`path` {request.path}: {self.name} plans "
                                      f"{' or '.join(self.paths)} paths")
         if request.obstacles and not self.obstacles:
             raise UnsupportedRequest(f"{self.name} does not keep clear of obstacles; "
-                                     "use --method nlp")
-        for fld, flag in (("duration", "--duration"), ("tip_speed", "--tip-speed")):
+                                     "use `method` nlp")
+        for fld in ("duration", "tip_speed"):
             if getattr(request, fld) is not None and not self.reads(fld, request.objective):
                 uses = getattr(self, f"uses_{fld}")
-                where = (f" (it reads it for --objective {' or '.join(uses)})"
+                where = (f" (it reads it for `objective` {' or '.join(uses)})"
                          if isinstance(uses, tuple) and uses else "")
-                raise UnsupportedRequest(f"{flag} {getattr(request, fld):g}: {self.name} "
-                                         f"--objective {request.objective} does not read it"
+                raise UnsupportedRequest(f"`{fld}` {getattr(request, fld):g}: {self.name} "
+                                         f"`objective` {request.objective} does not read it"
                                          f"{where}; leave it out rather than have it ignored")
 
     def clear(self) -> None:

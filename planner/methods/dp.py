@@ -26,7 +26,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from planner.geometry.paths import Line, Path
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.registry import register
 from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory
@@ -55,7 +56,7 @@ _STATS = dict(objective="time", path_q=None, s=None, times=None, tele_index=None
               cost=float("nan"), energy_J=float("nan"), grid={})
 
 
-def _result(status: str, reason: str = "", **kw) -> PlanResult:
+def _result(status: PlanStatus, reason: str = "", **kw) -> PlanResult:
     """The DP's result: status "ok", or "unreachable" (a stage has no feasible node) /
     "infeasible" (no path through the graph) with ``reason``. Stats: ``path_q`` (N+1, n) the
     geometric joint path at the stations ``s`` [m]; ``times`` [s] its time stamps;
@@ -129,7 +130,7 @@ def _too_fast(T, start, w, dt, tip_speed, length) -> str:
     v = tip_speed * dt / worst
     return (f"tip speed {tip_speed:.4g} m/s (duration {length / tip_speed:.4g} s) is too fast "
             f"for the limits along this line: on this grid the fastest constant tip speed is "
-            f"{v:.4g} m/s; allowed: --tip-speed <= {v:.4g} m/s or --duration >= "
+            f"{v:.4g} m/s; allowed: `tip_speed` <= {v:.4g} m/s or `duration` >= "
             f"{length / v:.4g} s")
 
 
@@ -174,7 +175,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
 
     def unreachable(tip, where):
         msg = crane.ik_batch(tip[None, :], teles[M1 // 2])[1][0]
-        return _result("unreachable", f"the path leaves the workspace at {where}: tip "
+        return _result(PlanStatus.UNREACHABLE, f"the path leaves the workspace at {where}: tip "
                        f"(r={tip[0]:.3f} m, z={tip[1]:.3f} m, slew={tip[2]:.3f} rad): {msg}",
                        objective=objective, grid=grid, solve_time_s=_time.perf_counter() - t0)
     need = grid_bytes(N + 1, M1, window, crane.n, objective)
@@ -191,8 +192,8 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
         raise UnsupportedRequest(
             f"dp grid {N} stages × {M1} telescope nodes × {2 * window + 1} window steps "
             f"(path {path.length:.3g} m, step {path.length / N:.3g} m) needs ~{need / 2 ** 30:.1f}"
-            f" GiB; allowed up to {MAX_BYTES / 2 ** 30:.1f} GiB: use a larger --step or "
-            "--tele-step, a smaller --window, or a shorter move")
+            f" GiB; allowed up to {MAX_BYTES / 2 ** 30:.1f} GiB: use a larger `step` or "
+            "`tele_step`, a smaller `window`, or a shorter move")
     s = path.stations(n=N)
     tips = path.tip(s)
     teles = np.zeros(1) if tr is None else np.linspace(tr[0], tr[1], M1)
@@ -249,12 +250,12 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
             if objective == "energy":
                 why = _too_fast(T, feas[0] & np.isfinite(J0), w, dt, tip_speed, path.length) \
                     or why
-            return _result("infeasible", why, objective=objective, grid=grid,
+            return _result(PlanStatus.INFEASIBLE, why, objective=objective, grid=grid,
                            solve_time_s=_time.perf_counter() - t0)
     if tele_goal is not None and tr is not None:
         J = np.where(np.abs(teles - tele_goal) <= 0.5 * grid["tele_step_m"] + 1e-12, J, np.inf)
     if not np.isfinite(J).any():
-        return _result("infeasible", "the goal telescope value cannot be reached",
+        return _result(PlanStatus.INFEASIBLE, "the goal telescope value cannot be reached",
                         objective=objective, grid=grid, solve_time_s=_time.perf_counter() - t0)
     # --- back-tracking
     m = np.empty(N + 1, dtype=np.int64)
@@ -270,7 +271,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
     traj = Trajectory(times, path_q, joint_names=tuple(crane.names), method="dp",
                       objective=objective, interpolation="linear", limits=limits,
                       meta=dict(grid=grid, path=path.name, path_length_m=path.length))
-    return _result("ok", objective=objective, trajectory=traj, path_q=path_q, s=s,
+    return _result(PlanStatus.OK, objective=objective, trajectory=traj, path_q=path_q, s=s,
                     times=times, tele_index=m, cost=float(J[m[N]]), duration_s=float(times[-1]),
                     energy_J=energy, solve_time_s=_time.perf_counter() - t0, grid=grid,
                     warnings=warn)
@@ -330,8 +331,8 @@ class DPPlanner(Planner):
         super().check(request)
         if request.objective == "energy" and \
                 (request.tip_speed is None) == (request.duration is None):
-            raise UnsupportedRequest("--method dp --objective energy needs exactly one of "
-                                     "--tip-speed V [m/s] or --duration T [s] (the clock it "
+            raise UnsupportedRequest("`method` dp with `objective` energy needs exactly one "
+                                     "of `tip_speed` [m/s] or `duration` [s] (the clock it "
                                      "saves energy on)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:

@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.geometry.paths import Line, Path
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
@@ -56,6 +57,10 @@ class Law(ABC):
     def start_tele(self, crane, tip) -> float | None:
         """Telescope value the law needs at the start tip (None: any)."""
         return None
+
+    def missing(self, crane) -> str:
+        """What this machine lacks for the law ("" when it has everything)."""
+        return ""
 
     @abstractmethod
     def rates(self, crane, st: Step, v: np.ndarray) -> tuple[np.ndarray, float]:
@@ -218,6 +223,15 @@ class MaxLift(Law):
                              "has no [laws] max_lift table)")
         return p
 
+    def missing(self, crane) -> str:
+        if crane.chain.tele is None:
+            return "it moves a telescope, and the machine has none"
+        try:
+            self._params(crane)
+        except ValueError as e:
+            return str(e)
+        return ""
+
     def tele_of(self, crane, r, z):
         """(d3, ∂d3/∂r, ∂d3/∂z) at tip (r, z) — the seed's cubic d3(ρ)."""
         p = self._params(crane)
@@ -254,7 +268,7 @@ class MaxLift(Law):
 LAWS = {c.name: c for c in (LeastNorm, MaxVelocity, MaxLift)}
 
 
-def _result(status: str, reason: str = "", **kw) -> PlanResult:
+def _result(status: PlanStatus, reason: str = "", **kw) -> PlanResult:
     """A law's result: status "ok", "unreachable" (start not reachable), "stalled" (the law
     stopped moving along the path) or "timeout"; stats ``min_beta`` (least path-speed ratio β)
     and ``max_path_error_m``; the trajectory's ``meta`` holds the β statistics."""
@@ -297,9 +311,9 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                 k = ok[np.argmin(np.abs(grid[ok] - tele))]
                 q, reason = qs[k:k + 1], rs[k:k + 1]
         if reason[0]:
-            return _result("unreachable", f"start tip (r={start[0]:.3f} m, z={start[1]:.3f} m,"
-                             f" slew={start[2]:.3f} rad) is unreachable: {reason[0]}",
-                             solve_time_s=_time.perf_counter() - t_start)
+            return _result(PlanStatus.UNREACHABLE, f"start tip (r={start[0]:.3f} m, "
+                           f"z={start[1]:.3f} m, slew={start[2]:.3f} rad) is unreachable: "
+                           f"{reason[0]}", solve_time_s=_time.perf_counter() - t_start)
         q = q[0]
     else:
         q = np.asarray(q0, float).copy()
@@ -336,11 +350,11 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
         qd_prev = qd
         stall = stall + 1 if beta < 1e-3 else 0
         if stall > rate:  # a full second without progress
-            return _result("stalled", f"{law.name} stopped at s = {s:.3f} m of "
+            return _result(PlanStatus.STALLED, f"{law.name} stopped at s = {s:.3f} m of "
                              f"{path.length:.3f} m (joints saturated or at their limits)",
                              solve_time_s=_time.perf_counter() - t_start)
         if t > max_time:
-            return _result("timeout", f"{law.name} did not finish within {max_time:.1f} s",
+            return _result(PlanStatus.TIMEOUT, f"{law.name} did not finish within {max_time:.1f} s",
                              solve_time_s=_time.perf_counter() - t_start)
     traj = Trajectory(np.array(Ts), np.array(Qs), joint_names=tuple(crane.names),
                       method=f"law:{law.name}", objective="tracking", interpolation="linear",
@@ -349,7 +363,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                                 start_q=Qs[0].tolist(),
                                 min_beta=float(min(betas)), mean_beta=float(np.mean(betas)),
                                 path=path.name, path_length_m=path.length))
-    return _result("ok", trajectory=traj, duration_s=t, min_beta=float(min(betas)),
+    return _result(PlanStatus.OK, trajectory=traj, duration_s=t, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
 
@@ -389,7 +403,7 @@ def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float
                       limits=("position", "velocity", "pump_flow"),
                       meta=dict(law=law.name, rate_hz=rate, min_beta=float(min(betas)),
                                 mean_beta=float(np.mean(betas))))
-    return _result("ok", trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
+    return _result(PlanStatus.OK, trajectory=traj, duration_s=duration, min_beta=float(min(betas)),
                      max_path_error_m=float(max(errs)),
                      solve_time_s=_time.perf_counter() - t_start)
 
@@ -406,7 +420,7 @@ class LawPlanner(Planner):
     def __init__(self, law_cls):
         self.law_cls = law_cls
         self.name = f"law:{law_cls.name}"
-        self.description = f"local law {law_cls.name} along the tip line at --tip-speed"
+        self.description = f"local law {law_cls.name} along the tip line at a set tip speed"
 
     def check(self, request: PlanRequest) -> None:
         """Also refuses a move whose nominal control-step count (line length / tip speed ·
@@ -421,13 +435,19 @@ class LawPlanner(Planner):
         steps = length / speed * rate
         if steps > MAX_STEPS:
             raise UnsupportedRequest(
-                f"--tip-speed {speed:g} m/s: {self.name} would take {steps:.3g} control steps "
+                f"`tip_speed` {speed:g} m/s: {self.name} would take {steps:.3g} control steps "
                 f"for the {length:.3g} m line at {rate:g} Hz; allowed at most {MAX_STEPS} "
-                f"(--tip-speed >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
+                f"(`tip_speed` >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
 
     def plan(self, crane, request: PlanRequest) -> PlanResult:
+        """Raises :class:`UnsupportedRequest` when the machine lacks what the law needs (the
+        ``max_lift`` law's [laws] table and a telescope)."""
+        law = self.law_cls()
+        why = law.missing(crane)
+        if why:
+            raise UnsupportedRequest(f"{self.name} does not plan on {crane.spec.id}: {why}")
         speed = request.tip_speed if request.tip_speed is not None else DEFAULT_TIP_SPEED
-        return follow(crane, Line(request.start, request.goal), self.law_cls(), speed,
+        return follow(crane, Line(request.start, request.goal), law, speed,
                       rate=request.option("rate", 100.0), tele0=request.option("tele0"))
 
 

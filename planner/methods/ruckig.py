@@ -30,7 +30,7 @@ import numpy as np
 import ruckig
 
 from planner.bounds import lower_bound
-from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.base import Planner, PlanRequest, PlanResult, PlanStatus
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
 
@@ -326,7 +326,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
             what = (f"needs {crane.n} joint values" if bad is None else
                     f"{crane.names[bad[0]]} = {q[bad[0]]:.4f} is outside "
                     f"[{L['q_min'][bad[0]]:.4f}, {L['q_max'][bad[0]]:.4f}]")
-            return PlanResult("invalid", f"{name} configuration: {what}",
+            return PlanResult(PlanStatus.INVALID, f"{name} configuration: {what}",
                               solve_time_s=_time.perf_counter() - t0)
     if sample_rate is not None and not sample_rate > 0:
         raise ValueError(f"rest_to_rest: sample_rate = {sample_rate!r}; allowed: a rate > 0 "
@@ -339,7 +339,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
     except (RuntimeError, ruckig.RuckigError) as e:  # invalid input or no profile found
         res = f"{str(e).strip().splitlines()[0]}"
     if res not in (ruckig.Result.Working, ruckig.Result.Finished):
-        return PlanResult("failed", f"Ruckig: {getattr(res, 'name', res)}",
+        return PlanResult(PlanStatus.FAILED, f"Ruckig: {getattr(res, 'name', res)}",
                           solve_time_s=_time.perf_counter() - t0)
     T = float(traj.duration)
     if T <= 0:
@@ -365,7 +365,7 @@ def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
                             limits=("position", "velocity", "acceleration", "jerk"),
                             meta=dict(independent_min_durations=list(
                                 traj.independent_min_durations), switch_times=sw))
-    return PlanResult("ok", trajectory=tr, duration_s=T,
+    return PlanResult(PlanStatus.OK, trajectory=tr, duration_s=T,
                       solve_time_s=_time.perf_counter() - t0)
 
 

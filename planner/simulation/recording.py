@@ -139,7 +139,7 @@ class Recording:
         if u is None:
             if plan is None:
                 raise ValueError(f"{path}: line 1: no command columns u_<joint>; give the "
-                                 "commanded trajectory (--trajectory) to derive them")
+                                 "commanded trajectory (`plan`) to derive them")
             t = d["t"]
             dt = float(np.median(np.diff(t)))
             if abs(t[0] - plan.t[0]) > 1e-6 * max(1.0, abs(t[0])):

@@ -204,7 +204,7 @@ def test_ros_time_carries_nanoseconds():
 
 def test_export_refusals(umea_lib, tmp_path):
     _, lib = umea_lib
-    with pytest.raises(StoreError, match="units-row"):
+    with pytest.raises(StoreError, match="`units_row`"):
         export(lib, tmp_path, "json", units_row=True)
     with pytest.raises(StoreError, match="positive"):
         export(lib, tmp_path, "csv", rate=-1.0)

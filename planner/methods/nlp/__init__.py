@@ -61,8 +61,8 @@ class NLPPlanner(Planner):
     def check(self, request: PlanRequest) -> None:
         super().check(request)
         if request.objective == "energy" and request.duration is None:
-            raise UnsupportedRequest("--method nlp --objective energy needs --duration T [s] "
-                                     "(e.g. 1.2 × the minimum time)")
+            raise UnsupportedRequest("`method` nlp with `objective` energy needs `duration` "
+                                     "[s] (e.g. 1.2 × the minimum time)")
 
     def built(self, crane, objective: str, path: str = "free", N: int = 40,
               obstacles: tuple = (), cache: str | None = None, paid: list | None = None

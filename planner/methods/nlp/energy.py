@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time as _time
 
-from planner.methods.base import PlanResult
+from planner.methods.base import PlanResult, PlanStatus
 from planner.methods.nlp.guess import stretch
 from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import nlp_result
@@ -64,12 +64,13 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: PlanResult 
     if not rt.ok:
         return rt, dict(winner=None)
     if T_max < rt.duration_s * (1 - 1e-9):
-        return nlp_result("infeasible", f"T_max = {T_max:.3f} s is below the minimum time "
+        return nlp_result(PlanStatus.INFEASIBLE, f"T_max = {T_max:.3f} s is below the minimum time "
                             f"{rt.duration_s:.3f} s"), dict(winner=None)
     en = energy_nlp or MoveNLP(crane, "energy", "free", N=N)
     inc = stretch(rt.trajectory, T_max)
     e_inc = evaluate(crane, inc)
-    best = (e_inc.energy_J, nlp_result("ok", trajectory=inc, duration_s=T_max), "stretched")
+    best = (e_inc.energy_J, nlp_result(PlanStatus.OK, trajectory=inc, duration_s=T_max),
+            "stretched")
     e_t = evaluate(crane, rt.trajectory).energy_J
     if e_t < best[0]:
         best = (e_t, rt, "time_optimal")
@@ -78,18 +79,18 @@ def energy_optimal(crane, start, goal, T_max: float, *, time_result: PlanResult 
     def consider(r):
         nonlocal best
         if r.ok and en.obstacles and not en.clears(r.trajectory):
-            r = nlp_result("obstacle", "passes through an obstacle between check points")
+            r = nlp_result(PlanStatus.OBSTACLE, "passes through an obstacle between check points")
         status = r.status
         if r.ok:
             ev = evaluate(crane, r.trajectory)
             if ev.max_limit_violation > 1e-3:
-                status = "limits"      # converged, but a limit is broken between check points
+                status = PlanStatus.LIMITS  # converged, but a limit broken between check points
             elif ev.energy_J < best[0]:
                 best = (ev.energy_J, r, "nlp")
         tries.append(status)
 
     consider(en.solve(start, goal, T_max=T_max, w0=en.guess_from(inc)))
-    if tries[-1] != "ok":  # a second start from the independent Ruckig guess
+    if tries[-1] != PlanStatus.OK:  # a second start from the independent Ruckig guess
         # (only when the first did not converge to a clear, within-limit move: on 36 forwarder
         # moves a converged first start that lost to the incumbents was never beaten by it)
         consider(en.solve(start, goal, T_max=T_max))

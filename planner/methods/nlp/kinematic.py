@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 
 from planner.geometry.paths import Line, tip_to_xyz
-from planner.methods.base import PlanResult
+from planner.methods.base import PlanResult, PlanStatus
 from planner.methods.dp import dp
 from planner.methods.nlp.transcription import STATUS_OK, nlp_result
 from planner.trajectory import Trajectory
@@ -63,7 +63,7 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> PlanRe
     st = S.stats()
     ist = st.get("return_status", "")
     if ist not in STATUS_OK:
-        return nlp_result("failed", f"IPOPT: {ist}", ipopt_status=ist,
+        return nlp_result(PlanStatus.FAILED, f"IPOPT: {ist}", ipopt_status=ist,
                          solve_time_s=_time.perf_counter() - t0)
     x = np.array(sol["x"]).ravel()
     Qs = x[:n * (N + 1)].reshape(N + 1, n)
@@ -72,6 +72,7 @@ def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> PlanRe
                       method="nlp", objective="time", interpolation="linear",
                       limits=("position", "velocity"), meta=dict(N=N, path="line",
                                                                  model="kinematic"))
-    return nlp_result("ok", trajectory=traj, duration_s=Tn, iterations=st.get("iter_count", 0),
-                     ipopt_status=ist, solve_time_s=_time.perf_counter() - t0)
+    return nlp_result(PlanStatus.OK, trajectory=traj, duration_s=Tn,
+                      iterations=st.get("iter_count", 0), ipopt_status=ist,
+                      solve_time_s=_time.perf_counter() - t0)
 

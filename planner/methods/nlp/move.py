@@ -47,6 +47,7 @@ import numpy as np
 
 from planner.bounds import lower_bound
 from planner.geometry.paths import tip_to_xyz, xyz_to_tip
+from planner.methods.base import PlanStatus
 from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
@@ -292,8 +293,8 @@ class MoveNLP:
         ev = evaluate(self.crane, tr, kinds=kinds)
         if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
             return res
-        return nlp_result("ok", trajectory=tr, duration_s=tr.duration, iterations=res.iterations,
-                          ipopt_status=res.ipopt_status,
+        return nlp_result(PlanStatus.OK, trajectory=tr, duration_s=tr.duration,
+                          iterations=res.iterations, ipopt_status=res.ipopt_status,
                           stats=dict(winner="ruckig", solver=res.stats.get("solver"),
                                      nlp_duration_s=res.duration_s if res.ok else float("nan")),
                           solve_time_s=_time.perf_counter() - t0)
@@ -326,7 +327,8 @@ class MoveNLP:
         try:
             guess, lb = self.default_guess(start, goal, q_ends) if w0 is None else (w0, None)
         except ValueError as e:  # unreachable end
-            return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+            return nlp_result(PlanStatus.UNREACHABLE, str(e),
+                              solve_time_s=_time.perf_counter() - t0)
         res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
             res = self._prefer_exact(res, start, goal, lb, t0, q_ends)
@@ -352,7 +354,8 @@ class MoveNLP:
                 guesses.append(self.guess_from(over_obstacles_guess(self.crane, self.obstacles,
                                                                     start, goal, lb)))
         except ValueError as e:
-            return nlp_result("unreachable", str(e), solve_time_s=_time.perf_counter() - t0)
+            return nlp_result(PlanStatus.UNREACHABLE, str(e),
+                              solve_time_s=_time.perf_counter() - t0)
         res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
         good = [r for r in res if r.ok and self.clears(r.trajectory)]
         if good:
@@ -360,8 +363,8 @@ class MoveNLP:
         else:
             best = next((r for r in res if not r.ok), res[0])
             if best.ok:
-                best = nlp_result("obstacle", "no solution clears every obstacle between the "
-                                  "check points: raise N or the clearance",
+                best = nlp_result(PlanStatus.OBSTACLE, "no solution clears every obstacle "
+                                  "between the check points: raise N or the clearance",
                                   iterations=best.iterations)
         if self._exact_applies(T_max, lam, payload):
             best = self._prefer_exact(best, start, goal, lb, t0)
@@ -428,7 +431,7 @@ class MoveNLP:
                 except RuntimeError as e:
                     if k + 1 < len(attempts):
                         continue
-                    return nlp_result("error", f"{self._name(solver)} failed: {e}",
+                    return nlp_result(PlanStatus.ERROR, f"{self._name(solver)} failed: {e}",
                                       solve_time_s=_time.perf_counter() - t0)
                 st = solver.stats()
                 iters += st.get("iter_count", 0)
@@ -461,7 +464,7 @@ class MoveNLP:
                           meta=dict(N=N, path=self.path, ipopt_status=ist))
         self._last = w
         E = float(self.energy_fn(w, P)) if self.objective != "time" else float("nan")
-        return nlp_result("ok", trajectory=traj, duration_s=T, energy_model_J=E,
+        return nlp_result(PlanStatus.OK, trajectory=traj, duration_s=T, energy_model_J=E,
                           iterations=iters, ipopt_status=ist,
                           solver=self._name(solver).lower(),
                           solve_time_s=_time.perf_counter() - t0)

@@ -20,23 +20,23 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from planner.methods.base import PlanResult
+from planner.methods.base import PlanResult, PlanStatus
 
 __all__ = ["Layout", "STATUS_OK", "IPOPT_CODES", "ipopt_code", "nlp_result"]
 
 STATUS_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-IPOPT_CODES = {"Infeasible_Problem_Detected": "infeasible",
-               "Maximum_Iterations_Exceeded": "max_iter",
-               "Restoration_Failed": "restoration_failed",
-               "Maximum_WallTime_Exceeded": "timeout"}
+IPOPT_CODES = {"Infeasible_Problem_Detected": PlanStatus.INFEASIBLE,
+               "Maximum_Iterations_Exceeded": PlanStatus.MAX_ITER,
+               "Restoration_Failed": PlanStatus.RESTORATION_FAILED,
+               "Maximum_WallTime_Exceeded": PlanStatus.TIMEOUT}
 
 
-def ipopt_code(status: str) -> str:
-    """The short result code of an IPOPT return status ("failed" for the unnamed ones)."""
-    return IPOPT_CODES.get(status, "failed")
+def ipopt_code(status: str) -> PlanStatus:
+    """The result code of an IPOPT return status (``failed`` for the unnamed ones)."""
+    return IPOPT_CODES.get(status, PlanStatus.FAILED)
 
 
-def nlp_result(status: str, reason: str = "", **kw) -> PlanResult:
+def nlp_result(status: PlanStatus | str, reason: str = "", **kw) -> PlanResult:
     """An NLP's result: status "ok" or a short code ("infeasible", "max_iter", "error",
     "unreachable", "obstacle", …); stats ``energy_model_J`` (the NLP's own conservative energy
     estimate, NaN when not computed), ``iterations``, ``ipopt_status`` and the solver

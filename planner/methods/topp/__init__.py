@@ -28,7 +28,7 @@ import toppra.algorithm as algo
 import toppra.constraint as constraint
 
 from planner.geometry.paths import Line
-from planner.methods.base import Planner, PlanRequest, PlanResult
+from planner.methods.base import Planner, PlanRequest, PlanResult, PlanStatus
 from planner.methods.dp import DPPlanner, dp
 from planner.methods.registry import register
 from planner.methods.topp.constraints import (PumpFlowConstraint, ScaledAcceleration,
@@ -72,7 +72,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 100,
         ss = np.concatenate([[0.0], np.cumsum(seg[keep[1:]])])
     ss = np.asarray(ss, float)
     if ss[-1] <= 0:
-        return PlanResult("infeasible", "the path has zero length", iterations=0,
+        return PlanResult(PlanStatus.INFEASIBLE, "the path has zero length", iterations=0,
                           max_limit_violation=float("nan"),
                           solve_time_s=_time.perf_counter() - t0)
     L = crane.limit_arrays()
@@ -83,7 +83,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 100,
                     max_iter=max_iter, adapt=adapt)
     stats = dict(iterations=res.iterations, max_limit_violation=res.max_limit_violation,
                  intervals=len(res.timing.s) - 1 if res.timing is not None else 0)
-    if res.timing is None or res.status == "infeasible":
+    if res.timing is None or res.status == PlanStatus.INFEASIBLE:
         return PlanResult(res.status, res.reason, solve_time_s=_time.perf_counter() - t0,
                           **stats)
     T = res.timing.duration

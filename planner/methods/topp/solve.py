@@ -9,6 +9,7 @@ import numpy as np
 import toppra
 import toppra.algorithm as algo
 
+from planner.methods.base import PlanStatus
 from planner.methods.topp.constraints import SCHEMES, ScaledAcceleration, SpeedCap
 from planner.methods.topp.verify import PathTiming, Peaks, interval_peaks
 
@@ -17,11 +18,11 @@ __all__ = ["TimedPath", "time_path"]
 
 @dataclass
 class TimedPath:
-    """What :func:`time_path` returns: ``status`` ("ok" | "infeasible" | "violation"),
+    """What :func:`time_path` returns: ``status`` (ok, infeasible or violation),
     ``reason``, the ``timing`` (:class:`PathTiming`, None when infeasible) of the ``path``
     (toppra ``SplineInterpolator``), ``iterations`` (TOPP-RA solves), the last verification's
     ``peaks`` (None unverified) and ``max_limit_violation`` (their worst excess, ≥ 0)."""
-    status: str
+    status: PlanStatus
     reason: str
     path: object
     timing: PathTiming | None = None
@@ -31,7 +32,7 @@ class TimedPath:
 
     @property
     def ok(self) -> bool:
-        return self.status == "ok"
+        return self.status is PlanStatus.OK
 
     def sample(self, t) -> tuple:
         """(q, q̇, q̈) (len(t), n) at times ``t`` [s], vectorised."""
@@ -189,14 +190,14 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
         _, sd, _ = inst.compute_parameterization(0.0, 0.0)
         if sd is None or not np.all(np.isfinite(sd)):
             what = f"a duration of {duration} s" if duration is not None else "the limits"
-            return TimedPath("infeasible", f"TOPP-RA found no rest-to-rest timing of this "
+            return TimedPath(PlanStatus.INFEASIBLE, f"TOPP-RA found no rest-to-rest timing of this "
                              f"path under {what} (the path may need a non-zero speed where a "
                              "limit is zero, or the duration is too short)", path,
                              iterations=it)
         timing = PathTiming(grid, np.maximum(sd, 0.0))
         if duration is not None and timing.duration > duration * (1 + 1e-3):
             # TOPPRAsd returns the fastest timing when the duration is unachievable
-            return TimedPath("infeasible", f"a duration of {duration} s is too short: the "
+            return TimedPath(PlanStatus.INFEASIBLE, f"a duration of {duration} s is too short: the "
                              f"fastest timing of this path under the limits takes "
                              f"{timing.duration:.3f} s", path, iterations=it)
         if duration is not None:
@@ -217,7 +218,7 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
             worst = peaks.worst(kinds)
             ok = worst <= tol
         if ok and (not adapting or it == max_iter):
-            return TimedPath("ok", "", path, timing, it, peaks, worst)
+            return TimedPath(PlanStatus.OK, "", path, timing, it, peaks, worst)
         # the next grid: split where time is lost (adapting), and, in the first ``refine``
         # rounds, every interval over a limit; the factors carry over (new points: the
         # smaller of their interval's two ends)
@@ -241,8 +242,8 @@ def time_path(path_q, ss, vlim, alim, *, gridpoints: int = 200,
                                    np.minimum(f[lo], f[hi])) for f in (fv, fa, fp))
             grid = new
             dq, ddq, caps, pcap = grid_data(grid)
-    return TimedPath("violation", f"a limit is still exceeded by {100 * worst:.2f} % between "
-                     f"TOPP-RA's grid points after {max_iter} tightened solves", path,
+    return TimedPath(PlanStatus.VIOLATION, f"a limit is still exceeded by {100 * worst:.2f} % "
+                     f"between TOPP-RA's grid points after {max_iter} tightened solves", path,
                      timing, max_iter, peaks, worst)
 
 

@@ -57,7 +57,7 @@ def link_frames(tree: dict, q) -> tuple:
 
 
 def extend_tree(tree: dict, payload: float, grapple) -> dict:
-    """The tree data of :func:`~planner.simulation.dynamic.exudyn_plant.tree_parameters` (built
+    """The tree data of :func:`~planner.simulation.dynamic.bodies.tree_parameters` (built
     without the payload) with the two grapple joints and the hanging load appended."""
     n = len(tree["types"])
     first_pitch = next((i for i in range(1, n) if tree["types"][i] == "revolute"), None)

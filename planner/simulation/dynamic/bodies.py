@@ -1,0 +1,80 @@
+"""The Exudyn plant's rigid-body data from a spec: the kinematic tree (joint types, constant
+transforms, link masses, centres of mass and inertias, the payload at the tip) and the stroke
+map as dense tables cheap enough for the integrator's Newton iterations."""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from planner.model.dynamics import lumped_links
+from planner.model.kinematics import joint_transforms
+
+__all__ = ["StrokeTable", "tree_parameters"]
+
+
+class StrokeTable:
+    """Stroke map x(q) and dx/dq of every actuator as dense tables (4001 points per joint
+    range, linear interpolation, linear extrapolation beyond the limits) from the model's
+    exact map — cheap enough to call inside the integrator's Newton iterations."""
+
+    def __init__(self, crane, points: int = 4001):
+        L = crane.limit_arrays()
+        self.Q = np.linspace(L["q_min"], L["q_max"], points)
+        self.X, self.D = crane.stroke(self.Q)
+        self.n = crane.n
+        self._h = (self.Q[1] - self.Q[0]).tolist()
+        self._q0 = self.Q[0].tolist()
+        self._last = points - 1
+        self._x = [self.X[:, i].tolist() for i in range(self.n)]
+        self._d = [self.D[:, i].tolist() for i in range(self.n)]
+
+    def __call__(self, q):
+        """(x, dx/dq) at one configuration q (n floats) as lists (the grid is uniform per
+        joint; plain Python: called inside the integrator's Newton iterations)."""
+        xs, ds = [], []
+        for i in range(self.n):
+            z = (q[i] - self._q0[i]) / self._h[i]
+            k = min(max(int(z), 0), self._last - 1)
+            w = z - k
+            X, D = self._x[i], self._d[i]
+            xs.append(X[k] + w * (X[k + 1] - X[k]))
+            ds.append(D[k] + min(max(w, 0.0), 1.0) * (D[k + 1] - D[k]))
+        return xs, ds
+
+    def batch(self, q):
+        """(x, dx/dq) for configurations (N, n) (inside the limits: clamped tables)."""
+        q = np.atleast_2d(q)
+        x = np.column_stack([np.interp(q[:, i], self.Q[:, i], self.X[:, i])
+                             for i in range(self.n)])
+        d = np.column_stack([np.interp(q[:, i], self.Q[:, i], self.D[:, i])
+                             for i in range(self.n)])
+        return x, d
+
+
+def tree_parameters(spec, payload: float, bodies=None) -> dict:
+    """Kinematic-tree data of a spec: joint types ('revolute' | 'prismatic'), the constant
+    transformation from each parent link frame to the joint frame (4×4), link masses, COMs
+    and inertias (about the COM) in the link frames, and the tip point in the last link frame;
+    the payload [kg] is merged into the last link as a point mass at the tip."""
+    n = spec.n
+    C = [np.array(ca.DM(A)) for A in joint_transforms(spec, ca.DM.zeros(n))]
+    bodies = lumped_links(spec) if bodies is None else bodies
+    hts, masses, coms, inertias = [], [], [], []
+    for i in range(n):
+        hts.append(np.eye(4) if i == 0 else C[i - 1])
+        m, c, inertia = bodies[i]
+        R, t = C[i][:3, :3], C[i][:3, 3]
+        cc = R @ np.asarray(c) + t
+        II = R @ np.asarray(inertia) @ R.T
+        if i == n - 1 and payload > 0:
+            M = m + payload
+            cn = (m * cc + payload * t) / M
+            d1, d2 = cc - cn, t - cn
+            II = (II + m * (d1 @ d1 * np.eye(3) - np.outer(d1, d1))
+                  + payload * (d2 @ d2 * np.eye(3) - np.outer(d2, d2)))
+            m, cc = M, cn
+        masses.append(float(m))
+        coms.append(cc)
+        inertias.append(II)
+    return dict(types=["revolute" if j.revolute else "prismatic" for j in spec.joints],
+                hts=hts, masses=masses, coms=coms, inertias=inertias, tip=C[-1][:3, 3].copy())

@@ -43,8 +43,13 @@ class Stepper:
     :meth:`run` integrates from x0 over K steps with per-step commands and extra forces;
     ``compiled`` says whether machine code runs (False without a C compiler)."""
 
-    def __init__(self, rhs: ca.Function, n: int, h: float, newton: int = 3, chunk: int = 50):
+    def __init__(self, rhs: ca.Function, n: int, h: float, newton: int = 3, chunk: int = 50,
+                 tol: float = 1e-2, refine: int = 4, depth: int = 2):
         self.n, self.h, self.newton, self.chunk = n, float(h), int(newton), int(chunk)
+        self.tol, self.refine, self.depth = float(tol), int(refine), int(depth)
+        self._rhs = rhs
+        self._fine = None
+        self.refined = 0
         nx = state_size(n)
         self.nx = nx
         npar = rhs.size1_in(3)
@@ -89,12 +94,31 @@ class Stepper:
         out[0] = x0
         for s in range(0, Kp, C):
             X, E = self._f(xx, up[s:s + C].T, fp[s:s + C].T, Pm)
-            X = np.asarray(X)
+            X, E = np.asarray(X), np.asarray(E).ravel()
+            if self.depth > 0 and not (np.all(np.isfinite(X)) and E.max() <= self.tol):
+                X, E = self._refined(xx, up[s:s + C], fp[s:s + C], P)
             out[s + 1:s + C + 1] = X[:self.nx].T
-            err[s:s + C] = np.asarray(E).ravel()
+            err[s:s + C] = E
             xx = X[:, -1]
             if not np.all(np.isfinite(xx)):
                 out[s + C + 1:] = np.nan
                 err[s + C:] = np.inf
                 break
         return out[:K + 1], err[:K]
+
+    def _refined(self, xx, u, f_x, P):
+        """A chunk whose Newton iteration did not converge (a stop hit at speed, a command
+        step that swaps the pump's load): again with ``refine`` substeps per step (restarted
+        from x_k, the BDF2 history dropped), recursively up to ``depth`` times; the states at
+        the coarse grid and each coarse step's worst update."""
+        if self._fine is None:
+            self._fine = Stepper(self._rhs, self.n, self.h / self.refine, self.newton,
+                                 self.chunk, self.tol, self.refine, self.depth - 1)
+        self.refined += 1
+        r = self.refine
+        Xf, Ef = self._fine.run(xx[:self.nx], np.repeat(u, r, axis=0),
+                                np.repeat(f_x, r, axis=0), P)
+        X = Xf[r::r]
+        prev = np.vstack([xx[None, :self.nx], X[:-1]])   # the coarse grid's history
+        E = Ef.reshape(-1, r).max(axis=1)
+        return np.vstack([X.T, prev.T]), E

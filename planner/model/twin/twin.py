@@ -114,7 +114,9 @@ class Twin:
         self._rest_model = None
 
     # ------------------------------------------------------------------ states
-    def _model(self):
+    def bodies_model(self):
+        """The quasi-static model of this twin's rigid bodies (the crane, or one built from
+        ``bodies``): its load-holding pressures and inverse dynamics."""
         if self._rest_model is None:
             from planner.model import Crane
             self._rest_model = (self.crane if self.bodies is self.crane.spec
@@ -125,7 +127,7 @@ class Twin:
         """Load-holding chamber pressures (p_a, p_b) at rest in ``q`` (n,): the model's
         quasi-static pressures at zero speed, with this twin's bodies and payload."""
         n = self.crane.n
-        hy = self._model().hydraulics(np.asarray(q, float), np.zeros(n), np.zeros(n),
+        hy = self.bodies_model().hydraulics(np.asarray(q, float), np.zeros(n), np.zeros(n),
                                       self.payload)
         return np.asarray(hy["p_a"], float), np.asarray(hy["p_b"], float)
 

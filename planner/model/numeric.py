@@ -119,6 +119,20 @@ def jit_map(f: ca.Function, chunk: int) -> ca.Function:
         return fm
 
 
+def jit_function(f: ca.Function) -> ca.Function:
+    """Machine-code copy of ``f`` as it is (a map, a mapaccum, an MX function: the generated
+    code keeps its loops and calls instead of expanding them), cached like :func:`jit`; ``f``
+    itself without a compiler or with ``CRANE_PLANNER_JIT=0``."""
+    if os.environ.get("CRANE_PLANNER_JIT", "1") == "0":
+        return f
+    try:
+        return _compiled(f)
+    except Exception as e:  # no compiler: the interpreted function is exact, only slower
+        warnings.warn(f"CasADi JIT unavailable ({type(e).__name__}: {e}); using the "
+                      "interpreter", RuntimeWarning, stacklevel=3)
+        return f
+
+
 def densified(f: ca.Function) -> ca.Function:
     """Same function with dense column-vector inputs/outputs (required by the buffer path)."""
     ins = f.sx_in()

@@ -8,10 +8,9 @@ fast       the quasi-static open-loop replay plus effects                       
            (:func:`planner.simulation.plant.respond`; the model that plans and fits)    model's
 exudyn     Exudyn multibody + chamber-pressure dynamics with its own circuit code        yes
            (:class:`planner.simulation.dynamic.exudyn_plant.ExudynPlant`)
+twin       the model's dynamic twin: RNEA + chamber pressures, valves, pump (CasADi,    no: the
+           compiled BDF2; :class:`planner.simulation.twin_plant.TwinPlant`)             model's
 =========  ===========================================================================  =======
-
-The dynamic twin of the next issue (the model's own pressure dynamics, for feed-forward and
-calibration) joins as one more :class:`BasePlant` subclass registered here.
 
 The contract (:class:`BasePlant`):
 
@@ -170,9 +169,11 @@ class FastPlant(BasePlant):
 
 #: name -> "module:Class" (imported on first use)
 PLANTS = {"fast": "planner.simulation.plants:FastPlant",
-          "exudyn": "planner.simulation.dynamic.exudyn_plant:ExudynPlant"}
+          "exudyn": "planner.simulation.dynamic.exudyn_plant:ExudynPlant",
+          "twin": "planner.simulation.twin_plant:TwinPlant"}
 #: the hooks each plant calls, known without importing it (for messages and listings)
-PLANT_HOOKS = {"fast": (QUASI_STATIC_HOOKS, False), "exudyn": (DYNAMIC_HOOKS, True)}
+PLANT_HOOKS = {"fast": (QUASI_STATIC_HOOKS, False), "exudyn": (DYNAMIC_HOOKS, True),
+               "twin": (DYNAMIC_HOOKS, True)}
 
 
 def plant_class(name: str) -> type:

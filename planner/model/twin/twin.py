@@ -1,0 +1,225 @@
+"""The dynamic twin of one machine: build once, simulate many command sequences.
+
+>>> twin = Twin(Crane.from_id("s100f"))
+>>> run = twin.simulate(t_u, u, q0)          # commands held from t_u, from rest at q0
+>>> run.q, run.p_a, run.p_b, run.p_s         # on the integrator's step grid
+
+The right-hand side is :mod:`planner.model.twin.ode` (CasADi, the model's RNEA and valve
+physics), the integrator :mod:`planner.model.twin.integrator` (BDF2, Newton on the compiled
+Jacobian). The machine's hydraulic data are inputs of the compiled step
+(:mod:`planner.model.twin.params`), so the twin of the same rigid bodies with other oil, hoses,
+friction, leakage, valve or pump data reuses the same compiled code (built once per process
+and rigid-body data, compiled once per user: :func:`planner.model.numeric.jit_function`).
+
+A run starts at rest: the chamber pressures hold the load (the model's load-holding pressures
+of :meth:`planner.model.Crane.hydraulics` at zero speed — an equilibrium of the twin), the pump
+line at its no-load set pressure, the spools closed. It is bounded like the judge: a
+non-finite state, a pressure above 10× relief or a joint 20 % of its range beyond a limit
+stops it with ``status`` "diverged" and ``t_fail``.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.model.twin.integrator import Stepper
+from planner.model.twin.ode import build_rhs, state_size, unpack
+from planner.model.twin.params import twin_params
+
+__all__ = ["Twin", "TwinRun"]
+
+_STEPPERS: dict = {}
+
+
+@dataclass
+class TwinRun:
+    """A twin run on its step grid ``t`` (K + 1,): joints ``q``, ``qd`` (K + 1, n), chamber
+    pressures ``p_a``, ``p_b`` [Pa], pump line ``p_s`` (K + 1,), ``spool`` and the command
+    ``u`` in effect at each step (K + 1, n); ``newton`` the scaled size of each step's last
+    Newton update; ``status`` "ok" | "diverged" with ``reason`` and ``t_fail``."""
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    p_a: np.ndarray
+    p_b: np.ndarray
+    p_s: np.ndarray
+    spool: np.ndarray
+    u: np.ndarray
+    newton: np.ndarray
+    status: str = "ok"
+    reason: str = ""
+    t_fail: float | None = None
+    wall_s: float = 0.0
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def sample(self, t):
+        """(q, p_a, p_b, u) at times ``t`` (M,): linear interpolation (u: the command in
+        effect)."""
+        t = np.asarray(t, float)
+
+        def lin(a):
+            return np.column_stack([np.interp(t, self.t, a[:, i]) for i in range(a.shape[1])])
+        k = np.clip(np.searchsorted(self.t, t + 1e-9, side="right") - 1, 0, len(self.t) - 1)
+        return lin(self.q), lin(self.p_a), lin(self.p_b), self.u[k]
+
+
+def _stepper(crane, spec, step, newton, chunk):
+    key = (id(crane), crane.spec.path, repr(spec.joints) if spec is not crane.spec else "",
+           step, newton, chunk)
+    st = _STEPPERS.get(key)
+    if st is None or st[0] is not crane:
+        fs = build_rhs(crane, spec)
+        st = _STEPPERS[key] = (crane, Stepper(fs["rhs"], crane.n, step, newton, chunk), fs)
+    return st[1], st[2]
+
+
+class Twin:
+    """The dynamic twin of ``crane`` (see the module doc) with ``dynamics`` (default the
+    spec's ``[dynamics]``), tip ``payload`` [kg] (default the spec's load + tool), the
+    valves-stage data ``gain_scale`` (per-valve factors), ``deadband`` (None: the spec's),
+    ``pump_scale`` (factor on the pump's maximum flow), the rigid bodies of ``bodies`` (a
+    spec with other masses; default the crane's), integrated with ``step`` [s] and ``newton``
+    Newton iterations per step."""
+
+    def __init__(self, crane, dynamics=None, payload=None, gain_scale=1.0, deadband=None,
+                 pump_scale: float = 1.0, bodies=None, step: float = 2e-3, newton: int = 3,
+                 chunk: int = 50):
+        spec = crane.spec
+        dyn = spec.dynamics if dynamics is None else dynamics
+        if dyn is None:
+            raise ValueError(f"crane '{spec.id}' ({spec.path}): field 'dynamics': missing "
+                             "section; the twin needs [dynamics] (bulk_modulus, hose volumes, "
+                             "…; see planner/model/dynamics_spec.py)")
+        if not (math.isfinite(step) and 0 < step <= 0.01):
+            raise ValueError(f"Twin: step = {step!r} s; allowed: 0 < step <= 0.01")
+        if not (1 <= int(newton) <= 10):
+            raise ValueError(f"Twin: newton = {newton!r}; allowed: 1 .. 10 iterations")
+        if spec.transformer is not None and spec.transformer.enabled:
+            raise ValueError(f"crane '{spec.id}': field 'transformer.enabled': true; the twin "
+                             "does not model the hydraulic transformer")
+        self.crane, self.dynamics, self.step = crane, dyn, float(step)
+        self.payload = spec.payload.total if payload is None else float(payload)
+        self.bodies = spec if bodies is None else bodies
+        self.params = twin_params(crane, dyn, self.payload, gain_scale, deadband, pump_scale)
+        self.P = self.params.vector()
+        self.stepper, fs = _stepper(crane, self.bodies, self.step, int(newton), int(chunk))
+        self.f_rhs, self.f_outputs = fs["rhs"], fs["outputs"]
+        self._rest_model = None
+
+    # ------------------------------------------------------------------ states
+    def bodies_model(self):
+        """The quasi-static model of this twin's rigid bodies (the crane, or one built from
+        ``bodies``): its load-holding pressures and inverse dynamics."""
+        if self._rest_model is None:
+            from planner.model import Crane
+            self._rest_model = (self.crane if self.bodies is self.crane.spec
+                                else Crane(self.bodies))
+        return self._rest_model
+
+    def holding_pressures(self, q):
+        """Load-holding chamber pressures (p_a, p_b) at rest in ``q`` (n,): the model's
+        quasi-static pressures at zero speed, with this twin's bodies and payload."""
+        n = self.crane.n
+        hy = self.bodies_model().hydraulics(np.asarray(q, float), np.zeros(n), np.zeros(n),
+                                      self.payload)
+        return np.asarray(hy["p_a"], float), np.asarray(hy["p_b"], float)
+
+    def rest_pump_pressure(self) -> float:
+        """The pump line at rest: the regulator's set pressure with no valve open."""
+        s = self.params.scalar
+        if s["load_sensing"] > 0.5:
+            return float(min(s["standby"], s["p_relief"]))
+        return float(s["p_const"])
+
+    def rest_state(self, q0) -> np.ndarray:
+        """The state (5n + 1,) at rest in ``q0``: holding pressures, pump at rest, spools
+        closed."""
+        n = self.crane.n
+        q0 = np.asarray(q0, float).ravel()
+        p_a, p_b = self.holding_pressures(q0)
+        return np.concatenate([q0, np.zeros(n), p_a, p_b, [self.rest_pump_pressure()],
+                               np.zeros(n)])
+
+    def rhs(self, x, u, f_x=None) -> np.ndarray:
+        """ẋ at state ``x`` (5n + 1,) under commands ``u`` (n,) and extra forces ``f_x``."""
+        n = self.crane.n
+        fx = np.zeros(n) if f_x is None else f_x
+        return np.asarray(self.f_rhs(x, u, fx, self.P), float).ravel()
+
+    # ------------------------------------------------------------------ running
+    def simulate(self, t_u, u, q0, t_end: float | None = None, force=None,
+                 x0=None) -> TwinRun:
+        """Commands ``u`` (M, n) held from ``t_u`` (M,), from rest at ``q0`` (or from the
+        state ``x0``) until ``t_end`` (default t_u[-1]). ``force(t, q, qd, p_a, p_b) -> (n,)``:
+        an extra actuator force (a load the actuators work against) evaluated at the start of
+        every chunk of steps (0.1 s at the defaults) and held over it."""
+        wall0 = time.perf_counter()
+        n, h = self.crane.n, self.step
+        t_u = np.asarray(t_u, float).ravel()
+        u = np.atleast_2d(np.asarray(u, float))
+        q0 = np.asarray(q0, float).ravel()
+        if u.shape != (t_u.size, n) or q0.shape != (n,) or not np.all(np.isfinite(u)):
+            raise ValueError(f"Twin.simulate: expected finite t_u (M,), u (M, {n}), q0 ({n},);"
+                             f" got {t_u.shape}, {u.shape}, {q0.shape}")
+        if t_u.size > 1 and np.any(np.diff(t_u) <= 0):
+            raise ValueError("Twin.simulate: t_u must increase strictly")
+        t0 = float(t_u[0])
+        t_end = float(t_u[-1]) if t_end is None else float(t_end)
+        K = int(math.ceil((t_end - t0) / h - 1e-9))
+        if K < 1:
+            raise ValueError(f"Twin.simulate: span {t_end - t0:g} s shorter than one step")
+        tk = t0 + h * np.arange(K + 1)
+        j = np.clip(np.searchsorted(t_u, tk + 1e-9 * h, side="right") - 1, 0, t_u.size - 1)
+        uk = u[j]
+        x_start = self.rest_state(q0) if x0 is None else np.asarray(x0, float)
+        fx = np.zeros((K, n))
+        if force is None:
+            X, err = self.stepper.run(x_start, uk[:K], fx, self.P)
+        else:
+            C = self.stepper.chunk
+            X = np.empty((K + 1, state_size(n)))
+            err = np.empty(K)
+            X[0] = x_start
+            prev = None
+            for s in range(0, K, C):
+                e = min(s + C, K)
+                st = unpack(X[s], n)
+                fx[s:e] = np.asarray(force(tk[s], st["q"], st["qd"], st["p_a"], st["p_b"]),
+                                     float).reshape(n)
+                Xc, ec = self.stepper.run(X[s], uk[s:e], fx[s:e], self.P, x_prev=prev)
+                X[s + 1:e + 1], err[s:e] = Xc[1:], ec
+                prev = X[e - 1]
+        run = self._checked(tk, X, uk, err)
+        run.wall_s = time.perf_counter() - wall0
+        run.meta.update(step=h, steps=K, newton_max=float(np.max(err)) if err.size else 0.0)
+        return run
+
+    def _checked(self, tk, X, uk, err) -> TwinRun:
+        n = self.crane.n
+        L = self.crane.limit_arrays()
+        span = L["q_max"] - L["q_min"]
+        p_cap = 10.0 * min(self.params.scalar["p_relief"], 1e8)
+        q, p = X[:, :n], X[:, 2 * n:4 * n + 1]
+        bad = ~np.all(np.isfinite(X), axis=1)
+        bad |= np.max(np.abs(np.where(np.isfinite(p), p, 0.0)), axis=1) > p_cap
+        bad |= np.any((q < L["q_min"] - 0.2 * span) | (q > L["q_max"] + 0.2 * span), axis=1)
+        status, reason, t_fail, K = "ok", "", None, len(tk)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            xs = X[k]
+            why = ("non-finite state" if not np.all(np.isfinite(xs)) else
+                   "pressure above 10× relief" if np.max(np.abs(xs[2 * n:4 * n + 1])) > p_cap
+                   else "a joint left its range by more than 20 %")
+            status, reason, t_fail, K = "diverged", why, float(tk[k]), max(k, 1)
+        s = unpack(X[:K].T, n)
+        return TwinRun(t=tk[:K], q=s["q"].T, qd=s["qd"].T, p_a=s["p_a"].T, p_b=s["p_b"].T,
+                       p_s=np.asarray(s["p_s"]).ravel(), spool=s["spool"].T, u=uk[:K],
+                       newton=err[:max(K - 1, 0)], status=status, reason=reason,
+                       t_fail=t_fail)

@@ -51,11 +51,27 @@ MODULES = _modules(PKG)
 REPO_MODULES = _modules(ROOT)  # every module of the repository, wherever it lives
 
 
+def _type_only(tree) -> set:
+    """The import nodes inside ``if TYPE_CHECKING:`` blocks: never executed (annotations
+    only), so they neither cost an import nor close a cycle."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and (
+                (isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING")
+                or (isinstance(node.test, ast.Attribute) and node.test.attr == "TYPE_CHECKING")):
+            out |= {id(n) for b in node.body for n in ast.walk(b)}
+    return out
+
+
 def _imports(name: str, path: Path, modules: dict[str, Path] = MODULES):
-    """(imported module, imported name or None, line) for every import in the module."""
+    """(imported module, imported name or None, line) for every import in the module that can
+    run (function-local ones included; ``if TYPE_CHECKING:`` blocks excluded)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
     pkg = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    skip = _type_only(tree)
     for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
         if isinstance(node, ast.Import):
             for a in node.names:
                 yield a.name, None, node.lineno
@@ -225,3 +241,12 @@ def test_layering_model_methods_products(module):
                  if t in MODULES and t != "planner" and t.split(".")[1] != module.split(".")[1]
                  and _layer(t) is not None and _layer(t) > lo})
     assert up == [], f"{module} (layer {lo}) imports higher layers: {up}"
+
+
+def test_imports_under_type_checking_are_not_counted(tmp_path):
+    # the oracle for the exclusion above: one real import, one annotation-only import
+    f = tmp_path / "m.py"
+    f.write_text("from typing import TYPE_CHECKING\nimport json\nif TYPE_CHECKING:\n"
+                 "    from planner.model import Crane\n", encoding="utf-8")
+    got = {t for t, _, _ in _imports("planner.m", f)}
+    assert "json" in got and "planner.model" not in got

@@ -128,9 +128,15 @@ def joint_state(crane, text: str) -> np.ndarray:
 
 def cmd_library_export(args):
     from planner.library.export import export
+    if args.format == "rosbag2" and args.units_row:
+        raise CLIError("--units-row applies to the csv format, not 'rosbag2'")
     created = check_output_dir(args.out)
-    files = export(args.library, args.out, args.format, rate=args.out_rate,
-                   units_row=args.units_row)
+    if args.format == "rosbag2":
+        from planner.library.rosbag import export_rosbag2  # rosbags (the ros extra): only here
+        files = export_rosbag2(args.library, args.out, rate=args.out_rate)
+    else:
+        files = export(args.library, args.out, args.format, rate=args.out_rate,
+                       units_row=args.units_row)
     note_created(created)
     emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
@@ -178,14 +184,17 @@ def add_parsers(sub) -> None:
                    help="write the entry's trajectory CSV")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_query)
-    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, or ROS "
-                                       "JointTrajectory documents (JSON / YAML)")
+    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, ROS "
+                                       "JointTrajectory documents (JSON / YAML) or ROS 2 bags")
     p.add_argument("library", metavar="LIB.h5")
-    p.add_argument("--format", choices=("csv", "mat", "json", "ros", "ros-yaml"), required=True,
+    p.add_argument("--format", choices=("csv", "mat", "json", "ros", "ros-yaml", "rosbag2"),
+                   required=True,
                    help="ros / ros-yaml: one trajectory_msgs/JointTrajectory-shaped file per "
-                        "entry")
+                        "entry; rosbag2: one ROS 2 bag (MCAP) per entry with the trajectory, "
+                        "joint states, valve commands and pressures (docs/rosbag.md; needs "
+                        "the ros extra)")
     p.add_argument("--rate", "--out-rate", dest="out_rate", type=float, metavar="HZ",
-                   help="csv, ros: resample every entry at a fixed control rate, with the valve "
+                   help="csv, ros, rosbag2: resample every entry at a fixed control rate, with the valve "
                         "commands u_* at that rate")
     p.add_argument("--units-row", action="store_true",
                    help="csv: a second line '# s,rad,...' with every column's unit")

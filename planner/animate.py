@@ -234,7 +234,7 @@ def build_animation(crane, traj, obstacles=(), fps: float = DEFAULT_FPS,
         axis.set_title(name)
         axis.grid(alpha=0.3)
     fig.legend(handles=[h for h in side.lines if not h.get_label().startswith("_")],
-               loc="lower center", ncol=5, fontsize=8, frameon=False)
+               loc="outside lower center", ncol=5, fontsize=8, frameon=False)
     speedup = max(1.0, (duration * fps) / max(1, n - 1)) if duration > 0 else 1.0
     fig.suptitle(title + (f" (played {speedup:.1f}x)" if speedup > 1.0 + 1e-9 else ""))
     anim = MoveAnimation(fig, times, fps, speedup, art, frames)

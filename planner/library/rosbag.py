@@ -54,10 +54,11 @@ def _ns(t: float) -> int:
     return int(round(float(t) * 1e9))
 
 
-def write_bag(path, traj, p_a, p_b, frame_id: str = "base_link") -> Path:
+def write_bag(path, traj, p_a, p_b, frame_id: str = "base_link",
+              storage: str = "mcap") -> Path:
     """Write one trajectory (with commands ``traj.u``) and its port pressures p_a, p_b (N, n)
-    [Pa] as a ROS 2 bag folder ``path`` (MCAP storage; the topics of the module docstring).
-    The folder must not exist; it is built under a temporary name beside it and renamed."""
+    [Pa] as a ROS 2 bag folder ``path`` (``storage`` "mcap" or "sqlite3"; the topics of the
+    module docstring). It is built under a temporary name beside ``path`` and renamed over it."""
     try:
         need_rosbags()
     except MapError as e:
@@ -100,7 +101,8 @@ def write_bag(path, traj, p_a, p_b, frame_id: str = "base_link") -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     bag = tmp / path.name
     try:
-        with Writer(bag, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
+        with Writer(bag, version=8, storage_plugin=plugin) as w:
             conn = {topic: w.add_connection(topic, msgtype, typestore=ts)
                     for topic, msgtype in TOPICS.items()}
 

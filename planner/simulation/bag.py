@@ -29,8 +29,9 @@ std_msgs/Float64MultiArray's ``data``). The sample grid is the position topic's 
 map's ``rate``): the other channels are taken at those times — commands held (the command in
 effect), readings interpolated linearly — and equal stamps give the values as logged. Time is
 counted from the first position sample. The grid must be uniform within the CSV reader's
-jitter (:data:`~planner.simulation.recording.JITTER`, resampled onto the mean rate and said in
-``notes``); otherwise give ``rate``.
+jitter (:data:`~planner.simulation.recording.JITTER`: resampled onto the mean rate, readings
+interpolated and each command kept with its sample, said in ``notes``); otherwise give
+``rate``.
 
 ``rosbags`` (pure Python, the ``ros`` extra) is imported only here, when a bag is read or written.
 """
@@ -229,11 +230,10 @@ def _read_topics(path, m, src) -> dict:
     from rosbags.highlevel import AnyReader
     topics = {m[ch]["topic"] for ch in CHANNELS if ch in m}
     got = {t: [] for t in topics}
+    bag = _bag_paths(path)                # a missing path: OSError, as for a CSV
     try:
-        reader = AnyReader([_bag_paths(path)])
+        reader = AnyReader([bag])
         reader.open()
-    except OSError:
-        raise
     except Exception as e:  # rosbags' own errors: not a bag, unknown storage, …
         raise MapError(f"{src}: not a readable ROS 2 bag ({e})") from None
     try:
@@ -287,6 +287,7 @@ def read_bag_recording(path, map_path, crane, plan=None) -> Recording:
         raise MapError(f"{src}: topic {m['q']['topic']}: message {k + 2} has the stamp of "
                        f"message {k + 1} ({t[k]:.9g} s); time must increase strictly")
     notes = []
+    t_cmd = None   # jitter: each command stays with its sample (as the CSV reader keeps it)
     if m["rate"] is not None:
         t_new, _ = resample_arrays(t, (None,), m["rate"])
         notes.append(f"resampled onto {m['rate']:g} Hz from {len(t)} position samples "
@@ -307,10 +308,10 @@ def read_bag_recording(path, map_path, crane, plan=None) -> Recording:
             notes.append(f"timestamp jitter up to {100 * float(off.max()):.1f} % of the step: "
                          f"resampled onto the mean rate {1 / mean:.6g} Hz")
             q = _at(t, t_new, q, hold=False)
-            t = t_new
+            t_cmd, t = t, t_new
     u = pa = pb = None
     if "u" in series:
-        u = _at(sec["u"], t, series["u"][1], hold=True)
+        u = _at(sec["u"], t if t_cmd is None else t_cmd, series["u"][1], hold=True)
         bad = np.abs(u) > 1 + 1e-9
         if bad.any():
             k, c = np.argwhere(bad)[0]

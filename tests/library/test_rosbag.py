@@ -184,6 +184,22 @@ def test_round_trip_bag_through_the_map_equals_the_csv_path(lib, bags, tmp_path)
                     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
 
 
+def test_a_sqlite3_bag_reads_as_the_mcap_one(lib, bags, tmp_path):
+    """The other rosbag2 storage: the same entry written with sqlite3 storage reads, through
+    the same map, to the same recording as the MCAP bag."""
+    from planner.library.rosbag import write_bag
+    from planner.simulation.bag import read_bag_recording
+    crane, path = lib
+    with LibraryStore.open(path, "r") as db:
+        e, tr = db.entry("move 0"), db.trajectory("move 0")
+    bag = write_bag(tmp_path / "sq", tr, e["p_a"], e["p_b"], storage="sqlite3")
+    assert list(bag.glob("*.db3")) and not list(bag.glob("*.mcap"))
+    a = read_bag_recording(bag, MAP, crane).table(crane)
+    b = read_bag_recording(bags / "move_0", MAP, crane).table(crane)
+    assert a[0] == b[0]
+    np.testing.assert_array_equal(a[1], b[1])
+
+
 def test_map_units_scale_the_channels(lib, bags, tmp_path):
     """unit '%' divides the commands by 100; unit 'deg' for the angles multiplies the revolute
     positions by pi/180 and leaves the prismatic ones in m."""
@@ -238,3 +254,61 @@ def test_without_rosbags_one_line_names_the_extra(lib, tmp_path, capsys, monkeyp
     err = capsys.readouterr().err.strip()
     assert "crane-planner[ros]" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "b" / "move_0").exists()
+
+
+def _array_bag(path, t, q, u):
+    """A bag as another logger might write it: std_msgs/Float64MultiArray on /q (joints in
+    reverse order, degrees for the angles) and /u (percent), no headers: log time only."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        cq = w.add_connection("/q", "std_msgs/msg/Float64MultiArray", typestore=ts)
+        cu = w.add_connection("/u", "std_msgs/msg/Float64MultiArray", typestore=ts)
+        for k, tk in enumerate(t):
+            ns = 1_700_000_000_000_000_000 + int(round(tk * 1e9))   # an epoch clock
+            for c, row in ((cq, q[k][::-1]), (cu, 100 * u[k])):
+                msg = T["std_msgs/msg/Float64MultiArray"](layout=layout,
+                                                          data=np.array(row, float))
+                w.write(c, ns, bytes(ts.serialize_cdr(msg, c.msgtype)))
+    return path
+
+
+def test_index_log_time_units_and_jitter(lib, tmp_path):
+    """Headerless arrays by index, log time on an epoch clock, degrees and percent, stamps
+    jittered by up to 4 % of a 50 Hz step: resampled onto the mean rate (said in the notes),
+    each reading interpolated from the logged ones; rate = 25 in the map resamples to 25 Hz;
+    time = 'header' on a headerless message is refused naming the topic."""
+    from planner.simulation.bag import read_bag_recording
+    crane, _ = lib
+    rng = np.random.default_rng(3)
+    n = 101
+    t = np.arange(n) * 0.02 + rng.uniform(-0.0008, 0.0008, n)
+    t[0], t[-1] = 0.0, 2.0
+    q = np.column_stack([0.1 * np.sin(t), 0.6 + 0.1 * t, -1.2 + 0.05 * t, 0.5 + 0.1 * t])
+    u = np.column_stack([np.sin(3 * t) * 0.5] * 4)
+    rev = np.array([j.revolute for j in crane.spec.joints])
+    logged = np.where(rev, np.degrees(q), q)
+    bag = _array_bag(tmp_path / "arr", t, logged, u)
+    idx = ", ".join(f"{j} = {crane.n - 1 - i}" for i, j in enumerate(crane.names))
+    text = (f'time = "log"\n[q]\ntopic = "/q"\nfield = "data"\nunit = "deg"\n'
+            f"index = {{{idx}}}\n[u]\ntopic = \"/u\"\nfield = \"data\"\nunit = \"%\"\n"
+            f"index = {{{idx}}}\n")
+    (tmp_path / "m.toml").write_text(text)
+    rec = read_bag_recording(bag, tmp_path / "m.toml", crane)
+    assert len(rec.notes) == 1 and "jitter" in rec.notes[0]
+    np.testing.assert_allclose(rec.t, np.arange(n) * 0.02, atol=1e-9)
+    for i in range(crane.n):
+        np.testing.assert_allclose(rec.q[:, i], np.interp(rec.t, t, q[:, i]), atol=1e-12)
+    assert rec.p_a is None
+    np.testing.assert_allclose(rec.u, u, atol=1e-12)   # each command kept with its sample
+    (tmp_path / "r.toml").write_text("rate = 25\n" + text)
+    rec = read_bag_recording(bag, tmp_path / "r.toml", crane)
+    np.testing.assert_allclose(rec.t, np.arange(51) * 0.04, atol=1e-9)
+    np.testing.assert_allclose(rec.q[:, 1], np.interp(rec.t, t, q[:, 1]), atol=1e-12)
+    (tmp_path / "h.toml").write_text(text.replace('time = "log"', 'time = "header"'))
+    with pytest.raises(ValueError, match=r"topic /[qu] \(std_msgs/msg/Float64MultiArray\) "
+                                         r"has no header"):
+        read_bag_recording(bag, tmp_path / "h.toml", crane)

@@ -99,6 +99,12 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
             trajectory_figure(crane, ev, out / "library_entry.png",
                               f"{DEFAULT_CRANE} {first}: {ev.duration:.2f} s, "
                               f"{ev.energy_J / 1e3:.1f} kJ")
+            # the same move animated (10 frames per second of the move: a few seconds)
+            from planner.animate import animate
+            from planner.tasks.suites import load_suite
+            animate(crane, db.trajectory(first), out / "library_entry.gif",
+                    obstacles=load_suite("forwarder-cycle")[0]["obstacles"], fps=10,
+                    title=f"{DEFAULT_CRANE} {first}", dpi=60)
         rob = [r["robustness"] for r in ok]
     L += ["", f"## A small library ({DEFAULT_CRANE}, forwarder cycle, first {library_moves} "
               "moves × time, energy)", "",
@@ -110,6 +116,10 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
           "limits and clear of the headboard. File: [library.h5](library.h5) "
           "(`crane-planner library info|query|export`).", "",
           "![library entry](library_entry.png)"]
+    if first:
+        L += ["", "The same move animated, side and top view with the headboard: "
+              "[library_entry.gif](library_entry.gif) "
+              f"(`crane-planner library show 'library.h5#{first}' --animate move.gif`)."]
     summary["library"] = dict(entries=info["entries"], ok=info["ok"], seconds=s["seconds"],
                               duration_s=info["duration_s"], energy_J=info["energy_J"])
     steps.update(1)

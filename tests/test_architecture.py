@@ -28,7 +28,7 @@ LAYERS = {
     "methods": 3,
     "simulation": 4,
     "calibration": 5, "library": 5,
-    "bench": 6,
+    "bench": 6, "animate": 6,
     "demo": 7, "cli": 8, "__main__": 9,
 }
 

@@ -5,11 +5,24 @@ from __future__ import annotations
 import sys
 import tomllib
 
-from planner.cli.common import add_json_arg, emit, read_trajectory
+from planner.cli.common import CLIError, add_json_arg, emit, read_trajectory
 from planner.io import atomic_write_text
 from planner.model import Crane
 from planner.model.spec import parse_spec
 from planner.simulation.recording import Recording
+
+
+def read_recording(args, crane, plan):
+    """``--measured``: the measured-data CSV, or a ROS 2 bag read through ``--map``
+    (planner.simulation.bag; the rosbags library only then)."""
+    from planner.simulation.bag import is_bag
+    if args.map is None:
+        if is_bag(args.measured):
+            raise CLIError(f"--measured {args.measured}: a ROS 2 bag needs --map FILE.toml "
+                           "(topics and fields -> channels; docs/rosbag.md)")
+        return Recording.from_csv(args.measured, crane, plan)
+    from planner.simulation.bag import read_bag_recording
+    return read_bag_recording(args.measured, args.map, crane, plan)
 
 
 def cmd_discrepancy(args):
@@ -20,7 +33,7 @@ def cmd_discrepancy(args):
     from planner.calibration.report import write_report
     crane = Crane.from_id(args.crane)
     plan = read_trajectory(crane, args.trajectory) if args.trajectory else None
-    rec = Recording.from_csv(args.measured, crane, plan)
+    rec = read_recording(args, crane, plan)
     if args.effects:
         names = [x.strip() for x in args.effects.split(",") if x.strip()]
     else:
@@ -79,7 +92,12 @@ def add_parsers(sub) -> None:
     p = sub.add_parser("discrepancy", help="measured vs simulated: name the missing effect, "
                                            "calibrate, show the gap shrink")
     p.add_argument("crane", help="machine id or a TOML spec (e.g. a calibrated one)")
-    p.add_argument("--measured", required=True, metavar="MEASURED.csv")
+    p.add_argument("--measured", required=True, metavar="MEASURED.csv|BAG",
+                   help="the measured-data CSV, or a ROS 2 bag (.mcap, .db3 or its folder) "
+                        "with --map")
+    p.add_argument("--map", metavar="MAP.toml",
+                   help="bag topics and fields -> measured channels, with their units "
+                        "(docs/rosbag.md; needs the ros extra)")
     p.add_argument("--trajectory", metavar="FILE.csv|FILE.h5#ID",
                    help="the commanded trajectory (re-planned on the calibrated model)")
     p.add_argument("--effects", metavar="NAME,…", help="only these catalogue effects")

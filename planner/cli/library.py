@@ -1,4 +1,4 @@
-"""``library build | info | query | export``: trajectory databases (HDF5).
+"""``library build | info | show | query | export``: trajectory databases (HDF5).
 
 The store and the export need h5py; they are imported inside the commands so that
 ``crane-planner --help`` does not load it."""
@@ -126,11 +126,92 @@ def joint_state(crane, text: str) -> np.ndarray:
     return q
 
 
+def entry_summary(db, eid: str) -> dict:
+    """``library show``: the entry's index row, its attributes (provenance, solver statistics,
+    evaluation summary) and the shape of its trajectory."""
+    row = next(r for r in db.index_rows() if r["id"] == eid)
+    attrs = db.entry_attrs(eid)
+    out = dict(row, reason=attrs.get("reason", ""), library=str(db.path),
+               crane_id=db.crane_id, attrs=attrs)
+    if db.has_trajectory(eid):
+        tr = db.trajectory(eid)
+        out.update(samples=len(tr.t), t0_s=float(tr.t[0]), t_end_s=float(tr.t[-1]),
+                   joint_names=list(tr.joint_names), has_commands=tr.u is not None)
+    return out
+
+
+def entry_obstacles(attrs: dict) -> tuple:
+    """The obstacles of the task suite an entry was built from (its ``suite`` attribute);
+    none when it names no suite or the suite is not found."""
+    suite = attrs.get("suite")
+    if not suite:
+        return ()
+    from planner.tasks.suites import load_suite
+    try:
+        return tuple(load_suite(suite)[0]["obstacles"])
+    except (OSError, ValueError, KeyError):
+        return ()
+
+
+def cmd_library_show(args):
+    from planner.cli.plan import check_animation
+    from planner.library.store import LibraryStore
+    check_animation(args)
+    path, _, eid = args.entry.partition("#")
+    with LibraryStore.open(path, "r") as db:
+        ids = db.ids()
+        if not eid:
+            if len(ids) != 1:
+                raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
+            eid = ids[0]
+        if eid not in ids:
+            near = ", ".join(ids[:5]) + (", ..." if len(ids) > 5 else "")
+            raise CLIError(f"{path}: no entry {eid!r}; its entries: {near or 'none'}")
+        summary = entry_summary(db, eid)
+        traj = db.trajectory(eid) if args.animate else None
+        spec_toml = db.spec_toml
+    if args.animate:
+        from planner.animate import animate  # matplotlib: only to draw
+        created = missing_dirs(args.animate)
+        summary["animation"] = animate(
+            library_crane(spec_toml), traj, args.animate,
+            obstacles=entry_obstacles(summary["attrs"]), fps=args.fps,
+            title=f"{summary['crane_id']} {eid} ({summary['method']}, {summary['objective']}):"
+                  f" {summary['duration_s']:.3f} s")
+        note_created(created)
+    emit(args, summary)
+    if not args.json:
+        s = summary
+        print(f"{eid}: {s['status']}" + (f" ({s['reason']})" if s["reason"] else "")
+              + f", {s['method']} / {s['objective']}, crane {s['crane_id']}")
+        print(f"  start r,z,slew {', '.join(f'{v:.3f}' for v in s['start'])}  goal "
+              f"{', '.join(f'{v:.3f}' for v in s['goal'])}")
+        def num(v, scale=1.0, fmt=".3f"):
+            return "-" if v is None or not np.isfinite(v) else format(v * scale, fmt)
+        print(f"  duration {num(s['duration_s'])} s, energy {num(s['energy_J'], 1e-3, '.2f')} "
+              f"kJ, robustness {num(s['robustness'], fmt='.4f')} m")
+        if "samples" in s:
+            print(f"  {s['samples']} samples, t {s['t0_s']:.3f} .. {s['t_end_s']:.3f} s, joints "
+                  f"{', '.join(s['joint_names'])}"
+                  + ("" if s["has_commands"] else " (no valve commands stored)"))
+        if "animation" in s:
+            a = s["animation"]
+            print(f"  animation written to {a['file']}: {a['frames']} frames at {a['fps']:g} fps"
+                  + (f", played {a['speedup']:.1f}x" if a["speedup"] > 1 else ""))
+    return 0
+
+
 def cmd_library_export(args):
     from planner.library.export import export
+    if args.format == "rosbag2" and args.units_row:
+        raise CLIError("--units-row applies to the csv format, not 'rosbag2'")
     created = check_output_dir(args.out)
-    files = export(args.library, args.out, args.format, rate=args.out_rate,
-                   units_row=args.units_row)
+    if args.format == "rosbag2":
+        from planner.library.rosbag import export_rosbag2  # rosbags (the ros extra): only here
+        files = export_rosbag2(args.library, args.out, rate=args.out_rate)
+    else:
+        files = export(args.library, args.out, args.format, rate=args.out_rate,
+                       units_row=args.units_row)
     note_created(created)
     emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
@@ -139,7 +220,7 @@ def cmd_library_export(args):
 
 
 def add_parsers(sub) -> None:
-    """``library`` (build, info, query, export)."""
+    """``library`` (build, info, show, query, export)."""
     lib = sub.add_parser("library", help="trajectory databases (HDF5): info, query, export")
     lsub = lib.add_subparsers(dest="what", required=True)
     p = lsub.add_parser("build", help="plan every move of a task suite into LIB.h5 "
@@ -166,6 +247,17 @@ def add_parsers(sub) -> None:
     p.add_argument("library", metavar="LIB.h5")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_info)
+    p = lsub.add_parser("show", help="one entry's summary; --animate draws its move")
+    p.add_argument("entry", metavar="LIB.h5#ID",
+                   help="the entry (the ID may be left out when the library holds one)")
+    p.add_argument("--animate", metavar="FILE.gif|.mp4|.html", type=output_arg,
+                   help="animate the move: the crane in a side and a top view, the tip path, "
+                        "the suite's obstacles (.mp4 needs ffmpeg; .html is self-contained)")
+    p.add_argument("--fps", type=float, default=20.0,
+                   help="--animate frames per second of the move (20; at most 30, and at most "
+                        "600 frames: longer moves play faster)")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_show)
     p = lsub.add_parser("query", help="the entry nearest to a requested move")
     p.add_argument("library", metavar="LIB.h5")
     p.add_argument("--start", type=point_arg, required=True, metavar="r,z,slew")
@@ -178,14 +270,17 @@ def add_parsers(sub) -> None:
                    help="write the entry's trajectory CSV")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_query)
-    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, or ROS "
-                                       "JointTrajectory documents (JSON / YAML)")
+    p = lsub.add_parser("export", help="CSV (one file per entry + index), MAT, JSON, ROS "
+                                       "JointTrajectory documents (JSON / YAML) or ROS 2 bags")
     p.add_argument("library", metavar="LIB.h5")
-    p.add_argument("--format", choices=("csv", "mat", "json", "ros", "ros-yaml"), required=True,
+    p.add_argument("--format", choices=("csv", "mat", "json", "ros", "ros-yaml", "rosbag2"),
+                   required=True,
                    help="ros / ros-yaml: one trajectory_msgs/JointTrajectory-shaped file per "
-                        "entry")
+                        "entry; rosbag2: one ROS 2 bag (MCAP) per entry with the trajectory, "
+                        "joint states, valve commands and pressures (docs/rosbag.md; needs "
+                        "the ros extra)")
     p.add_argument("--rate", "--out-rate", dest="out_rate", type=float, metavar="HZ",
-                   help="csv, ros: resample every entry at a fixed control rate, with the valve "
+                   help="csv, ros, rosbag2: resample every entry at a fixed control rate, with the valve "
                         "commands u_* at that rate")
     p.add_argument("--units-row", action="store_true",
                    help="csv: a second line '# s,rad,...' with every column's unit")

@@ -24,7 +24,6 @@ from planner.io import missing_dirs
 from planner.geometry.obstacles import Wall
 from planner.methods import PlanRequest, UnsupportedRequest, get, plan
 from planner.model import Crane, UnreachableError
-from planner.plots import FigureFormatError, figure_format, trajectory_figure
 from planner.trajectory import evaluate
 
 CONTROL_RATE_HZ = 50.0  # the valve commands of a plan stored with --out FILE.h5 (as a library)
@@ -112,10 +111,12 @@ def check_outputs(args) -> None:
         raise CLIError(f"--out {out}: unknown file type; allowed: a trajectory CSV (.csv) or a "
                        "one-entry database (.h5)")
     if args.plot:
+        from planner.plots import FigureFormatError, figure_format  # matplotlib: only to draw
         try:
             figure_format(args.plot)
         except FigureFormatError as e:
             raise CLIError(f"--plot {args.plot}: {str(e).split(': ', 1)[1]}") from None
+    check_animation(args)
     rate = args.out_rate
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise CLIError(f"--out-rate {rate}: must be a positive number of Hz")
@@ -125,12 +126,29 @@ def check_outputs(args) -> None:
         raise CLIError(f"--units-row applies to a CSV --out, not {out}")
 
 
+def check_animation(args) -> None:
+    """Refuse a bad ``--animate`` suffix (or .mp4 without ffmpeg) and ``--fps`` before any
+    work is done (planner.animate; matplotlib is imported only for .mp4's writer check)."""
+    if not args.animate:
+        return
+    from planner.animate import MAX_FPS, AnimationError, animation_format, check_fps
+    try:
+        animation_format(args.animate)
+    except AnimationError as e:
+        raise CLIError(f"--animate {args.animate}: {str(e).split(': ', 1)[1]}") from None
+    try:
+        check_fps(args.fps)
+    except AnimationError:
+        raise CLIError(f"--fps {args.fps:g}: allowed 0 < fps <= {MAX_FPS:g}") from None
+
+
 def write_outputs(args, crane, res, ev, walls, out: dict) -> None:
     """``--out`` (trajectory CSV, fixed-rate controller CSV, or a one-entry database) and
     ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
     traj = res.trajectory
     path = str(args.out or "")
-    note_created(d for p in (args.out, args.plot) if p for d in missing_dirs(p))
+    note_created(d for p in (args.out, args.plot, args.animate) if p
+                 for d in missing_dirs(p))
     if path.lower().endswith(".csv"):
         if args.out_rate is None and not args.units_row:
             traj.to_csv(path)  # the method's own samples (CONTRACT: trajectory CSV)
@@ -155,7 +173,13 @@ def write_outputs(args, crane, res, ev, walls, out: dict) -> None:
                            attrs=dict(solve_time_s=out["solve_time_s"], path=out["path"],
                                       source="crane-planner plan"))
         out["entry"] = entry
+    if args.animate:
+        from planner.animate import animate  # matplotlib: only to draw
+        out["animation"] = animate(crane, traj, args.animate, obstacles=walls, fps=args.fps,
+                                   title=f"{crane.spec.id} {args.method} ({args.objective}): "
+                                         f"{ev.duration:.3f} s")
     if args.plot:
+        from planner.plots import trajectory_figure  # matplotlib: only to draw
         trajectory_figure(crane, ev, args.plot,
                           f"{crane.spec.id} {args.method} ({args.objective}): "
                           f"{ev.duration:.3f} s", walls=walls)
@@ -218,6 +242,12 @@ def add_parsers(sub) -> None:
                    help="CSV --out: a second line '# s,rad,...' with every column's unit")
     p.add_argument("--plot", metavar="FILE.png|.pdf|.svg", type=output_arg,
                    help="draw joints, rates, tip path, pump (format from the suffix)")
+    p.add_argument("--animate", metavar="FILE.gif|.mp4|.html", type=output_arg,
+                   help="animate the move: the crane in a side and a top view, the tip path, "
+                        "the walls (.mp4 needs ffmpeg; .html is self-contained)")
+    p.add_argument("--fps", type=float, default=20.0,
+                   help="--animate frames per second of the move (20; at most 30, and at most "
+                        "600 frames: longer moves play faster)")
     add_json_arg(p)
     p.epilog = ("JSON: max_limit_violation covers the limit kinds the method plans with "
                 "(checked_limits); violations and max_violation_all_kinds cover every kind "

@@ -10,7 +10,9 @@ trajectory files a controller takes.
 - ``json``: ``library.json`` with the index rows and the entries' arrays as lists (strict JSON:
   non-finite numbers are null);
 - ``ros`` / ``ros-yaml``: one ``trajectory_msgs/JointTrajectory``-shaped document per entry
-  (:func:`joint_trajectory_msg`; JSON, or YAML with PyYAML) plus ``index.csv``.
+  (:func:`joint_trajectory_msg`; JSON, or YAML with PyYAML) plus ``index.csv``;
+- ``rosbag2`` (``library export`` only): one ROS 2 bag per entry, written by
+  :mod:`planner.library.rosbag` (the ``ros`` extra).
 
 ``rate`` (Hz, csv and ros): resample every entry on a fixed control grid t0 + k/rate with the
 valve commands recomputed at that rate (:func:`planner.feedforward.commands`) and the hydraulic
@@ -267,7 +269,9 @@ def _entry_hyd(db, eid):
     return e
 
 
-def _index_csv(rows, files, reasons) -> str:
+def index_csv_text(rows, files, reasons) -> str:
+    """index.csv: one row per entry (:data:`INDEX_CSV_COLUMNS`); ``files`` maps an id to the
+    file (or folder) written for it, empty for entries without a trajectory."""
     buf = StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(INDEX_CSV_COLUMNS)
@@ -312,7 +316,7 @@ def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row) -> list[
         files[eid] = name
         written.append(p)
     p = out_dir / "index.csv"
-    atomic_write_text(p, _index_csv(rows, files, reasons))
+    atomic_write_text(p, index_csv_text(rows, files, reasons))
     written.append(p)
     return written
 

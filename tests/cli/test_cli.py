@@ -221,7 +221,8 @@ def test_demo_writes_summary_and_figures(capsys, tmp_path):
         assert f"]({name})" in summary
     for move in ("A–B", "B–C", "A–C"):
         assert f"| {move} |" in summary
-    for f in ("library.h5", "library_entry.png", "bench/bench.md", "discrepancy/report.md",
+    for f in ("library.h5", "library_entry.png", "library_entry.gif", "bench/bench.md",
+              "discrepancy/report.md",
               "discrepancy/residuals.png"):
         assert (out_dir / f).stat().st_size > 0, f
     assert "4 entries, 4 ok" in summary and "flow_gain" in summary

@@ -85,3 +85,83 @@ def test_simulate_refuses_a_trajectory_with_other_joints(tmp_path, capsys):
     tr.to_csv(path)
     _refused(capsys, "simulate", "cat215b", "--trajectory", path, "--out", tmp_path / "m.csv",
              words=(str(path), "slew, boom, jib, tele", "swing, boom, stick"))
+
+
+# ------------------------------------------------------------------ 6: Ctrl-C in the engine
+# The child marks the first call of the engine's pre-step function (so SIGINT arrives while
+# Exudyn runs the Python callbacks, not while the CLI starts up), then runs the CLI.
+_CHILD = """
+import os, sys
+import exudyn
+marker, argv = sys.argv[1], sys.argv[2:]
+set_pre = exudyn.MainSystem.SetPreStepUserFunction
+def marked(self, f):
+    def g(mbs, t):
+        if not os.path.exists(marker):
+            open(marker, "w").close()
+        return f(mbs, t)
+    return set_pre(self, g)
+exudyn.MainSystem.SetPreStepUserFunction = marked
+from planner.cli import main
+sys.exit(main(argv))
+"""
+
+
+def test_ctrl_c_during_the_exudyn_plant_is_exit_130_and_one_line(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    from planner.simulation.dynamic.simulate import slowed
+    _, tr = _s100f_move(tele=1.0)
+    move = tmp_path / "slow.csv"
+    slowed(tr, 6.0).to_csv(move)           # ~25 s of plant time: tens of seconds of wall
+    marker, out = tmp_path / "engine-running", tmp_path / "dyn.csv"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    p = subprocess.Popen([sys.executable, "-c", _CHILD, str(marker), "simulate", "s100f",
+                          "--trajectory", str(move), "--plant", "exudyn", "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        t0 = time.monotonic()
+        while not marker.exists() and p.poll() is None and time.monotonic() - t0 < 120:
+            time.sleep(0.05)
+        assert marker.exists(), p.communicate()
+        time.sleep(0.3)
+        p.send_signal(signal.SIGINT)
+        t1 = time.monotonic()
+        stdout, stderr = p.communicate(timeout=20)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 130, (p.returncode, stdout, stderr)
+    assert time.monotonic() - t1 < 10
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "interrupted (SIGINT)" in lines[0], stderr
+    assert "diverged" not in stderr and not out.exists()
+
+
+def test_deferred_interrupt_keeps_a_handler_it_does_not_own():
+    """Only Python's default SIGINT handler is replaced for a solve (a library worker that
+    ignores SIGINT keeps ignoring it), and it is restored afterwards."""
+    import signal
+
+    from planner.simulation.dynamic.interrupt import DeferredInterrupt
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with DeferredInterrupt() as stop:
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+        assert not stop.requested
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        with pytest.raises(KeyboardInterrupt):
+            with DeferredInterrupt() as stop:
+                signal.raise_signal(signal.SIGINT)   # asks; does not raise inside the block
+                assert stop.requested
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)

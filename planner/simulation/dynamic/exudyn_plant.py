@@ -36,6 +36,7 @@ from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import Circuit
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
+from planner.simulation.dynamic.interrupt import DeferredInterrupt
 from planner.simulation.plants import BasePlant, PlantDiverged, PlantRecord
 from planner.simulation.replay import stroke_stops, valve_set
 
@@ -300,8 +301,12 @@ class ExudynPlant(BasePlant):
             rec["p_a"][k], rec["p_b"][k], rec["p_s"][k] = p[:n], p[n:2 * n], p[2 * n]
             return q[:n], qd[:n], p
 
+        stop = DeferredInterrupt()      # Ctrl-C: the engine would swallow KeyboardInterrupt
+
         def pre_step(mbs_, t):
             nonlocal spool
+            if stop.requested:
+                return False
             # the engine passes the time at the end of the coming step; the state is the
             # state at its start
             k = int(round((t - t0) / h)) - 1
@@ -356,7 +361,8 @@ class ExudynPlant(BasePlant):
         s.solution.file.write = False
         exu.SetWriteToConsole(False)    # the engine's banners would corrupt --json -
         try:
-            ok = mbs.SolveDynamic(s, showHints=False)
+            with stop:                  # KeyboardInterrupt (not an Exception) after a Ctrl-C
+                ok = mbs.SolveDynamic(s, showHints=False)
         except Exception as e:          # the engine's own failure (Newton, singular matrix)
             last = np.flatnonzero(np.isfinite(rec["p_s"]))
             ok, fail = False, fail or dict(status="diverged", t=float(rec["t"][last[-1]])

@@ -165,3 +165,52 @@ def test_deferred_interrupt_keeps_a_handler_it_does_not_own():
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+# ------------------------------------------------------------------ 7: --rate with u columns
+def _with_commands(tmp_path, rate=50.0):
+    """The S100F move carrying its feed-forward commands on a uniform ``rate`` grid (what an
+    ``excite`` file or an exported entry looks like)."""
+    from dataclasses import replace
+
+    from planner.feedforward import commands
+    crane, tr = _s100f_move(tele=1.0)
+    ff = commands(crane, tr, rate)
+    q, qd, qdd, _ = tr.sample(ff.t)
+    path = tmp_path / "cmds.csv"
+    replace(tr, t=ff.t, q=q, qd=qd, qdd=qdd, u=ff.u).to_csv(path)
+    return crane, path, np.asarray(ff.t), np.asarray(ff.u)
+
+
+@pytest.mark.parametrize("rate", [100.0, 20.0])
+def test_simulate_rate_is_honoured_for_a_trajectory_with_commands(tmp_path, capsys, rate):
+    import json
+    crane, path, t_u, u = _with_commands(tmp_path)
+    out = tmp_path / "m.csv"
+    rc, stdout, err = _cli(capsys, "simulate", "s100f", "--trajectory", path, "--out", out,
+                           "--rate", rate, "--json", "-")
+    assert rc == 0, err
+    assert "held at" in err and f"{rate:g} Hz" in err
+    summary = json.loads(stdout)
+    assert "held at" in summary["rate_note"]
+    from planner.simulation.recording import read_measured_csv
+    d = read_measured_csv(out, crane.names, uniform=False)
+    step = np.diff(d["t"])
+    assert np.allclose(step, 1.0 / rate, rtol=1e-6, atol=1e-9)
+    # each recorded command is the one in effect (zero-order hold) at its instant
+    k = np.searchsorted(t_u, d["t"] + 1e-9, side="right") - 1
+    assert np.allclose(d["u"], u[np.clip(k, 0, len(u) - 1)], atol=1e-6)
+
+
+def test_simulate_without_rate_keeps_the_files_own_commands(tmp_path, capsys):
+    crane, path, t_u, u = _with_commands(tmp_path, rate=50.0)
+    out = tmp_path / "m.csv"
+    for extra in ((), ("--rate", "50")):
+        rc, _, err = _cli(capsys, "simulate", "s100f", "--trajectory", path, "--out", out,
+                          *extra)
+        assert rc == 0 and "held at" not in err, err
+        from planner.simulation.recording import read_measured_csv
+        d = read_measured_csv(out, crane.names, uniform=False)
+        assert np.allclose(np.diff(d["t"]), 0.02)
+    _refused(capsys, "simulate", "s100f", "--trajectory", path, "--out", out, "--rate", "0",
+             words=("--rate 0", "> 0 Hz"))

@@ -214,3 +214,103 @@ def test_simulate_without_rate_keeps_the_files_own_commands(tmp_path, capsys):
         assert np.allclose(np.diff(d["t"]), 0.02)
     _refused(capsys, "simulate", "s100f", "--trajectory", path, "--out", out, "--rate", "0",
              words=("--rate 0", "> 0 Hz"))
+
+
+# ------------------------------------------------------------------ 8, 11, 15: library build
+@pytest.fixture
+def no_build(monkeypatch):
+    """``library build`` up to the call of the builder: the arguments it would get."""
+    import planner.cli.library as cli_library
+    calls = []
+
+    def fake(crane, suite, out, **kw):
+        calls.append(dict(kw, crane=crane, suite=suite))
+        return dict(status="ok", library=str(out), crane=crane, planned=0, statuses={},
+                    skipped_existing=0, seconds=0.0, workers=[])
+    monkeypatch.setattr(cli_library, "build", fake)
+    return calls
+
+
+def test_a_suite_of_another_machine_needs_force(tmp_path, capsys, no_build):
+    import tomllib
+
+    from planner.tasks.suites import suite_path
+    declared = tomllib.loads(suite_path("forwarder-cycle").read_text())["suite"]["crane"]
+    assert declared == "s100f"
+    _refused(capsys, "library", "build", "cranab850", "--tasks", "forwarder-cycle",
+             "--out", tmp_path / "lib.h5",
+             words=("forwarder-cycle", "declared for crane 's100f'", "'cranab850'", "--force"))
+    assert no_build == []
+    rc, _, err = _cli(capsys, "library", "build", "cranab850", "--tasks", "forwarder-cycle",
+                      "--out", tmp_path / "lib.h5", "--force", "--limit", "1")
+    assert rc == 0 and "warning" in err and "declared for crane 's100f'" in err
+    assert no_build[0]["crane"] == "cranab850"
+    # the machine the suite names builds without a word
+    rc, _, err = _cli(capsys, "library", "build", "s100f", "--tasks", "forwarder-cycle",
+                      "--out", tmp_path / "lib2.h5", "--limit", "1")
+    assert rc == 0 and err == ""
+
+
+@pytest.mark.parametrize("workers,limit,cpus,expected", [
+    (1000, 2, 16, 2), (1000, 50, 8, 8), (3, 50, 8, 3), (2, 1, 8, 1)])
+def test_library_build_never_starts_more_workers_than_moves_or_cpus(
+        tmp_path, capsys, no_build, monkeypatch, workers, limit, cpus, expected):
+    import planner.cli.library as cli_library
+    monkeypatch.setattr(cli_library, "cpu_count", lambda: cpus)
+    rc, _, err = _cli(capsys, "library", "build", "s100f", "--tasks", "forwarder-cycle",
+                      "--out", tmp_path / "lib.h5", "--workers", workers, "--limit", limit)
+    assert rc == 0, err
+    assert no_build[0]["workers"] == expected
+    assert (f"--workers {workers}: {expected} started" in err) == (expected < workers)
+
+
+def test_an_empty_task_grid_is_refused_naming_the_suite(tmp_path, capsys, no_build):
+    suite = tmp_path / "empty.toml"
+    suite.write_text('[suite]\nid = "empty-grid"\ncrane = "s100f"\n'
+                     '[pickups]\nr = []\nslew = ["0deg"]\nz = -1.0\n'
+                     '[drops]\nr = [3.0]\nslew = ["60deg"]\nz = 1.5\n')
+    _refused(capsys, "library", "build", "s100f", "--tasks", suite, "--out", tmp_path / "l.h5",
+             words=("'empty-grid'", str(suite), "no moves", "at least one move"))
+    assert no_build == [] and not (tmp_path / "l.h5").exists()
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_workers_start_is_exit_130(tmp_path):
+    """``--workers 1000`` for 2 moves starts 2 processes; SIGINT to the process group while
+    they set up ends the build in seconds with one line, no worker left."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    def children(pid):
+        out = []
+        for d in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                with open(f"/proc/{d}/stat") as fh:
+                    st = fh.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(st[1]) == pid and st[0] not in "ZX":
+                out.append(int(d))
+        return out
+
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    p = subprocess.Popen([sys.executable, "-m", "planner", "library", "build", "s100f",
+                          "--tasks", "forwarder-cycle", "--workers", "1000", "--limit", "2",
+                          "--out", str(tmp_path / "w.h5")], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+    t0 = time.monotonic()
+    while len(kids := children(p.pid)) < 2 and p.poll() is None and time.monotonic() - t0 < 120:
+        time.sleep(0.02)
+    time.sleep(0.2)
+    assert len(children(p.pid)) <= 3       # two workers (and the executor's manager thread)
+    t1 = time.monotonic()
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and time.monotonic() - t1 < 10, err
+    assert not [k for k in kids if os.path.exists(f"/proc/{k}")]
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith(
+        "crane-planner: interrupted (SIGINT)")

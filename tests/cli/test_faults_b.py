@@ -314,3 +314,30 @@ def test_ctrl_c_while_the_workers_start_is_exit_130(tmp_path):
     assert not [k for k in kids if os.path.exists(f"/proc/{k}")]
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith(
         "crane-planner: interrupted (SIGINT)")
+
+
+# ------------------------------------------------------------------ 13: epoch timestamps
+def test_epoch_timestamps_are_read_relative_to_the_first(tmp_path):
+    from planner.simulation.recording import read_measured_csv
+    crane = Crane.from_id("s100f")
+    names = crane.names
+    N, step, t0 = 500, 0.02, 1764130000.0
+    q = np.tile(crane.ik((6.0, -1.0, 0.0), tele=1.0), (N, 1))
+    cols = ["t"] + [f"q_{j}" for j in names]
+
+    def write(path, first):
+        rows = [",".join(cols)] + [f"{first + k * step:.2f}," + ",".join(f"{v:.6f}" for v in r)
+                                   for k, r in enumerate(q)]
+        path.write_text("\n".join(rows) + "\n")
+    epoch = tmp_path / "epoch.csv"
+    write(epoch, t0)
+    d = read_measured_csv(epoch, names)
+    # the oracle: the grid the logger wrote, k * 20 ms from the first stamp
+    assert np.allclose(d["t"], np.arange(N) * step, rtol=0, atol=1e-12)
+    assert np.ptp(np.diff(d["t"])) <= 1e-6 * step       # uniform, as discrepancy requires
+    assert any("1764130000.00" in n and "subtracted" in n for n in d["notes"])
+    # a log of a few seconds' offset keeps its times (it must line up with its plan)
+    late = tmp_path / "late.csv"
+    write(late, 5.0)
+    d = read_measured_csv(late, names)
+    assert d["t"][0] == 5.0 and d["notes"] == []

@@ -25,7 +25,9 @@ def _refused(capsys, *argv, words=(), rc=2):
     code, out, err = _cli(capsys, *argv)
     assert code == rc, (code, out, err)
     assert "Traceback" not in err
-    lines = err.strip().splitlines()
+    # one line (argparse's usage block may precede a usage error's)
+    lines = [ln for ln in err.strip().splitlines()
+             if not ln.startswith(("usage: ", "     "))]
     assert len(lines) == 1, err
     for w in words:
         assert w in lines[0], lines[0]
@@ -341,3 +343,37 @@ def test_epoch_timestamps_are_read_relative_to_the_first(tmp_path):
     write(late, 5.0)
     d = read_measured_csv(late, names)
     assert d["t"][0] == 5.0 and d["notes"] == []
+
+
+# ------------------------------------------------------------------ 15: spec encoding, 720deg
+def test_a_spec_with_a_byte_order_mark_is_read_as_without(tmp_path, capsys):
+    from planner.model.spec import load_spec
+    from planner.problems import crane_path
+    plain = crane_path("umea-lab").read_bytes()
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + plain)
+    a, b = load_spec(crane_path("umea-lab")), load_spec(bom)
+    assert b.text == a.text and b.id == a.id and b.joints == a.joints
+    rc, out, err = _cli(capsys, "problems", "show", bom, "--json", "-")
+    assert rc == 0, err
+
+
+def test_a_spec_that_is_not_utf8_names_file_line_column_and_byte(tmp_path, capsys):
+    from planner.problems import crane_path
+    raw = crane_path("umea-lab").read_bytes()
+    lines = raw.split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if b"assumed" in ln)   # an ASCII comment word
+    col = lines[k].index(b"assumed") + len("assum") + 1
+    lines[k] = lines[k].replace(b"assumed", b"assum\xe9d", 1)       # Latin-1 e-acute
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(b"\n".join(lines))
+    _refused(capsys, "problems", "show", bad,
+             words=(str(bad), f"line {k + 1}, column {col}", "\\xe9", "UTF-8"))
+
+
+@pytest.mark.parametrize("slew,same", [("720deg", "0deg"), ("190deg", "-170deg"),
+                                       ("-400°", "-40deg")])
+def test_a_slew_in_degrees_out_of_range_is_answered_in_degrees(capsys, slew, same):
+    last = _refused(capsys, "bound", "s100f", "--start", "6,-1,0", "--goal", f"4,0,{slew}",
+                    words=(f"slew = {slew} ", "-180deg ... 180deg", same))
+    assert "rad" not in last.split("slew =")[1]

@@ -45,9 +45,10 @@ def parse_point(text: str) -> tuple[float, float, float]:
         raise ValueError(f"non-finite value in {text!r}")
     if len(parts) == 3 and parts[2].lower().endswith(("deg", "°")) and \
             abs(s) > math.pi + SLEW_TOL:   # written in degrees: answered in degrees
-        same = math.degrees(math.remainder(s, 2 * math.pi))
-        raise ValueError(f"{text!r}: slew = {parts[2]} is outside the allowed -180deg ... "
-                         f"180deg (the same direction in range: {same:.6g}deg)")
+        same = math.remainder(s, 2 * math.pi)
+        raise ValueError(f"{text!r}: slew = {parts[2]} ({s:.6g} rad) is outside [-pi, pi]; "
+                         f"allowed: -180deg ... 180deg (the same direction in range: "
+                         f"{math.degrees(same):.6g}deg, {same:.6g} rad)")
     return check_tip((r, z, s), repr(text))
 
 

@@ -97,8 +97,9 @@ def cmd_plan(args):
               f"{ev.energy_J / 1e3:.2f} kJ, peak pump flow {ev.peak_pump_flow * 6e4:.1f} L/min, "
               f"max violation {100 * ev.max_limit_violation:.3f} % of the limits it plans with "
               f"({', '.join(sorted(checked))}), lower bound {bound:.3f} s"
-              + ("".join(f"\n  not planned for by {method}: {k} exceeded by {100 * v:.1f} %"
-                         for k, v in loose.items())))
+              + "".join(f"\n  {k}: {method} plans without a {k} limit; this move's {k} "
+                        f"peaks at {1 + v:.4g} x the machine's {k} limit" for k, v in
+                        loose.items()))
     return 0
 
 
@@ -177,7 +178,9 @@ def wall_arg(text):
 
 def add_parsers(sub) -> None:
     """``plan``."""
-    p = sub.add_parser("plan", help="plan one move (DP, DP + TOPP-RA, Ruckig, or a local law)")
+    what = ("plan one move (NLP, DP, DP + TOPP-RA, Ruckig, a local law or a plug-in's "
+            "method)")
+    p = sub.add_parser("plan", help=what, description=what[0].upper() + what[1:] + ".")
     p.add_argument("crane")
     p.add_argument("--start", type=point_arg, required=True, metavar="r,z,slew")
     p.add_argument("--goal", type=point_arg, required=True, metavar="r,z,slew")

@@ -377,3 +377,45 @@ def test_a_slew_in_degrees_out_of_range_is_answered_in_degrees(capsys, slew, sam
     last = _refused(capsys, "bound", "s100f", "--start", "6,-1,0", "--goal", f"4,0,{slew}",
                     words=(f"slew = {slew} ", "-180deg ... 180deg", same))
     assert "write degrees with a suffix" not in last
+
+
+# ------------------------------------------------------------------ the README tour's messages
+def test_plan_help_names_every_kind_of_method(capsys):
+    for argv in (["--help"], ["plan", "--help"]):
+        rc, out, _ = _cli(capsys, *argv)
+        assert rc == 0
+        text = " ".join(out.split())                       # argparse wraps the summary
+        k = text.lower().index("plan one move (")
+        summary = text[k:text.index(")", k)]
+        for m in ("NLP", "DP", "TOPP-RA", "Ruckig", "local law"):
+            assert m in summary, summary
+
+
+def test_topp_says_plainly_that_it_has_no_jerk_limit(capsys, tmp_path):
+    import json
+    argv = ("plan", "s100f", "--start", "7,-1,0", "--goal", "3,2,0.5", "--method", "topp")
+    rc, out, _ = _cli(capsys, *argv)
+    assert rc == 0
+    assert "exceeded by" not in out
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("jerk:"))
+    assert "topp plans without a jerk limit" in line
+    rc, _, _ = _cli(capsys, *argv, "--json", tmp_path / "r.json")
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert "jerk" not in r["checked_limits"]
+    assert f"{1 + r['violations']['jerk']:.4g} x the machine's jerk limit" in line
+
+
+def test_discrepancy_with_a_json_file_still_prints_the_verdict(capsys, tmp_path):
+    import json
+    from planner.simulation.dynamic.simulate import slowed
+    _, tr = _s100f_move(tele=1.0)
+    move, meas = tmp_path / "move.csv", tmp_path / "m.csv"
+    slowed(tr, 4.0).to_csv(move)                       # 8 s: enough blocks for the fit
+    assert _cli(capsys, "simulate", "s100f", "--trajectory", move, "--out", meas,
+                "--effect", "coulomb_friction:joint=boom,force=8000", "--noise")[0] == 0
+    rc, out, err = _cli(capsys, "discrepancy", "s100f", "--measured", meas, "--trajectory",
+                        move, "--effects", "coulomb_friction,viscous_friction",
+                        "--json", tmp_path / "r.json")
+    assert rc == 0, err
+    verdict = json.loads((tmp_path / "r.json").read_text())["verdict"]
+    assert f"verdict: {verdict}" in out.splitlines()

@@ -159,7 +159,8 @@ def markdown(res) -> str:
     import platform
     L = [MARK, "", "## Issue 32 (faults-b): silently wrong results and misleading messages", "",
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
-         f"{os.cpu_count()} CPUs (shared). Measured by `python benchmarks/bench_faults.py "
+         f"{os.cpu_count()} CPUs (shared, load {os.getloadavg()[0]:.1f}). Measured by "
+         "`python benchmarks/bench_faults.py "
          "--issue32b`, each case a fresh process; `before`: what issue 32 reported.", "",
          "| case | before | exit | s | what it says |", "| --- | --- | ---: | ---: | --- |"]
     before = {"5 csv": "exit 0, replayed", "5 h5": "exit 0, replayed",

@@ -205,8 +205,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
     p.add_argument("--compile", action="store_true",
                    help="NLP: compile the built solver into the per-user cache if it is not "
-                        "there (once per machine and formulation, ~1-2 min for N = 40); later "
-                        "calls load it in milliseconds (planner.methods.nlp.cache)")
+                        "there (once per machine and formulation: 16 s of CPU for s100f at "
+                        "N = 40, more wall time on a loaded machine); later calls load it in "
+                        "milliseconds (planner.methods.nlp.cache)")
     p.add_argument("--wall", type=wall_arg, action="append", metavar="r,z_top,z_bottom[,clear]",
                    help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
                         "from the slew axis, kept clear by `clear` m (0.3); repeatable")

@@ -243,16 +243,20 @@ class ExudynPlant(BasePlant):
         repeated with half the step, twice at most: a starving pump or a stop hit at speed is
         stiffer than the default step resolves (``meta["step"]`` says which step ran)."""
         wall0 = _time.perf_counter()
-        for halvings in range(3):
-            run = self._integrate(self.step / 2 ** halvings, t_u, u, q0, t_end,
-                                  max_wall_s - (_time.perf_counter() - wall0),
-                                  spectral_radius, controller)
-            if run.ok or not run.meta.get("engine_failed"):
-                break
+        # Ctrl-C only asks while the engine runs (it swallows a KeyboardInterrupt raised in a
+        # user function): the next step stops the run, KeyboardInterrupt follows it
+        with DeferredInterrupt() as stop:
+            for halvings in range(3):
+                run = self._integrate(self.step / 2 ** halvings, t_u, u, q0, t_end,
+                                      max_wall_s - (_time.perf_counter() - wall0),
+                                      spectral_radius, controller, stop)
+                if run.ok or not run.meta.get("engine_failed") or stop.requested:
+                    break
         run.wall_s = _time.perf_counter() - wall0
         return run
 
-    def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller):
+    def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller,
+                   stop=None):
         crane, n = self.crane, self.crane.n
         t_u = np.asarray(t_u, float).ravel()
         u = np.atleast_2d(np.asarray(u, float))
@@ -301,11 +305,9 @@ class ExudynPlant(BasePlant):
             rec["p_a"][k], rec["p_b"][k], rec["p_s"][k] = p[:n], p[n:2 * n], p[2 * n]
             return q[:n], qd[:n], p
 
-        stop = DeferredInterrupt()      # Ctrl-C: the engine would swallow KeyboardInterrupt
-
         def pre_step(mbs_, t):
             nonlocal spool
-            if stop.requested:
+            if stop is not None and stop.requested:     # Ctrl-C (see integrate)
                 return False
             # the engine passes the time at the end of the coming step; the state is the
             # state at its start
@@ -361,8 +363,7 @@ class ExudynPlant(BasePlant):
         s.solution.file.write = False
         exu.SetWriteToConsole(False)    # the engine's banners would corrupt --json -
         try:
-            with stop:                  # KeyboardInterrupt (not an Exception) after a Ctrl-C
-                ok = mbs.SolveDynamic(s, showHints=False)
+            ok = mbs.SolveDynamic(s, showHints=False)
         except Exception as e:          # the engine's own failure (Newton, singular matrix)
             last = np.flatnonzero(np.isfinite(rec["p_s"]))
             ok, fail = False, fail or dict(status="diverged", t=float(rec["t"][last[-1]])

@@ -109,6 +109,13 @@ sys.exit(main(argv))
 """
 
 
+def _default_sigint():
+    """In the child before exec: SIGINT at its default (a test run started in the background
+    of a shell inherits SIGINT ignored, as would the child: a terminal's Ctrl-C is not)."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_during_the_exudyn_plant_is_exit_130_and_one_line(tmp_path):
     import os
     import signal
@@ -125,7 +132,8 @@ def test_ctrl_c_during_the_exudyn_plant_is_exit_130_and_one_line(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     p = subprocess.Popen([sys.executable, "-c", _CHILD, str(marker), "simulate", "s100f",
                           "--trajectory", str(move), "--plant", "exudyn", "--out", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         preexec_fn=_default_sigint)
     try:
         t0 = time.monotonic()
         while not marker.exists() and p.poll() is None and time.monotonic() - t0 < 120:
@@ -303,7 +311,8 @@ def test_ctrl_c_while_the_workers_start_is_exit_130(tmp_path):
     p = subprocess.Popen([sys.executable, "-m", "planner", "library", "build", "s100f",
                           "--tasks", "forwarder-cycle", "--workers", "1000", "--limit", "2",
                           "--out", str(tmp_path / "w.h5")], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, env=env, start_new_session=True,
+                         preexec_fn=_default_sigint)
     t0 = time.monotonic()
     while len(kids := children(p.pid)) < 2 and p.poll() is None and time.monotonic() - t0 < 120:
         time.sleep(0.02)

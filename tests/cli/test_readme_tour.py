@@ -7,8 +7,9 @@ drifting away from the CLI.
 Not run: ``make`` (it runs this suite) and the Dask block (``dask scheduler`` / ``dask worker``
 and a build pointed at ``tcp://HOST:8786`` need a cluster; tests/library covers Dask).
 Slow: the tour builds the full 400-entry forwarder library and runs the Exudyn plant, the
-discrepancy workflow and two excitation designs (about 15 minutes on 2 shared cores);
-``make bench`` runs it, or ``pytest -m slow tests/cli/test_readme_tour.py``."""
+discrepancy workflow and two excitation designs — measured 29.5 min on 2 shared cores at load
+10-13 (the library build 17 min, ``excite --from`` 5.4 min); ``make bench`` runs it, or
+``pytest -m slow tests/cli/test_readme_tour.py``."""
 import os
 import re
 import shlex

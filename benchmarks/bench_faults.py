@@ -12,7 +12,10 @@ The issue's scenario: ``library build s100f --tasks forwarder-cycle --objectives
 
 Run: ``python benchmarks/bench_faults.py [--after 20] [--limit 60]`` -> benchmarks/results/
 faults.md and faults.json. Timings depend on the machine's load; the bound the issue names is
-10 s for (1) and (2).
+10 s for (1) and (2). ``--issue32b``: only issue 32's faults-b cases
+(``benchmarks/bench_faults_b.py``: another crane's trajectory, Ctrl-C in the Exudyn plant,
+``simulate --rate`` with commands, a suite of another machine, ``--workers 1000``, epoch
+timestamps, spec encodings, ``720deg``, an empty task grid), written to their own section.
 """
 from __future__ import annotations
 
@@ -151,7 +154,15 @@ def main():
     ap.add_argument("--after", type=float, default=20.0, help="seconds before the signal (20)")
     ap.add_argument("--limit", type=int, default=60, help="moves of the suite (60)")
     ap.add_argument("--results", default=str(ROOT / "benchmarks" / "results"))
+    ap.add_argument("--issue32b", action="store_true",
+                    help="only issue 32's faults-b cases (benchmarks/bench_faults_b.py): their "
+                         "section of faults.md and key of faults.json, the rest kept")
     args = ap.parse_args()
+    if args.issue32b:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import bench_faults_b
+        print(bench_faults_b.write(bench_faults_b.run(), Path(args.results)))
+        return
     res = run(args)
     out = Path(args.results)
     out.mkdir(parents=True, exist_ok=True)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "checked_trajectory",
-           "DEG"]
+__all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "check_joint_range",
+           "checked_trajectory", "DEG"]
 
 DEG = math.pi / 180.0
 SLEW_TOL = 1e-9   # [rad] slack on the ±π range of a tip's slew (rounding of "180deg")
@@ -43,6 +43,12 @@ def parse_point(text: str) -> tuple[float, float, float]:
         raise ValueError(f"expected numbers in r,z[,slew], got {text!r}") from None
     if not all(math.isfinite(v) for v in (r, z, s)):
         raise ValueError(f"non-finite value in {text!r}")
+    if len(parts) == 3 and parts[2].lower().endswith(("deg", "°")) and \
+            abs(s) > math.pi + SLEW_TOL:   # written in degrees: answered in degrees
+        same = math.remainder(s, 2 * math.pi)
+        raise ValueError(f"{text!r}: slew = {parts[2]} ({s:.6g} rad) is outside [-pi, pi]; "
+                         f"allowed: -180deg ... 180deg (the same direction in range: "
+                         f"{math.degrees(same):.6g}deg, {same:.6g} rad)")
     return check_tip((r, z, s), repr(text))
 
 
@@ -91,8 +97,45 @@ def check_joint_units(joints, names, q, source: str = "trajectory") -> None:
                          f"{unit}: {hint}")
 
 
-def checked_trajectory(crane, traj, source: str = "trajectory"):
-    """``traj`` (a :class:`~planner.trajectory.Trajectory` of ``crane``) after
-    :func:`check_joint_units` on its positions: where a trajectory file is read."""
-    check_joint_units(crane.spec.joints, traj.joint_names, traj.q, source)
+RANGE_TOL = 0.05   # slack on a joint range, a fraction of its width (overshoot, interpolation)
+
+
+def check_joint_range(joints, names, q, source: str = "trajectory") -> None:
+    """Refuse positions outside the machine's joint ranges: a column leaving its joint's range
+    [lo, hi] by more than :data:`RANGE_TOL` of the width (at least 1e-6) raises ValueError
+    naming the column, the value, the data row and the range. A trajectory planned for another
+    machine with the same joint names (s100f's 2.30 m telescope on umea-lab's 1.55 m) is caught
+    here rather than replayed."""
+    names = list(names)
+    for j in joints:
+        if j.name not in names:
+            continue
+        col = q[:, names.index(j.name)]
+        lo, hi = j.limits.q
+        tol = max(RANGE_TOL * (hi - lo), 1e-6)
+        out = (col < lo - tol) | (col > hi + tol)
+        if out.any():
+            k = int(out.argmax())
+            unit = "rad" if j.type == "revolute" else "m"
+            raise ValueError(f"{source}: q_{j.name} = {col[k]:.6g} {unit} in data row {k + 1} "
+                             f"is outside the joint range [{lo:.4g}, {hi:.4g}] {unit} (slack "
+                             f"{tol:.2g}); allowed: a trajectory of this machine")
+
+
+def checked_trajectory(crane, traj, source: str = "trajectory", crane_id: str | None = None):
+    """``traj`` (a :class:`~planner.trajectory.Trajectory` read for ``crane``) checked against
+    the machine where a trajectory file is read: the recorded ``crane_id`` (a library entry's)
+    is ``crane``'s, the joints are the machine's (names and count), the positions are not in
+    the wrong unit (:func:`check_joint_units`) and stay inside the joint ranges
+    (:func:`check_joint_range`). ValueError naming ``source`` otherwise."""
+    spec = crane.spec
+    if crane_id is not None and crane_id != spec.id:
+        raise ValueError(f"{source}: crane_id = {crane_id!r} (the machine it was planned for); "
+                         f"allowed: {spec.id!r}, the machine given (replay it on {crane_id})")
+    names = [j.name for j in spec.joints]
+    if list(traj.joint_names) != names:
+        raise ValueError(f"{source}: joints {', '.join(traj.joint_names) or 'none'}; allowed: "
+                         f"{spec.id}'s {len(names)} joints {', '.join(names)}")
+    check_joint_units(spec.joints, traj.joint_names, traj.q, source)
+    check_joint_range(spec.joints, traj.joint_names, traj.q, source)
     return traj

@@ -77,7 +77,8 @@ def emit(args, obj) -> None:
 
 def read_trajectory(crane, ref: str) -> Trajectory:
     """A trajectory named on the command line: FILE.csv, or FILE.h5#ID (an entry of a library
-    database; the ID may be left out when the file holds one entry)."""
+    database; the ID may be left out when the file holds one entry), checked against ``crane``
+    (:func:`planner.units.checked_trajectory`: the library's crane id, the joints, the ranges)."""
     path, _, entry = ref.partition("#")
     if path.endswith(".h5"):
         from planner.library.store import LibraryStore  # h5py: only when a database is read
@@ -87,8 +88,12 @@ def read_trajectory(crane, ref: str) -> Trajectory:
                 if len(ids) != 1:
                     raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
                 entry = ids[0]
-            return db.trajectory(entry)
+            return checked_trajectory(crane, db.trajectory(entry), f"{path}#{entry}",
+                                      crane_id=db.crane_id)
     try:
-        return checked_trajectory(crane, Trajectory.from_csv(path, joint_names=crane.names), path)
+        traj = Trajectory.from_csv(path)   # the file's own joints, checked against the machine's
+        if sorted(traj.joint_names) == sorted(crane.names) != list(traj.joint_names):
+            traj = Trajectory.from_csv(path, joint_names=crane.names)
+        return checked_trajectory(crane, traj, path)
     except OSError as e:
         raise CLIError(f"cannot read trajectory {path}: {e.strerror}") from None

@@ -60,7 +60,7 @@ def cmd_discrepancy(args):
     emit(args, js)
     for note in res.notes:
         print(f"crane-planner: {note}", file=sys.stderr)
-    if not args.json:
+    if args.json != "-":    # the terminal gets the verdict unless the JSON goes there
         print(f"verdict: {res.verdict}")
         print(res.message)
         for c in res.candidates:

@@ -4,6 +4,7 @@ The store and the export need h5py; they are imported inside the commands so tha
 ``crane-planner --help`` does not load it."""
 from __future__ import annotations
 
+import os
 import sys
 
 import numpy as np
@@ -17,8 +18,53 @@ from planner.library.workers import Interrupted
 from planner.units import parse_angle
 
 
+def cpu_count() -> int:
+    """The CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def checked_suite(args) -> int:
+    """The moves ``library build`` will plan (the suite's, after ``--limit``), after refusing
+    a suite without moves (an empty pick-up/drop grid) and one declared for another machine
+    (``[suite] crane``) unless ``--force`` is given (then a warning)."""
+    from planner.model import Crane
+    from planner.tasks.suites import load_task_file
+    tf = load_task_file(args.tasks)
+    if not tf.moves:
+        raise CLIError(f"--tasks {args.tasks}: suite '{tf.id}' ({tf.path}) has no moves (an "
+                       "empty pick-up/drop grid and no [[moves]]); allowed: a suite with at "
+                       "least one move")
+    machine = Crane.from_id(args.crane).spec.id
+    if tf.crane and tf.crane != machine:
+        what = (f"--tasks {args.tasks}: suite '{tf.id}' is declared for crane '{tf.crane}' "
+                f"([suite] crane in {tf.path}), not '{machine}'")
+        if not args.force:
+            raise CLIError(f"{what}; allowed: a suite of {machine}, or --force to plan its "
+                           f"moves for {machine} anyway")
+        print(f"crane-planner: warning: {what}; planned for {machine} (--force)",
+              file=sys.stderr)
+    return len(tf.moves) if args.limit is None else max(1, min(args.limit, len(tf.moves)))
+
+
+def capped_workers(workers: int, moves: int) -> int:
+    """``--workers``: never more processes than moves to plan, nor than CPUs; a note on
+    stderr when the request is lowered."""
+    cap = min(moves, cpu_count())
+    if workers <= cap:
+        return workers
+    print(f"crane-planner: note: --workers {workers}: {cap} started (at most one per move, "
+          f"{moves}, and one per CPU, {cpu_count()})", file=sys.stderr)
+    return cap
+
+
 def cmd_library_build(args):
     objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
+    moves = checked_suite(args)
+    if args.scheduler is None:
+        args.workers = capped_workers(args.workers, moves)
     created = missing_dirs(args.out)
     try:
         summary = build(args.crane, args.tasks, args.out, objectives=objectives,
@@ -31,9 +77,13 @@ def cmd_library_build(args):
         if s:
             emit(args, s)
             left = s["planned"] - s["written"]
-            print(f"crane-planner: interrupted ({s['signal']}): {s['written']} entries written "
-                  f"to {s['library']}, {left} left; rerun the same command to resume",
-                  file=sys.stderr)
+            if s["planned"] == 0 and s["written"] == 0:   # while the workers were starting
+                print(f"crane-planner: interrupted ({s['signal']}) while starting the workers, "
+                      f"before any entry; nothing written to {s['library']}", file=sys.stderr)
+            else:
+                print(f"crane-planner: interrupted ({s['signal']}): {s['written']} entries "
+                      f"written to {s['library']}, {left} left; rerun the same command to "
+                      "resume", file=sys.stderr)
         else:
             print(f"crane-planner: interrupted ({e}) before the build started", file=sys.stderr)
         note_created(d for d in created if d.exists())
@@ -229,7 +279,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--tasks", required=True, help="task suite id or path (forwarder-cycle)")
     p.add_argument("--out", required=True, metavar="LIB.h5", type=output_arg)
     p.add_argument("--objectives", default="time", help="comma list of time, energy (time)")
-    p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="local worker processes (1); at most one per move and one per CPU")
+    p.add_argument("--force", action="store_true",
+                   help="plan a suite declared for another machine ([suite] crane) anyway")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
     p.add_argument("--limit", type=int, help="only the first N moves of the suite")

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 import sys
+from dataclasses import replace
+
+import numpy as np
 
 from planner.cli.common import CLIError, add_json_arg, emit, output_arg, read_trajectory
 from planner.model import Crane
@@ -35,6 +38,33 @@ def noise_levels(text):
     return out
 
 
+DEFAULT_RATE = 50.0   # [Hz] command rate of the feed-forward when --rate is not given
+
+
+def commands_at_rate(traj, rate):
+    """(trajectory, note): ``traj`` with its own valve commands (``u`` on a uniform grid, an
+    ``excite`` file's or an exported entry's) held at ``rate`` [Hz] when a rate is given that
+    differs from theirs — the command in effect at each instant of the new grid (zero-order
+    hold, as the valves hold it), the positions sampled on that grid — and a note saying so.
+    A trajectory without commands is returned as it is (the feed-forward is computed at the
+    rate); so is one whose commands are already at ``rate`` or when no rate is given."""
+    if rate is not None and not (math.isfinite(rate) and rate > 0):
+        raise CLIError(f"--rate {rate:g}: allowed a command rate > 0 Hz")
+    t = traj.t
+    if traj.u is None or len(t) <= 2 or np.ptp(np.diff(t)) >= 1e-9 or rate is None:
+        return traj, None
+    own = (len(t) - 1) / (t[-1] - t[0])
+    if abs(own - rate) <= 1e-6 * rate:
+        return traj, None
+    n = int(math.ceil((t[-1] - t[0]) * rate - 1e-9))
+    t_new = t[0] + np.arange(n + 1) / rate
+    k = np.clip(np.searchsorted(t, t_new + 1e-9 / rate, side="right") - 1, 0, len(t) - 1)
+    q, qd, qdd, _ = traj.sample(t_new)
+    out = replace(traj, t=t_new, q=q, qd=qd, qdd=qdd, u=traj.u[k])
+    return out, (f"--rate {rate:g}: the trajectory's own commands ({own:.6g} Hz) held at "
+                 f"{rate:g} Hz ({len(t)} -> {len(t_new)} command samples)")
+
+
 def cmd_simulate(args):
     """Replay a trajectory's valve commands open loop and write the measured-data CSV."""
     crane = Crane.from_id(args.crane)
@@ -50,12 +80,17 @@ def cmd_simulate(args):
             raise CLIError(f"--effect {e.name}: the {args.plant} plant cannot apply it (it acts "
                            f"through {', '.join(e.own_hooks())}); add "
                            + " or ".join(f"--plant {p}" for p in where))
-    traj = read_trajectory(crane, args.trajectory)
+    traj, note = commands_at_rate(read_trajectory(crane, args.trajectory), args.rate)
+    if note:
+        print(f"crane-planner: note: {note}", file=sys.stderr)
+    args.rate = args.rate or DEFAULT_RATE
     if args.plant != "fast":
-        return _simulate_dynamic(args, crane, traj, effects)
+        return _simulate_dynamic(args, crane, traj, effects, note)
     plant = Plant(flow_gain_scale=args.flow_gain, pump_flow_scale=args.pump_flow)
     summary = simulate_to_csv(crane, traj, args.out, plant=plant, rate=args.rate,
                               noise=noise_levels(args.noise), seed=args.seed, effects=effects)
+    if note:
+        summary["rate_note"] = note
     emit(args, summary)
     if not args.json:
         print(f"measured data written to {args.out}: {summary['samples']} samples, "
@@ -63,7 +98,7 @@ def cmd_simulate(args):
     return 0
 
 
-def _simulate_dynamic(args, crane, traj, effects):
+def _simulate_dynamic(args, crane, traj, effects, note=None):
     """``--plant exudyn`` (or another registered dynamic plant); a run that diverges or times
     out writes nothing and exits with status 3 (its status and failure time in the JSON)."""
     if args.flow_gain != 1.0 or args.pump_flow != 1.0:
@@ -76,6 +111,8 @@ def _simulate_dynamic(args, crane, traj, effects):
         emit(args, dict(status=e.status, reason=e.reason, t_fail_s=e.t_fail, plant=args.plant))
         print(f"error: {e}; nothing written", file=sys.stderr)
         return 3
+    if note:
+        summary["rate_note"] = note
     emit(args, summary)
     if not args.json:
         print(f"measured data written to {args.out} ({args.plant} plant): {summary['samples']} "
@@ -110,7 +147,10 @@ def add_parsers(sub) -> None:
                    help="hidden effect in the plant (repeatable), e.g. "
                         "coulomb_friction:joint=boom,force=3000 (see 'effects list')")
     p.add_argument("--seed", type=int, default=0, help="noise seed (0)")
-    p.add_argument("--rate", type=float, default=50.0, help="command rate [Hz] (50)")
+    p.add_argument("--rate", type=float, metavar="HZ",
+                   help="command rate [Hz] of the feed-forward (50); a trajectory that "
+                        "carries its own commands (u_*) is replayed at their rate, or held at "
+                        "this one when given")
     p.add_argument("--plant", choices=sorted(PLANTS), default="fast",
                    help="fast: the quasi-static replay (default); exudyn: the independent "
                         "dynamic plant (multibody + pressure dynamics, needs [dynamics])")

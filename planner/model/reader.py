@@ -11,7 +11,7 @@ from typing import Any
 
 from planner.units import parse_angle
 
-__all__ = ["SpecError", "TableReader", "as_float"]
+__all__ = ["SpecError", "TableReader", "as_float", "read_toml_text"]
 
 
 class SpecError(ValueError):
@@ -20,6 +20,24 @@ class SpecError(ValueError):
     def __init__(self, file: str, field: str, value: Any, expected: str):
         self.file, self.field, self.value, self.expected = file, field, value, expected
         super().__init__(f"{file}: field '{field}' = {value!r}: {expected}")
+
+
+def read_toml_text(path) -> str:
+    """The text of a TOML input file: UTF-8, a leading byte-order mark dropped (editors on
+    Windows write one; TOML itself does not allow it). A file that cannot be read or is not
+    UTF-8 raises :class:`SpecError` naming the file, the line and column and the byte."""
+    try:
+        raw = open(path, "rb").read()
+    except OSError as e:
+        raise SpecError(str(path), "<file>", None, f"cannot read file: {e.strerror}") from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        col = e.start - (raw.rfind(b"\n", 0, e.start) + 1) + 1
+        raise SpecError(str(path), "<encoding>", raw[e.start:e.start + 1],
+                        f"line {line}, column {col}: not UTF-8 text (Latin-1 or a Windows "
+                        "code page?); allowed: a UTF-8 (or ASCII) TOML file") from None
 
 
 class TableReader:

@@ -18,7 +18,7 @@ from typing import Any
 
 from planner.model.dynamics_spec import DynamicsSpec, parse_dynamics
 from planner.model.effects import effect_from_dict
-from planner.model.reader import SpecError, TableReader
+from planner.model.reader import SpecError, TableReader, read_toml_text
 from planner.units import parse_angle
 
 __all__ = ["SpecError", "DH", "Limits", "Actuator", "Joint", "Payload", "Pump", "Transformer",
@@ -441,10 +441,7 @@ def load_spec(path: str | Path) -> CraneSpec:
     is checked when the model is built: see :func:`planner.model.Crane`.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise SpecError(str(path), "<file>", None, f"cannot read file: {e.strerror}") from None
+    text = read_toml_text(path)       # UTF-8 (a byte-order mark dropped), or SpecError
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -14,6 +14,7 @@ import csv
 import io
 import math
 from dataclasses import dataclass, field
+from decimal import Decimal
 
 import numpy as np
 
@@ -27,6 +28,7 @@ __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured
 
 MS_STEPS = (1.0, 100.0)   # [s] median steps refused as time in ms (a 10-1000 Hz log)
 JITTER = 0.1          # timestamp jitter (share of the mean step) resampled on reading
+T_OFFSET = 1e5        # [s] a first time this large is a clock's (epoch): subtracted on reading
 P_MIN = -2e6          # [Pa] lowest pressure read: gauge readings with a transducer offset
 
 # seed 001's sensor accuracies (resolvers ±0.1°, pressure transducers 0.17 MPa); telescope: 2 mm
@@ -235,7 +237,9 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
     gap), a time off the uniform grid of the mean step by more than :data:`JITTER` of the
     step (jitter within it is resampled onto the mean rate — commands held, readings
     interpolated — and said in ``notes``); |u| > 1 + 1e-9; a pressure below :data:`P_MIN`
-    or above 1e9 Pa. Blank lines at the end of the file and a UTF-8 BOM are ignored."""
+    or above 1e9 Pa. Blank lines at the end of the file and a UTF-8 BOM are ignored. Times
+    from a clock (a first time of :data:`T_OFFSET` s or more, e.g. Unix epoch seconds) are
+    read relative to the first (subtracted exactly; said in ``notes``)."""
     names = tuple(joint_names)
     n = len(names)
     joints = ", ".join(names)
@@ -328,7 +332,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
 
     # ------------------------------------------------------------------ data rows
     width = len(header)
-    rows, lines = [], []
+    rows, lines, stamps = [], [], []
     blank_line = None
     while (item := read()) is not None:
         line, row = item
@@ -359,6 +363,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                                "not allowed")
         rows.append(vals)
         lines.append(line)
+        stamps.append(row[0])
     if len(rows) < 2:
         at = f"line {lines[0]}: only 1 data row" if rows else "line 1: header only, no data rows"
         raise fail(f"{at}; at least 2 data rows are needed (fixed sample rate)")
@@ -374,6 +379,15 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         return lines[r], c, float(A[r, used.index(c)])
 
     t = A[:, 0].copy()
+    notes = []
+    if abs(t[0]) >= T_OFFSET:
+        # a clock's time (Unix epoch seconds): the first time subtracted exactly, in decimal,
+        # before float rounding at ~1e9 s (2e-7 s) makes a uniform log look non-uniform
+        t0 = Decimal(stamps[0].strip())
+        t = np.array([float(Decimal(s.strip()) - t0) for s in stamps])
+        notes.append(f"times offset: t starts at {stamps[0].strip()} s (a clock's time, e.g. "
+                     f"Unix epoch seconds); the first time was subtracted (t = 0 at line "
+                     f"{lines[0]})")
     dt = np.diff(t)
     k = np.flatnonzero(dt <= 0)
     if k.size:
@@ -385,7 +399,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         raise fail(f"line 1, column 1 (t): median time step {h:.6g} s ({1 / h:.3g} Hz); it "
                    f"looks like milliseconds: divide t by 1000 (a {1000 / h:.0f} Hz log); "
                    "allowed: time in s")
-    notes = []
+    jittered = False
     k = np.flatnonzero(np.abs(dt - h) > 1e-6 * h + 1e-9 * np.abs(t[1:]))
     if k.size and uniform:
         # a gap or a burst: two stamps jittered by ±JITTER of the step differ by ≤ 2·JITTER of
@@ -412,6 +426,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         notes.append(f"timestamp jitter up to {100 * float(off.max()):.1f} % of the step: "
                      f"resampled onto the mean rate {1 / mean:.6g} Hz (readings interpolated, "
                      "each command kept with its sample)")
+        jittered = True
     a = 1
     u = None
     if has_u:
@@ -438,7 +453,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                        f"{why}; allowed: -2e6 ... 1e9 Pa")
         p_a, p_b = P[:, :n].copy(), P[:, n:].copy()
     logged = None
-    if notes:
+    if jittered:
         logged = dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b)
         t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean, "nearest")
     return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes, logged=logged)

@@ -50,6 +50,7 @@ import numpy as np
 
 from planner.geometry.obstacles import from_dict as obstacle_from_dict
 from planner.geometry.paths import Line, Waypoints, circle, parabola
+from planner.model.reader import read_toml_text
 from planner.model.spec import SpecError
 from planner.tasks.cycles import CYCLES, cycle
 from planner.units import parse_angle
@@ -242,7 +243,7 @@ def load_task_file(name: str) -> TaskFile:
     """The parsed task file ``name`` (a shipped suite's name or a path to a .toml)."""
     path = suite_path(name)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_toml_text(path))
     except tomllib.TOMLDecodeError as e:
         raise SpecError(str(path), "<toml>", None, f"not valid TOML: {e}") from None
     rd = _Reader(path)

@@ -350,7 +350,7 @@ def test_max_limit_violation_says_which_kinds_it_covers(capsys):
     rc, out, err = _cli(capsys, "plan", "cat215b", "--start", "7,0,0", "--goal", "7,0,1.0",
                         "--method", "dp")
     assert "of the limits it plans with (position, pump_flow, velocity)" in out
-    assert "not planned for by dp: pressure exceeded by" in out
+    assert "pressure: dp plans without a pressure limit" in out
 
 
 def test_library_query_far_from_every_entry_warns():

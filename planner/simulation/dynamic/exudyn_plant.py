@@ -36,6 +36,7 @@ from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import Circuit
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
+from planner.simulation.dynamic.interrupt import DeferredInterrupt
 from planner.simulation.plants import BasePlant, PlantDiverged, PlantRecord
 from planner.simulation.replay import stroke_stops, valve_set
 
@@ -242,16 +243,20 @@ class ExudynPlant(BasePlant):
         repeated with half the step, twice at most: a starving pump or a stop hit at speed is
         stiffer than the default step resolves (``meta["step"]`` says which step ran)."""
         wall0 = _time.perf_counter()
-        for halvings in range(3):
-            run = self._integrate(self.step / 2 ** halvings, t_u, u, q0, t_end,
-                                  max_wall_s - (_time.perf_counter() - wall0),
-                                  spectral_radius, controller)
-            if run.ok or not run.meta.get("engine_failed"):
-                break
+        # Ctrl-C only asks while the engine runs (it swallows a KeyboardInterrupt raised in a
+        # user function): the next step stops the run, KeyboardInterrupt follows it
+        with DeferredInterrupt() as stop:
+            for halvings in range(3):
+                run = self._integrate(self.step / 2 ** halvings, t_u, u, q0, t_end,
+                                      max_wall_s - (_time.perf_counter() - wall0),
+                                      spectral_radius, controller, stop)
+                if run.ok or not run.meta.get("engine_failed") or stop.requested:
+                    break
         run.wall_s = _time.perf_counter() - wall0
         return run
 
-    def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller):
+    def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller,
+                   stop=None):
         crane, n = self.crane, self.crane.n
         t_u = np.asarray(t_u, float).ravel()
         u = np.atleast_2d(np.asarray(u, float))
@@ -302,6 +307,8 @@ class ExudynPlant(BasePlant):
 
         def pre_step(mbs_, t):
             nonlocal spool
+            if stop is not None and stop.requested:     # Ctrl-C (see integrate)
+                return False
             # the engine passes the time at the end of the coming step; the state is the
             # state at its start
             k = int(round((t - t0) / h)) - 1

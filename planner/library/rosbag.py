@@ -2,7 +2,8 @@
 that ``ros2 bag play``, Foxglove and PlotJuggler open (docs/rosbag.md).
 
 One bag folder per entry with a trajectory (``<stem>/metadata.yaml`` + ``<stem>/<stem>_0.mcap``,
-bag format version 8, CDR messages) and ``index.csv`` beside them. Topics:
+bag format version 8, CDR messages), ``index.csv`` and ``joints.toml`` (the map that reads
+them back) beside them. Topics:
 
 - ``/joint_trajectory`` (``trajectory_msgs/msg/JointTrajectory``): one message at the first
   sample, the whole move as a controller receives it: ``joint_names`` as in the crane spec,
@@ -168,4 +169,36 @@ def export_rosbag2(db_path, out_dir, rate: float | None = None) -> list[Path]:
         p = out_dir / "index.csv"
         atomic_write_text(p, index_csv_text(rows, files, reasons))
         written.append(p)
+        # the map that reads these bags back (discrepancy --measured BAG --map joints.toml)
+        p = out_dir / "joints.toml"
+        atomic_write_text(p, READ_BACK_MAP)
+        written.append(p)
     return written
+
+
+#: the map (docs/rosbag.md) that reads the bags :func:`export_rosbag2` writes
+READ_BACK_MAP = """\
+# Map of the bags written by `crane-planner library export --format rosbag2` to the
+# measured-data channels (docs/rosbag.md): `discrepancy … --measured BAG --map joints.toml`.
+time = "header"
+
+[q]
+topic = "/joint_states"
+field = "position"
+unit = "rad"
+
+[u]
+topic = "/valve_commands"
+field = "effort"
+unit = "1"
+
+[p_a]
+topic = "/pressure_a"
+field = "effort"
+unit = "Pa"
+
+[p_b]
+topic = "/pressure_b"
+field = "effort"
+unit = "Pa"
+"""

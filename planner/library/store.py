@@ -51,6 +51,7 @@ import h5py
 import numpy as np
 
 from planner.io import dumps
+from planner.library.journal import abandon_h5, close_h5, open_h5
 from planner.library.lock import LibraryBusy, busy_message
 from planner.library.query import index_summary, nearest_entry
 from planner.trajectory import LIMIT_KINDS, Trajectory
@@ -129,14 +130,22 @@ def _on_grid(ev_t, t, a):
     return np.column_stack([np.interp(t, ev_t, a[:, j]) for j in range(a.shape[1])])
 
 
+def _abandon(f, jf, e):
+    """Close ``f`` after ``e``: a writer's file is rolled back to its last commit."""
+    if jf is None:
+        f.close()
+        raise e
+    abandon_h5(f, jf, e)
+
+
 class LibraryStore:
     """One library file. Use :meth:`create` or :meth:`open`; a context manager closes it.
 
     Writer API: :meth:`add` (one call per finished entry). Reader API: :meth:`has`, :meth:`ids`,
     :meth:`index_rows`, :meth:`trajectory`, :meth:`entry`, :meth:`info`, :meth:`nearest`."""
 
-    def __init__(self, f: h5py.File, path: Path, mode: str):
-        self._f = f
+    def __init__(self, f: h5py.File, path: Path, mode: str, jf=None):
+        self._f, self._jf = f, jf  # jf: the JournaledFile of a writer (planner.library.journal)
         self.path = path
         self.mode = mode
         self.cleaned = 0  # unfinished entry groups removed on open (mode "a")
@@ -160,7 +169,7 @@ class LibraryStore:
         if not getattr(spec, "id", ""):
             raise StoreError(f"{path}: a crane spec with an id is needed to create a library")
         path.parent.mkdir(parents=True, exist_ok=True)
-        f = h5py.File(path, "w")
+        f, jf = open_h5(path, "w")
         try:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = np.int64(FORMAT_VERSION)
@@ -174,12 +183,12 @@ class LibraryStore:
                              chunks=(256,))
             f.create_group("entries")
             f.flush()
-            db = cls(f, path, "a")
+            jf.commit()
+            db = cls(f, path, "a", jf)
             db.compress = compress
             return db
-        except BaseException:
-            f.close()
-            raise
+        except BaseException as e:
+            _abandon(f, jf, e)
 
     @classmethod
     def open(cls, path, mode: str = "r", spec=None, *, compress: bool = False) -> "LibraryStore":
@@ -196,8 +205,12 @@ class LibraryStore:
                 head = fh.read(16)
             raise StoreError(f"{path}: not an HDF5 file (first bytes {head!r}); expected a "
                              f"'{FORMAT}' library")
+        jf = None
         try:
-            f = h5py.File(path, mode)
+            f, jf = open_h5(path, mode) if mode == "a" else (h5py.File(path, mode), None)
+        except BlockingIOError:
+            raise LibraryBusy(busy_message(path) or f"{path} is locked by another "
+                              "process") from None
         except OSError as e:  # most often another process has it open for writing
             busy = busy_message(path)
             raise (LibraryBusy(busy) if busy else StoreError(f"{path}: cannot open the HDF5 "
@@ -207,14 +220,14 @@ class LibraryStore:
             if spec is not None and as_str(f.attrs["crane_id"]) != spec.id:
                 raise StoreError(f"{path}: library is for crane '{as_str(f.attrs['crane_id'])}', "
                                  f"not '{spec.id}'")
-            db = cls(f, path, mode)
+            db = cls(f, path, mode, jf)
             db.compress = compress
             if mode == "a":
                 db.cleaned = db._clean_unfinished()
+                jf.commit()
             return db
-        except BaseException:
-            f.close()
-            raise
+        except BaseException as e:
+            _abandon(f, jf, e)
 
     @staticmethod
     def _check_format(f: h5py.File, path: Path):
@@ -256,7 +269,10 @@ class LibraryStore:
         return len(stale)
 
     def close(self):
-        if self._f is not None and self._f.id.valid:
+        if self._jf is not None:
+            jf, self._jf = self._jf, None
+            close_h5(self._f, jf)
+        elif self._f is not None and self._f.id.valid:
             self._f.close()
 
     def __enter__(self):
@@ -326,7 +342,9 @@ class LibraryStore:
             self._write_group(entry_id, traj, objective=objective, method=method, status=status,
                               reason=reason, evaluation=evaluation, attrs=attrs)
             self._f.flush()
-        except BaseException:
+        except BaseException as e:
+            if self._jf is not None and self._jf.failed:
+                self._fail(e)
             if entry_id in self._f["entries"]:
                 del self._f["entries"][entry_id]
             raise
@@ -389,12 +407,25 @@ class LibraryStore:
     def _append_row(self, row):
         ds = self._f["index"]
         n = ds.shape[0]
-        ds.resize((n + 1,))
-        ds[n] = row
-        self._f.flush()
+        try:
+            ds.resize((n + 1,))
+            ds[n] = row
+            self._f.flush()
+            if self._jf is not None:
+                self._jf.commit()   # the entry is complete: the state to come back to
+        except BaseException as e:
+            if self._jf is not None and self._jf.failed:
+                self._fail(e)
+            raise
         eid = as_str(row["id"])
         self._ids.append(eid)
         self._idset.add(eid)
+
+    def _fail(self, e):
+        """A write failed: the file is rolled back to its last complete entry and closed
+        (:mod:`planner.library.journal`); raises the one-line :class:`WriteFailed`."""
+        jf, self._jf = self._jf, None
+        _abandon(self._f, jf, e)
 
     # ------------------------------------------------------------------ reading
     def _index_array(self) -> np.ndarray:

@@ -42,6 +42,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from planner.io import progress
+from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
 from planner.methods import PlanStatus, UnsupportedRequest, get, plan
@@ -325,6 +326,11 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
             e.summary = _summary(out, settings, moves, state, t0, status="interrupted",
                                  signal=signal.Signals(e.signum).name)
             raise
+        except WriteFailed as e:   # the store rolled the file back to its last entry
+            raise WriteFailed(out, OSError(e.errno, f"{e.why}; the entries finished before it "
+                                                    f"are kept ({state['written']} of this run): "
+                                                    "make room and rerun the same command to "
+                                                    "resume")) from None
     return _summary(out, settings, moves, state, t0, status="ok", info=info,
                     prepare_s=prepared_s)
 

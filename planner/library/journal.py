@@ -40,10 +40,10 @@ class WriteFailed(OSError):
 
     def __init__(self, path, cause: OSError):
         why = cause.strerror or str(cause)
-        if cause.errno == errno.EFBIG:
+        if cause.errno == errno.EFBIG and "ulimit" not in why:
             why += " (the file-size limit, ulimit -f)"
-        super().__init__(cause.errno, f"cannot write {path}: {why}")
-        self.path, self.cause = str(path), cause
+        super().__init__(f"cannot write {path}: {why}")
+        self.errno, self.path, self.cause, self.why = cause.errno, str(path), cause, why
 
 
 def journal_path(path) -> Path:

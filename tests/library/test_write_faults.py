@@ -164,3 +164,21 @@ def test_plan_out_h5_past_the_file_size_limit_is_one_line(tmp_path):
     assert p.stderr.strip() == (f"crane-planner: error: cannot write {out}: File too large "
                                 "(the file-size limit, ulimit -f)"), p.stderr
     assert os.listdir(tmp_path) == []                      # no file, no temporary left
+
+
+def test_a_truncated_library_is_called_damaged_not_busy_with_the_own_pid(tmp_path):
+    """Defect 12: the build's own lock was reported as 'another build (pid <own pid>)'."""
+    from planner.library.lock import BuildLock
+    from planner.library.store import StoreError
+    crane = Crane.from_id("s100f")
+    path = tmp_path / "lib.h5"
+    with LibraryStore.create(path, crane.spec) as db:
+        _add(db, crane, 0)
+    size = path.stat().st_size
+    os.truncate(path, size // 2)
+    with BuildLock(path), pytest.raises(StoreError) as exc:
+        LibraryStore.open(path, "a", spec=crane.spec)
+    assert str(exc.value) == (f"{path}: damaged library: the file has {size // 2} of its "
+                              f"{size} bytes (cut short, e.g. an interrupted copy); restore it, "
+                              "or move it away and rebuild")
+    assert str(os.getpid()) not in str(exc.value)

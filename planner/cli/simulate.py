@@ -10,6 +10,7 @@ from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
 from planner.simulation.plant import simulate_to_csv
 from planner.simulation.plants import PLANTS, PlantDiverged, applying, plant_to_csv
+from planner.simulation.recording import check_rate
 from planner.simulation.replay import Plant
 from planner.units import parse_angle
 
@@ -51,6 +52,7 @@ def cmd_simulate(args):
                            f"through {', '.join(e.own_hooks())}); add "
                            + " or ".join(f"--plant {p}" for p in where))
     traj = read_trajectory(crane, args.trajectory)
+    check_rate(args.rate, traj.duration)   # bounded output and memory, before the replay
     if args.plant != "fast":
         return _simulate_dynamic(args, crane, traj, effects)
     plant = Plant(flow_gain_scale=args.flow_gain, pump_flow_scale=args.pump_flow)

@@ -23,14 +23,35 @@ from planner.simulation.replay import pressures
 from planner.trajectory import Trajectory
 
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
-           "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units"]
+           "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units",
+           "check_rate", "MAX_RATE_HZ", "MAX_SAMPLES"]
 
 MS_STEPS = (1.0, 100.0)   # [s] median steps refused as time in ms (a 10-1000 Hz log)
 JITTER = 0.1          # timestamp jitter (share of the mean step) resampled on reading
 P_MIN = -2e6          # [Pa] lowest pressure read: gauge readings with a transducer offset
 
+# what one simulated recording may be (simulate --rate): a logger's rate range, and rows that
+# stay within 1 GB of memory (measured: 0.46 million rows of s100f, 0.8 GB peak, 15 s)
+MAX_RATE_HZ = 10_000.0
+MAX_SAMPLES = 500_000
+
 # seed 001's sensor accuracies (resolvers ±0.1°, pressure transducers 0.17 MPa); telescope: 2 mm
 NOISE_DEFAULTS = dict(angle=math.radians(0.1), length=0.002, pressure=0.17e6)
+
+
+def check_rate(rate: float, duration: float, what: str = "--rate") -> int:
+    """The number of samples of a recording of ``duration`` [s] at ``rate`` [Hz]; ValueError
+    naming ``what`` when the rate is outside 1 ... :data:`MAX_RATE_HZ` Hz or the recording
+    would have more than :data:`MAX_SAMPLES` rows."""
+    if not (math.isfinite(rate) and 1.0 <= rate <= MAX_RATE_HZ):
+        raise ValueError(f"{what} {rate:g}: allowed 1 ... {MAX_RATE_HZ:g} Hz (loggers: "
+                         "20-500 Hz)")
+    n = int(math.ceil(duration * rate)) + 1
+    if n > MAX_SAMPLES:
+        raise ValueError(f"{what} {rate:g}: {n} samples over {duration:g} s; allowed at most "
+                         f"{MAX_SAMPLES} ({what} <= {MAX_SAMPLES / max(duration, 1e-9):.4g} Hz "
+                         "for this trajectory)")
+    return n
 
 
 # ----------------------------------------------------------------------------- noise

@@ -182,3 +182,42 @@ def test_a_truncated_library_is_called_damaged_not_busy_with_the_own_pid(tmp_pat
                               f"{size} bytes (cut short, e.g. an interrupted copy); restore it, "
                               "or move it away and rebuild")
     assert str(os.getpid()) not in str(exc.value)
+
+
+# ------------------------------------------------------------------ defect 3: a killed worker
+def _killed_on_b_c(job):
+    """plan_move, except that the worker planning move B-C is killed (as the OOM killer
+    would)."""
+    from planner.library import build as b
+    if job.move.id == "B-C":
+        os.kill(os.getpid(), 9)
+    return b.plan_move.__wrapped__(job)
+
+
+def test_a_killed_worker_names_its_move_and_the_rerun_resumes(tmp_path, monkeypatch, capsys):
+    from planner.cli import main
+    from planner.library import build as b
+    clean, lib = tmp_path / "clean.h5", tmp_path / "lib.h5"
+    argv = [str(a) for a in BUILD[3:]]
+    assert main(argv + ["--out", str(clean)]) == 0
+    _killed_on_b_c.__wrapped__ = b.plan_move
+    monkeypatch.setattr(b, "plan_move", _killed_on_b_c)
+    rc = main(argv + ["--workers", "2", "--out", str(lib)])
+    err = capsys.readouterr().err
+    assert rc == 3, err                                  # was 1 and a 20-line traceback
+    lines = [ln for ln in err.splitlines() if not ln.startswith("library cranab850: ")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    with LibraryStore.open(lib, "r") as db:
+        n = len(db)
+        assert "B-C:time" not in db.ids()
+    rerun = ("crane-planner library build cranab850 --tasks seed000-abc --out "
+             f"{lib} --objectives time --workers 2 --intervals 40 --method ruckig "
+             "--no-robustness")
+    assert lines[0] == ("crane-planner: error: a worker of the build killed by SIGKILL while "
+                        f"planning move B-C; {n} entries written to {lib} this run are kept "
+                        f"(every earlier one too): rerun `{rerun}` to resume (with fewer "
+                        "--workers if memory ran out)"), lines[0]
+    monkeypatch.undo()
+    assert main(argv + ["--workers", "2", "--out", str(lib)]) == 0   # resumes
+    assert f"{n} already there" in capsys.readouterr().out
+    assert_same_entries(clean, lib, 3)

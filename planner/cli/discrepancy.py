@@ -17,9 +17,11 @@ def cmd_discrepancy(args):
     # scipy: only when the command runs
     from planner.calibration.compensate import closed_loop
     from planner.calibration.discrepancy import Discrepancy, calibrated_spec_text
+    from planner.calibration.rate import check_file
     from planner.calibration.report import write_report
     crane = Crane.from_id(args.crane)
     plan = read_trajectory(crane, args.trajectory) if args.trajectory else None
+    check_file(args.measured)   # the memory it would take, before reading it
     rec = Recording.from_csv(args.measured, crane, plan)
     if args.effects:
         names = [x.strip() for x in args.effects.split(",") if x.strip()]

@@ -10,7 +10,7 @@ from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
 from planner.simulation.plant import simulate_to_csv
 from planner.simulation.plants import PLANTS, PlantDiverged, applying, plant_to_csv
-from planner.simulation.recording import check_rate
+from planner.simulation.sizes import check_rate
 from planner.simulation.replay import Plant
 from planner.units import parse_angle
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,35 +24,14 @@ from planner.simulation.replay import pressures
 from planner.trajectory import Trajectory
 
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
-           "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units",
-           "check_rate", "MAX_RATE_HZ", "MAX_SAMPLES"]
+           "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units"]
 
 MS_STEPS = (1.0, 100.0)   # [s] median steps refused as time in ms (a 10-1000 Hz log)
 JITTER = 0.1          # timestamp jitter (share of the mean step) resampled on reading
 P_MIN = -2e6          # [Pa] lowest pressure read: gauge readings with a transducer offset
 
-# what one simulated recording may be (simulate --rate): a logger's rate range, and rows that
-# stay within 1 GB of memory (measured: 0.46 million rows of s100f, 0.8 GB peak, 15 s)
-MAX_RATE_HZ = 10_000.0
-MAX_SAMPLES = 500_000
-
 # seed 001's sensor accuracies (resolvers ±0.1°, pressure transducers 0.17 MPa); telescope: 2 mm
 NOISE_DEFAULTS = dict(angle=math.radians(0.1), length=0.002, pressure=0.17e6)
-
-
-def check_rate(rate: float, duration: float, what: str = "--rate") -> int:
-    """The number of samples of a recording of ``duration`` [s] at ``rate`` [Hz]; ValueError
-    naming ``what`` when the rate is outside 1 ... :data:`MAX_RATE_HZ` Hz or the recording
-    would have more than :data:`MAX_SAMPLES` rows."""
-    if not (math.isfinite(rate) and 1.0 <= rate <= MAX_RATE_HZ):
-        raise ValueError(f"{what} {rate:g}: allowed 1 ... {MAX_RATE_HZ:g} Hz (loggers: "
-                         "20-500 Hz)")
-    n = int(math.ceil(duration * rate)) + 1
-    if n > MAX_SAMPLES:
-        raise ValueError(f"{what} {rate:g}: {n} samples over {duration:g} s; allowed at most "
-                         f"{MAX_SAMPLES} ({what} <= {MAX_SAMPLES / max(duration, 1e-9):.4g} Hz "
-                         "for this trajectory)")
-    return n
 
 
 # ----------------------------------------------------------------------------- noise
@@ -273,7 +253,9 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         line = raw[:e.start].count(b"\n") + 1
         raise fail(f"line {line}: byte {raw[e.start:e.start + 1]!r} is not UTF-8 text; "
                    "expected a UTF-8 (or ASCII) comma-separated file") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
+    del raw
+    reader = csv.reader(_lines(text) if text.count("\r") == text.count("\r\n") else
+                        io.StringIO(text, newline=""))   # lone CRs: StringIO splits at them
 
     def read():
         """(first physical line of the row, row) or None at the end of the file."""
@@ -349,7 +331,7 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
 
     # ------------------------------------------------------------------ data rows
     width = len(header)
-    rows, lines = [], []
+    rows, lines = array("d"), array("q")   # 8 bytes a value: a 10^6-row log in ~0.5 GB
     blank_line = None
     while (item := read()) is not None:
         line, row = item
@@ -378,14 +360,15 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                 if not math.isfinite(v):
                     raise fail(f"{where}: {s!r} is not a finite number; NaN and inf are "
                                "not allowed")
-        rows.append(vals)
+        rows.extend(vals)
         lines.append(line)
-    if len(rows) < 2:
-        at = f"line {lines[0]}: only 1 data row" if rows else "line 1: header only, no data rows"
+    if len(lines) < 2:
+        at = f"line {lines[0]}: only 1 data row" if lines else "line 1: header only, no data rows"
         raise fail(f"{at}; at least 2 data rows are needed (fixed sample rate)")
 
     # ------------------------------------------------------------------ values
-    A = np.array(rows, dtype=float)
+    A = np.frombuffer(rows, dtype=float).reshape(len(lines), len(used))
+    del rows
 
     def first_bad(mask, a0):
         """(line, header column, value) of the first True of mask (N, k) over A[:, a0:a0+k],
@@ -463,6 +446,17 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         logged = dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b)
         t, (u, q, p_a, p_b) = resample_arrays(t, (u, q, p_a, p_b), 1.0 / mean, "nearest")
     return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes, logged=logged)
+
+
+def _lines(text: str):
+    """The lines of ``text`` with their endings, one at a time (io.StringIO would hold a
+    4-byte-per-character copy of a large file)."""
+    start, n = 0, len(text)
+    while start < n:
+        k = text.find("\n", start)
+        k = n if k < 0 else k + 1
+        yield text[start:k]
+        start = k
 
 
 def resample_arrays(t, arrays, rate: float, commands: str = "hold"):

@@ -1,12 +1,12 @@
 """Issue 32 defect 10: ``simulate --rate 1e6`` wrote a 790 MB CSV with 6.1 GB of memory; the
-rate and the number of rows are capped (planner.simulation.recording.check_rate), like the
+rate and the number of rows are capped (planner.simulation.sizes.check_rate), like the
 control laws' step count."""
 import numpy as np
 import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.simulation.recording import MAX_RATE_HZ, MAX_SAMPLES, check_rate
+from planner.simulation.sizes import MAX_RATE_HZ, MAX_SAMPLES, check_rate
 from planner.trajectory import Trajectory
 
 

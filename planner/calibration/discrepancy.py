@@ -49,7 +49,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
-from planner.calibration.rate import analysis_rate
+from planner.calibration.rate import analysis_note, analysis_rate
 from planner.calibration.calibrated import calibrated_spec_text
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
@@ -207,7 +207,9 @@ class Discrepancy:
         self._notes = list(getattr(rec, "notes", ()) or ())
         logged = getattr(rec, "logged", None)
         rec, self._analysis = analysis_rate(rec, len(self._floor(rec)))   # a fast log: 50 Hz
-        logged = logged if self._analysis["factor"] == 1 else None   # filtered: noise as is
+        if self._analysis["factor"] > 1:   # filtered: the noise is estimated as analysed
+            logged = None
+            self._notes.append(analysis_note(self._analysis))
         m = upsampling_factor(self._channels(rec), self._floor(rec))
         if m > 1:
             self._notes.append(

@@ -124,3 +124,13 @@ def analysis_rate(rec, channels: int) -> tuple:
                         f"{m}th sample; commands: mean over each interval"),
                 estimated_bytes=estimate_bytes(0, 0, len(out.t), channels))
     return out, info
+
+
+def analysis_note(info: dict) -> str:
+    """The line that says what :func:`analysis_rate` did (the CLI prints it on stderr)."""
+    return (f"note: the {info['rate_logged_hz']:.4g} Hz log is analysed at "
+            f"{info['rate_analysed_hz']:.4g} Hz ({info['samples_logged']} -> "
+            f"{info['samples_analysed']} samples; readings anti-alias filtered, commands "
+            "averaged over each interval): what the quasi-static model explains lies below "
+            f"{ANALYSIS_RATE_HZ / 2:g} Hz")
+

@@ -92,9 +92,9 @@ def split_ref(ref: str) -> tuple[str, str]:
 # the arguments that name files, by their argparse dest: read by a command, or written by it
 # (how the one-line refusal names them); every command is checked by :func:`check_distinct`
 INPUT_DESTS = dict(crane="CRANE", trajectory="--trajectory", measured="MEASURED.csv",
-                   library="LIB.h5", tasks="--tasks", from_result="--from")
+                   library="LIB.h5", tasks="--tasks", from_result="--from", results="--results")
 OUTPUT_DESTS = dict(out="--out", json="--json", plot="--plot", save_model="--save-model",
-                    report="--report", results="--results")
+                    report="--report")
 
 
 def _identity(path: str) -> set:

@@ -4,8 +4,8 @@ memory of the command, before and after the analysis rate (planner/calibration/r
 The logs: s100f, a 4.7 s Ruckig move 3,1,0 -> 7,0,90deg replayed with a hidden Coulomb friction
 on the boom (3000 N) and seed 001's sensor noise, written at 50 Hz, 1, 5 and 10 kHz; the same
 move slowed to 60 s at 500 Hz; and 10^6 rows (the move slowed to 100 s, 10 kHz). Each run is
-its own process (peak RSS from wait4); ``--before DIR`` also runs the source tree DIR (e.g. a
-checkout of the commit before the change) with a time limit.
+its own process (peak RSS from GNU time); ``--before DIR`` also runs the source tree DIR (e.g.
+a checkout of the commit before the change) with a time limit.
 
     python benchmarks/bench_discrepancy_rates.py [--before /work/main] [--limit 120]
 
@@ -75,7 +75,8 @@ def run(tree: Path, log: dict, limit: float, folder: Path) -> dict:
     p = subprocess.Popen(["/usr/bin/time", "-f", "%M", "-o", str(rss), sys.executable, "-m",
                           "planner", "discrepancy", "s100f", "--measured", log["path"],
                           "--json", str(res)], env=env, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         cwd=folder)   # not the repository: `-m planner` imports from the cwd
     try:
         _, err = p.communicate(timeout=limit)
         killed = False

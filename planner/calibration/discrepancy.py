@@ -206,8 +206,8 @@ class Discrepancy:
                              "sample, as the CSV contract's simulate writes them)")
         self._notes = list(getattr(rec, "notes", ()) or ())
         logged = getattr(rec, "logged", None)
-        rec, self._analysis = analysis_rate(rec, len(self._floor(rec)))   # a fast log: 50 Hz
-        if self._analysis["factor"] > 1:   # filtered: the noise is estimated as analysed
+        rec, self._analysis, sampled = analysis_rate(rec, len(self._floor(rec)))  # rate.py
+        if sampled is not None:   # a fast log, filtered to the analysis rate
             logged = None
             self._notes.append(analysis_note(self._analysis))
         m = upsampling_factor(self._channels(rec), self._floor(rec))
@@ -223,6 +223,8 @@ class Discrepancy:
             [f"p_{j}_{s}" for j in crane.names for s in ("a", "b")] if has_p else [])
         Y = self._channels(rec)
         sig = np.maximum(noise_floor(Y), self._floor(rec))
+        if sampled is not None:   # σ: the noise of the samples a logger at that rate keeps
+            sig = np.maximum(sig, noise_floor(self._channels(sampled)))
         if logged is not None:     # resampled on reading: the noise of the logged samples
             sig, note = logged_noise(sig, Y, logged.t, self._channels(logged))
             self._notes += [note] * bool(note)

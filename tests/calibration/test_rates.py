@@ -21,12 +21,13 @@ CANDIDATES = ["coulomb_friction", "joint_offset"]
 
 
 def test_decimate_filters_readings_and_averages_commands():
-    """Oracle: a slow sine survives, a 180 Hz tone (aliased to 20 Hz by plain picking at 50 Hz)
-    is removed; the commands' integral over each interval is kept."""
+    """Oracle: a slow sine survives; a 201 Hz tone (pump ripple, say), which plain picking at
+    50 Hz turns into a slow 1 Hz wave of full amplitude, is removed (the filter's nulls lie at
+    the multiples of 50 Hz); the commands' integral over each interval is kept."""
     fs, m = 1000.0, 20
     t = np.arange(0, 4.0, 1 / fs)
     slow = np.sin(2 * np.pi * 0.5 * t)
-    q = np.column_stack([slow + 0.3 * np.sin(2 * np.pi * 180.0 * t), slow])
+    q = np.column_stack([slow + 0.3 * np.sin(2 * np.pi * 201.0 * t), slow])
     u = np.column_stack([np.sign(np.sin(2 * np.pi * 7.0 * t)), np.cos(t)])
     d = rate.decimate(Recording(t, u, q), m)
     np.testing.assert_array_equal(d.t, t[::m])

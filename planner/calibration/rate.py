@@ -98,16 +98,19 @@ def estimate_bytes(rows: int, columns: int, analysed: int, channels: int) -> flo
             + BYTES_PER_SAMPLE * float(analysed) * channels)
 
 
-def check_file(path, what: str = "--measured") -> dict:
+def check_file(path) -> dict:
     """Before reading: the rows, columns, rate and estimated peak memory of the measured CSV
     ``path`` (counted from its bytes and its first rows, without parsing it all); ValueError
     naming the file when the estimate exceeds :data:`MAX_BYTES`."""
     rows, head = 0, []
-    with open(path, "rb") as fh:
-        for i, line in enumerate(fh):
-            if i < 4:
-                head.append(line)
-            rows += bool(line.strip())
+    try:
+        with open(path, "rb") as fh:
+            for i, line in enumerate(fh):
+                if i < 4:
+                    head.append(line)
+                rows += bool(line.strip())
+    except OSError:
+        return dict(rows=0, estimated_bytes=BYTES_FIXED)   # the reader says what is wrong
     if rows < 3:
         return dict(rows=rows, estimated_bytes=BYTES_FIXED)   # the reader says what is wrong
     cols = head[0].count(b",") + 1
@@ -125,7 +128,7 @@ def check_file(path, what: str = "--measured") -> dict:
     need = estimate_bytes(samples, cols, analysed, channels)
     if need > MAX_BYTES:
         raise ValueError(
-            f"{what} {path}: {samples} samples × {cols} columns at {rate:.4g} Hz need ~"
+            f"{path}: {samples} samples × {cols} columns at {rate:.4g} Hz need ~"
             f"{need / 2 ** 30:.1f} GiB to read and analyse; allowed up to "
             f"{MAX_BYTES / 2 ** 30:.1f} GiB: analyse a shorter stretch of the log (a few "
             "minutes are plenty), or write it at a lower rate (crane-planner resample)")

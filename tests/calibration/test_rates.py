@@ -94,6 +94,6 @@ def test_the_memory_is_estimated_before_the_file_is_read(logs, capsys, monkeypat
     monkeypatch.setattr(rate, "MAX_BYTES", info["estimated_bytes"] - 1)
     assert main(["discrepancy", "s100f", "--measured", str(path[1000.0])]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"crane-planner: error: --measured {path[1000.0]}: 4688 samples × 17 "
+    assert err.startswith(f"crane-planner: error: {path[1000.0]}: 4688 samples × 17 "
                           "columns at 1000 Hz need ~") and "allowed up to" in err, err
     assert "\n" not in err

@@ -12,25 +12,24 @@ m = ⌊rate / ANALYSIS_RATE_HZ⌋ (:func:`decimate`; the analysis rate is then 5
 
 - readings (positions, pressures): an anti-alias filter, then every m-th sample (sample i
   stays at t[i·m]). The filter is the centred mean over one interval around each kept sample
-  (:func:`boxcar`, symmetric, a first-order CIC decimator): its response |sinc(f / rate)| has its nulls at the multiples of
-  the analysis rate, exactly where the frequencies lie that would alias onto 0 Hz, and it
-  never overshoots. Sharper filters were tried on a 10 kHz log of a hidden Coulomb friction
+  (:func:`boxcar`: symmetric, a first-order CIC decimator); its response |sinc(f / rate)| is
+  zero at the multiples of the analysis rate, exactly the frequencies that would alias onto
+  0 Hz (a 100 Hz pump ripple would otherwise read as a pressure offset), and it never
+  overshoots. Sharper filters were tried on a 10 kHz log of a hidden Coulomb friction
   (3000 N): a linear-phase FIR (``scipy.signal.resample_poly``) rings at the pressure step
   the friction causes when the boom starts, and a triangle (two boxcars) spreads that step
-  over two samples; with the sensor noise averaged 14 × down, both left a residual read as an
-  unexplained step, where the centred mean fits the friction at 2999 N. The filter averages
-  the sensor noise down (14 × at 10 kHz); the noise floor σ is nevertheless that of the
-  samples a logger at the analysis rate would keep (every m-th reading, unfiltered): the
-  statistics, the threshold and the verdicts then mean what they mean for a 50 Hz log (the
-  model's own 50 Hz resolution at the pressure steps stays below σ, as it does there), and
-  the filtered readings only lower the residual's noise;
+  over two samples; both left a residual read as an unexplained step. The filter averages
+  the sensor noise down (14 × at 10 kHz), but the noise floor σ is that of the samples a
+  logger at the analysis rate would keep (every m-th reading, unfiltered): the statistics,
+  the threshold and the verdicts mean what they mean for a 50 Hz log (the model's own 50 Hz
+  resolution at the pressure steps stays below σ, as it does there), and the filter only
+  lowers the residual's noise (the 10 kHz log: the friction fitted at 2998 N);
 - commands: the mean over each interval [t[i·m], t[(i+1)·m]) (what the valves integrate:
   the stroke each interval's commands ask for), held over it as before.
 
 The cost is bounded before it is paid, as the DP's grid is (:func:`estimate_bytes`, measured
 per cell read and per analysed sample and channel by ``benchmarks/bench_discrepancy_rates.py``):
-reading a CSV holds its text and every value as a Python float, about
-:data:`BYTES_PER_CELL` per cell; the analysis holds the replays and the predictions of the
+reading a CSV holds its text and every value, about :data:`BYTES_PER_CELL` per cell; the analysis holds the replays and the predictions of the
 candidates, about :data:`BYTES_PER_SAMPLE` per analysed sample and channel. Above
 :data:`MAX_BYTES` the recording is refused with the sizes and what to do.
 """

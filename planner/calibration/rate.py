@@ -29,9 +29,10 @@ m = ⌊rate / ANALYSIS_RATE_HZ⌋ (:func:`decimate`; the analysis rate is then 5
 
 The cost is bounded before it is paid, as the DP's grid is (:func:`estimate_bytes`, measured
 per cell read and per analysed sample and channel by ``benchmarks/bench_discrepancy_rates.py``):
-reading a CSV holds its text and every value, about :data:`BYTES_PER_CELL` per cell; the analysis holds the replays and the predictions of the
-candidates, about :data:`BYTES_PER_SAMPLE` per analysed sample and channel. Above
-:data:`MAX_BYTES` the recording is refused with the sizes and what to do.
+reading a CSV holds its text and every value, about :data:`BYTES_PER_CELL` per cell; the
+analysis holds the replays and the predictions of the candidates, about
+:data:`BYTES_PER_SAMPLE` per analysed sample and channel. Above :data:`MAX_BYTES` the
+recording is refused with the sizes and what to do.
 """
 from __future__ import annotations
 

@@ -149,6 +149,112 @@ def markdown(res, args) -> str:
     return "\n".join(L)
 
 
+# ------------------------------------------------------------------ issue 32, part A
+ISSUE32A = "## Issue 32, part A: data safety and bounded work"
+LIB32 = ["library", "build", "cranab850", "--tasks", "seed000-abc", "--method", "ruckig",
+         "--no-robustness"]
+PLAN32 = ["plan", "s100f", "--start", "3,1,0", "--goal", "5,2,30deg", "--method", "ruckig"]
+# a worker killed while it plans move B-C (in-process patch: the CLI as a user runs it)
+KILLED = ("import os, sys; from planner.library import build as b; real = b.plan_move\n"
+          "def k(job):\n    if job.move.id == 'B-C': os.kill(os.getpid(), 9)\n"
+          "    return real(job)\n"
+          "b.plan_move = k; from planner.cli import main; sys.exit(main(sys.argv[1:]))")
+
+
+def _cli32(args, cwd, fsize=None, code=None) -> dict:
+    """One command: exit status, seconds, peak RSS [MB] (GNU time), stderr lines besides the
+    progress lines, traceback or not."""
+    import resource
+    rss = Path(cwd) / ".rss"
+    cmd = ["/usr/bin/time", "-f", "%M", "-o", str(rss), sys.executable]
+    cmd += ["-c", code] if code else ["-m", "planner"]
+    pre = (lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))) if fsize else None
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd + [str(a) for a in args], cwd=cwd, capture_output=True, text=True,
+                       preexec_fn=pre, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    lines = [ln for ln in p.stderr.splitlines() if not ln.startswith(("library ", "effects:"))
+             and "exited with non-zero status" not in ln]
+    try:
+        mb = int(rss.read_text().split()[-1]) / 1024
+    except (OSError, ValueError, IndexError):
+        mb = None
+    return dict(rc=p.returncode, seconds=round(time.perf_counter() - t0, 2), peak_rss_mb=mb,
+                lines=lines, traceback="Traceback" in p.stderr, stdout=p.stdout.strip())
+
+
+def run_issue32a() -> dict:
+    """The defects 1-4, 10, 12, 14 of issue 32 as a user meets them (faults-a)."""
+    from planner.library.store import LibraryStore
+    tmp = Path(tempfile.mkdtemp(prefix="faults32a-"))
+    res = {}
+    clean = _cli32(LIB32 + ["--out", "clean.h5"], tmp)
+    size = (tmp / "clean.h5").stat().st_size
+    res["build_fsize"] = _cli32(LIB32 + ["--out", "lim.h5"], tmp, fsize=int(size * 0.6))
+    with LibraryStore.open(tmp / "lim.h5", "r") as db:
+        res["build_fsize"]["entries_kept"] = len(db)
+    res["build_rerun"] = _cli32(LIB32 + ["--out", "lim.h5"], tmp)
+    res["plan_fsize"] = _cli32(PLAN32 + ["--out", "p.h5"], tmp, fsize=50_000)
+    _cli32(PLAN32 + ["--out", "move.csv"], tmp)
+    before = (tmp / "move.csv").read_bytes()
+    res["simulate_in_is_out"] = _cli32(["simulate", "s100f", "--trajectory", "move.csv",
+                                        "--out", "move.csv"], tmp)
+    res["simulate_in_is_out"]["input_kept"] = (tmp / "move.csv").read_bytes() == before
+    res["plan_out_is_json"] = _cli32(PLAN32 + ["--out", "x.csv", "--json", "x.csv"], tmp)
+    lib = (tmp / "clean.h5").read_bytes()
+    res["query_json_is_library"] = _cli32(["library", "query", "clean.h5", "--start", "2,1,0",
+                                           "--goal", "5,1,0", "--json", "clean.h5"], tmp)
+    res["query_json_is_library"]["input_kept"] = (tmp / "clean.h5").read_bytes() == lib
+    res["killed_worker"] = _cli32(LIB32 + ["--workers", "2", "--out", "k.h5"], tmp, code=KILLED)
+    res["killed_rerun"] = _cli32(LIB32 + ["--workers", "2", "--out", "k.h5"], tmp)
+    res["simulate_rate_1e6"] = _cli32(["simulate", "s100f", "--trajectory", "move.csv",
+                                       "--rate", "1e6", "--out", "m.csv"], tmp)
+    (tmp / "cut.h5").write_bytes(lib[:len(lib) // 2])
+    res["truncated_library"] = _cli32(LIB32 + ["--out", "cut.h5"], tmp)
+    res["hash_in_name"] = _cli32(PLAN32 + ["--out", "run#1.h5"], tmp)
+    res["hash_in_name_read"] = _cli32(["simulate", "s100f", "--trajectory", "run#1.h5",
+                                       "--out", "m#1.csv"], tmp)
+    return res
+
+
+def markdown_issue32a(r) -> str:
+    said = []
+
+    def row(name, k, expect, extra=""):
+        c = r[k]
+        line = c["lines"][0] if c["lines"] else c["stdout"].splitlines()[0] if c["stdout"] \
+            else ""
+        said.append(f"- {name}: `{line}`")
+        return (f"| {name} | {c['rc']} | {c['seconds']} s, {c['peak_rss_mb'] or 0:.0f} MB | "
+                f"{'yes' if c['traceback'] else 'no'} | {len(c['lines'])} | {extra} | "
+                f"{expect} |")
+    L = [ISSUE32A, "",
+         "`python benchmarks/bench_faults.py --issue32a` (cranab850 seed000-abc with Ruckig for "
+         "the builds; each command its own process; peak RSS from GNU time). The 10^6-row and "
+         "fast-log `discrepancy` runs: benchmarks/results/discrepancy_rates.md.", "",
+         "| case | exit | time, peak RSS | traceback | error lines | outcome | expected |",
+         "| --- | ---: | --- | --- | ---: | --- | --- |",
+         row("build past `ulimit -f` (1)", "build_fsize", "2, entries kept",
+             f"{r['build_fsize']['entries_kept']} entries kept"),
+         row("rerun after it (1)", "build_rerun", "0, resumes",
+             r["build_rerun"]["stdout"].split(": ", 1)[-1].split(",")[1].strip()
+             if r["build_rerun"]["stdout"] else ""),
+         row("`plan --out p.h5` past `ulimit -f` (1)", "plan_fsize", "2, no file"),
+         row("`simulate --trajectory m.csv --out m.csv` (2)", "simulate_in_is_out", "2",
+             f"input kept: {r['simulate_in_is_out']['input_kept']}"),
+         row("`plan --out x.csv --json x.csv` (2)", "plan_out_is_json", "2"),
+         row("`library query lib.h5 --json lib.h5` (2)", "query_json_is_library", "2",
+             f"library kept: {r['query_json_is_library']['input_kept']}"),
+         row("a worker SIGKILLed during a build (3)", "killed_worker", "2/3, one line"),
+         row("rerun after it (3)", "killed_rerun", "0, resumes"),
+         row("`simulate --rate 1e6` (10)", "simulate_rate_1e6", "2, bounded"),
+         row("truncated library to `library build` (12)", "truncated_library",
+             "2, not 'another build'"),
+         row("`plan --out 'run#1.h5'` (14)", "hash_in_name", "0"),
+         row("`simulate --trajectory 'run#1.h5'` (14)", "hash_in_name_read", "0"), ""]
+    return "\n".join(L + ["What each printed (the error line, else its first line):", ""]
+                     + said + [""])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--after", type=float, default=20.0, help="seconds before the signal (20)")
@@ -157,11 +263,21 @@ def main():
     ap.add_argument("--issue32b", action="store_true",
                     help="only issue 32's faults-b cases (benchmarks/bench_faults_b.py): their "
                          "section of faults.md and key of faults.json, the rest kept")
+    ap.add_argument("--issue32a", action="store_true",
+                    help="only issue 32 part A's cases: their section of faults.md replaced")
     args = ap.parse_args()
     if args.issue32b:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
         import bench_faults_b
         print(bench_faults_b.write(bench_faults_b.run(), Path(args.results)))
+        return
+    if args.issue32a:
+        out = Path(args.results) / "faults.md"
+        old = out.read_text().split(ISSUE32A)[0].rstrip() + "\n\n"
+        res = run_issue32a()
+        (Path(args.results) / "faults_issue32a.json").write_text(json.dumps(res, indent=2))
+        out.write_text(old + markdown_issue32a(res))
+        print(markdown_issue32a(res))
         return
     res = run(args)
     out = Path(args.results)

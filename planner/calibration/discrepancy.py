@@ -30,6 +30,9 @@ commanded trajectory:
    residual removed (``gap_reduction``, :func:`planner.calibration.verdict.smoothed_excess`
    summed over the channels in units of σ²): gap = 1 − √(after/before).
 
+A log faster than 100 Hz is analysed at 50-100 Hz (anti-alias filtered, commands averaged:
+:mod:`planner.calibration.rate`, which also bounds the memory before the work starts).
+
 The calibrated model is the crane spec plus ``[[effects]]`` (:func:`calibrated_spec_text`);
 :func:`planner.calibration.compensate.compensate` re-plans feed-forward commands on it and
 :func:`planner.calibration.report.write_report` writes the report. The candidates are every
@@ -46,6 +49,8 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
+from planner.calibration.rate import analysis_note, analysis_rate
+from planner.calibration.calibrated import calibrated_spec_text
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
@@ -90,7 +95,8 @@ class Candidate:
 class DiscrepancyResult:
     """``verdict`` (one of :data:`VERDICTS`, :mod:`planner.calibration.verdict`) with
     ``confidence`` (named), ``candidates`` (ambiguous), ``signature`` and ``not_credible``
-    (unexplained), ``reasons`` and ``notes`` (how the data were read: upsampled, resampled);
+    (unexplained), ``reasons`` and ``notes`` (how the data were read: upsampled, resampled),
+    ``analysis`` (the rate analysed at, :func:`planner.calibration.rate.analysis_rate`);
     ``effect``: the named catalogue effect (None = nothing named; when ambiguous, the best of
     the candidates),
     ``joint``, ``parameters`` (fitted values) with ``uncertainty`` (standard errors),
@@ -125,13 +131,15 @@ class DiscrepancyResult:
     suggest: str | None = None
     reasons: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    analysis: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in (
             "verdict", "effect", "joint", "parameters", "uncertainty", "confidence",
             "candidates", "suggest", "signature", "not_credible", "reasons", "notes", "second",
             "rms_before", "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
-            "gap_reduction_channels", "identifiable", "message", "where", "runtime_s")}
+            "gap_reduction_channels", "identifiable", "message", "where", "runtime_s",
+            "analysis")}
         out["effects"] = [e.to_dict() for e in self.effects]
         out["ranking"] = self.ranking
         return out
@@ -192,11 +200,16 @@ class Discrepancy:
         if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
             raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
                              f"is too short: need at least 4 blocks of {self.block_s:g} s")
-        if np.ptp(dt := np.diff(rec.t)) > 1e-6 * np.median(dt) + 1e-9:
+        # uniform within the CSV's 10 significant digits of t (a long log's times carry them)
+        if np.ptp(dt := np.diff(rec.t)) > 1e-6 * np.median(dt) + 2e-9 * np.abs(rec.t).max():
             raise ValueError("recording: the sample times must be uniform (one command per "
                              "sample, as the CSV contract's simulate writes them)")
         self._notes = list(getattr(rec, "notes", ()) or ())
         logged = getattr(rec, "logged", None)
+        rec, self._analysis, sampled = analysis_rate(rec, len(self._floor(rec)))  # rate.py
+        if sampled is not None:   # a fast log, filtered to the analysis rate
+            logged = None
+            self._notes.append(analysis_note(self._analysis))
         m = upsampling_factor(self._channels(rec), self._floor(rec))
         if m > 1:
             self._notes.append(
@@ -210,6 +223,8 @@ class Discrepancy:
             [f"p_{j}_{s}" for j in crane.names for s in ("a", "b")] if has_p else [])
         Y = self._channels(rec)
         sig = np.maximum(noise_floor(Y), self._floor(rec))
+        if sampled is not None:   # σ: the noise of the samples a logger at that rate keeps
+            sig = np.maximum(sig, noise_floor(self._channels(sampled)))
         if logged is not None:     # resampled on reading: the noise of the logged samples
             sig, note = logged_noise(sig, Y, logged.t, self._channels(logged))
             self._notes += [note] * bool(note)
@@ -239,6 +254,7 @@ class Discrepancy:
     def response(self, effects=()):
         rec = self._rec
         return respond(self.crane, rec.t, rec.u, rec.q[0], tuple(effects), t_end=rec.t[-1],
+                       dt=(rec.t[-1] - rec.t[0]) / (len(rec.t) - 1),   # one step per sample
                        q_fit=rec.q, fit_mask=self._train, replay_cache=self._cache)
 
     def _J(self, Yp, mask):
@@ -474,27 +490,10 @@ class Discrepancy:
             message=msg, runtime_s=_time.perf_counter() - t0, series=series,
             verdict=v["verdict"], confidence=v["confidence"], candidates=v["candidates"],
             signature=v["signature"], not_credible=v["not_credible"], reasons=v["reasons"],
-            notes=list(self._notes), suggest=v["suggest"])
+            notes=list(self._notes), suggest=v["suggest"], analysis=self._analysis)
 
 
 def _single(cands, effect):
     """The single-effect fit of ``effect``'s (name, joint) among ``cands`` (or None)."""
     return next((c for c in cands if (c.effects[0].name, c.effects[0].joint)
                  == (effect.name, effect.joint)), None)
-
-
-# ---------------------------------------------------------------------------- the model
-def calibrated_spec_text(crane, effects, source: str = "") -> str:
-    """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
-    if not crane.spec.text:
-        raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")
-    lines = [crane.spec.text.rstrip(), "",
-             f"# calibrated: effects identified by crane-planner discrepancy {source}".rstrip()]
-    for e in effects:
-        lines.append("[[effects]]")
-        lines.append(f'name = "{e.name}"')
-        if e.joint:
-            lines.append(f'joint = "{e.joint}"')
-        for k, v in e.values.items():
-            lines.append(f"{k} = {v!r}")
-    return "\n".join(lines) + "\n"

@@ -19,7 +19,7 @@ import sys
 
 from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
                          studies)
-from planner.cli.common import CLIError, package_version
+from planner.cli.common import CLIError, check_distinct, package_version
 from planner.cli.wording import cli_text
 from planner.model import UnreachableError
 from planner.model.spec import SpecError
@@ -74,6 +74,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(join_negative_values(argv))
     try:
+        check_distinct(args)   # no output replaces an input or another output
         rc = args.func(args)
     except KeyboardInterrupt:   # Ctrl-C: one line, the shell's 128 + SIGINT; outputs are atomic
         print(f"crane-planner: interrupted (SIGINT) during {args.command}; nothing was written "

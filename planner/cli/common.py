@@ -3,11 +3,12 @@ argument types (tip points, method names) and reading a trajectory named on the 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
 from planner.version import __version__
-from planner.io import OutputError, check_output, missing_dirs, write_json
+from planner.io import OutputError, check_output, missing_dirs, output_target, write_json
 from planner.methods import available
 from planner.trajectory import Trajectory
 from planner.units import checked_trajectory, parse_point
@@ -75,11 +76,78 @@ def emit(args, obj) -> None:
         note_created(created)
 
 
+def split_ref(ref: str) -> tuple[str, str]:
+    """``FILE#ID`` -> (FILE, ID). A file name may itself contain '#': the whole string is a
+    file when such a file exists (``run#1.h5``); else the first split at a '#' whose left part
+    is an existing file (``run#1.h5#plan:time``); else at the first '#'."""
+    if "#" not in ref or os.path.isfile(ref):
+        return ref, ""
+    cuts = [i for i, c in enumerate(ref) if c == "#"]
+    for i in cuts:
+        if os.path.isfile(ref[:i]):
+            return ref[:i], ref[i + 1:]
+    return ref[:cuts[0]], ref[cuts[0] + 1:]
+
+
+# the arguments that name files, by their argparse dest: read by a command, or written by it
+# (how the one-line refusal names them); every command is checked by :func:`check_distinct`
+INPUT_DESTS = dict(crane="CRANE", trajectory="--trajectory", measured="MEASURED.csv",
+                   library="LIB.h5", tasks="--tasks", from_result="--from", results="--results")
+OUTPUT_DESTS = dict(out="--out", json="--json", plot="--plot", save_model="--save-model",
+                    report="--report")
+
+
+def _identity(path: str) -> set:
+    """What makes two paths the same file: the resolved path, and the device and inode of an
+    existing file (hard links)."""
+    keys = {("path", os.path.realpath(path))}
+    try:
+        st = os.stat(path)
+        keys.add(("inode", st.st_dev, st.st_ino))
+    except OSError:
+        pass   # not there yet: its resolved path is what it will be
+    return keys
+
+
+def check_distinct(args) -> None:
+    """Refuse, before any work, an output path that is one of the command's inputs or another
+    of its outputs (by resolved path: ``simulate --trajectory m.csv --out m.csv`` would replace
+    the plan, ``--out x.csv --json x.csv`` leave JSON in the trajectory file). Inputs count when
+    they are existing files (a machine id is not); outputs written in place (stdout, devices)
+    do not count. Called by :func:`planner.cli.main` for every command."""
+    files = []
+    for dest, label in INPUT_DESTS.items():
+        v = getattr(args, dest, None)
+        path = split_ref(v)[0] if dest == "trajectory" and isinstance(v, str) else v
+        if isinstance(path, str) and path and os.path.isfile(path):
+            files.append((label, v, path))
+    for dest, label in OUTPUT_DESTS.items():
+        v = getattr(args, dest, None)
+        if not isinstance(v, str) or not v or v == "-":
+            continue
+        try:
+            if output_target(v)[1]:
+                continue   # a stream or device: appended to, never replaced
+        except OutputError:
+            pass   # a folder: its own check refuses it where a file is expected
+        files.append((label, v, v))
+    seen: list = []
+    for label, v, path in files:
+        keys = _identity(path)
+        for first, fv, other in seen:
+            if keys & other:
+                raise CLIError(f"{label} {v}: the same file as {first} {fv}; an output may "
+                               "not replace an input or another output of the same command: "
+                               "choose another file name")
+        seen.append((label, v, keys))
+
+
 def read_trajectory(crane, ref: str) -> Trajectory:
     """A trajectory named on the command line: FILE.csv, or FILE.h5#ID (an entry of a library
-    database; the ID may be left out when the file holds one entry), checked against ``crane``
-    (:func:`planner.units.checked_trajectory`: the library's crane id, the joints, the ranges)."""
-    path, _, entry = ref.partition("#")
+    database; the ID may be left out when the file holds one entry; :func:`split_ref` for a
+    '#' in the file name), checked against ``crane`` (:func:`planner.units.checked_trajectory`:
+    the library's crane id, the joints, the ranges)."""
+    path, entry = split_ref(ref)
     if path.endswith(".h5"):
         from planner.library.store import LibraryStore  # h5py: only when a database is read
         with LibraryStore.open(path, "r") as db:

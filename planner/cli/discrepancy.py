@@ -20,6 +20,8 @@ def read_recording(args, crane, plan):
         if is_bag(args.measured):
             raise CLIError(f"--measured {args.measured}: a ROS 2 bag needs --map FILE.toml "
                            "(topics and fields -> channels; docs/rosbag.md)")
+        from planner.calibration.rate import check_file
+        check_file(args.measured)   # the memory it would take, before reading it
         return Recording.from_csv(args.measured, crane, plan)
     from planner.simulation.bag import read_bag_recording
     return read_bag_recording(args.measured, args.map, crane, plan)

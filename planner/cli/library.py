@@ -5,6 +5,7 @@ The store and the export need h5py; they are imported inside the commands so tha
 from __future__ import annotations
 
 import os
+import shlex
 import sys
 
 import numpy as np
@@ -14,7 +15,7 @@ from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_c
 from planner.io import check_output_dir, missing_dirs
 from planner.library.build import build
 from planner.library.query import JoinError, far_warning, join_from, library_crane
-from planner.library.workers import Interrupted
+from planner.library.workers import Interrupted, WorkerLost
 from planner.units import parse_angle
 
 
@@ -88,6 +89,15 @@ def cmd_library_build(args):
             print(f"crane-planner: interrupted ({e}) before the build started", file=sys.stderr)
         note_created(d for d in created if d.exists())
         return e.exit_code
+    except WorkerLost as e:   # killed by the OOM killer, a process manager: one line, exit 3
+        s = e.summary
+        emit(args, s)
+        print(f"crane-planner: error: a worker of the build {e.how} while planning "
+              f"{e.task or 'a move'}; {s['written']} entries written to {s['library']} this run "
+              f"are kept (every earlier one too): rerun `{rerun_command(args)}` to resume"
+              + (" (with fewer --workers if memory ran out)" if args.workers > 1 else ""),
+              file=sys.stderr)
+        return 3
     except KeyboardInterrupt:  # before the build installed its own handling
         print("crane-planner: interrupted (SIGINT) before the build started", file=sys.stderr)
         return 130
@@ -110,6 +120,17 @@ def cmd_library_build(args):
                     print(f"  warning: worker {w.get('worker', w['pid'])} set-up failed "
                           f"({w['error']}); its tasks build what they need", file=sys.stderr)
     return 0
+
+
+def rerun_command(args) -> str:
+    """The ``library build`` command line that resumes this build."""
+    words = ["crane-planner", "library", "build", args.crane, "--tasks", args.tasks, "--out",
+             args.out, "--objectives", args.objectives, "--workers", str(args.workers),
+             "--intervals", str(args.intervals), "--method", args.method]
+    words += ["--limit", str(args.limit)] if args.limit is not None else []
+    words += ["--scheduler", args.scheduler] if args.scheduler else []
+    words += ["--no-robustness"] if args.no_robustness else []
+    return shlex.join(words)
 
 
 def cmd_library_info(args):

@@ -13,6 +13,7 @@ from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
 from planner.simulation.plant import simulate_to_csv
 from planner.simulation.plants import PLANTS, PlantDiverged, applying, plant_to_csv
+from planner.simulation.sizes import check_rate
 from planner.simulation.replay import Plant
 from planner.units import parse_angle
 
@@ -80,7 +81,10 @@ def cmd_simulate(args):
             raise CLIError(f"--effect {e.name}: the {args.plant} plant cannot apply it (it acts "
                            f"through {', '.join(e.own_hooks())}); add "
                            + " or ".join(f"--plant {p}" for p in where))
-    traj, note = commands_at_rate(read_trajectory(crane, args.trajectory), args.rate)
+    traj = read_trajectory(crane, args.trajectory)
+    # bounded output and memory, before the replay (the file's own rate when not given)
+    check_rate(args.rate if args.rate is not None else DEFAULT_RATE, traj.duration)
+    traj, note = commands_at_rate(traj, args.rate)
     if note:
         print(f"crane-planner: note: {note}", file=sys.stderr)
     args.rate = args.rate or DEFAULT_RATE

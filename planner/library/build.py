@@ -42,8 +42,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from planner.io import progress
+from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
-from planner.library.workers import Interrupted, SignalGuard, WorkerPool, run_setup
+from planner.library.workers import (Interrupted, SignalGuard, WorkerLost, WorkerPool,
+                                     run_setup)
 from planner.methods import PlanStatus, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
 
@@ -325,6 +327,16 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
             e.summary = _summary(out, settings, moves, state, t0, status="interrupted",
                                  signal=signal.Signals(e.signum).name)
             raise
+        except WorkerLost as e:   # the file holds every entry written: the rerun resumes
+            e.summary = _summary(out, settings, moves, state, t0, status="worker_lost",
+                                 reason=str(e), move=e.task.removeprefix("move "),
+                                 exit_code=e.exitcode)
+            raise
+        except WriteFailed as e:   # the store rolled the file back to its last entry
+            raise WriteFailed(out, OSError(e.errno, f"{e.why}; the entries finished before it "
+                                                    f"are kept ({state['written']} of this run): "
+                                                    "make room and rerun the same command to "
+                                                    "resume")) from None
     return _summary(out, settings, moves, state, t0, status="ok", info=info,
                     prepare_s=prepared_s)
 
@@ -342,6 +354,11 @@ def _summary(out, settings: BuildSettings, moves, state, t0, **kw) -> dict:
                 worker_setup_s=[w["setup_s"] for w in state.get("setup", [])],
                 setup_done_s=None if done is None else done - t0,
                 first_entry_s=None if first is None or done is None else first - done, **kw)
+
+
+def _move_label(args) -> str:
+    """What a killed worker was doing: its task's move (WorkerPool.imap_unordered)."""
+    return f"move {args[0].move.id}"
 
 
 def _fill(db, settings: BuildSettings, moves, pool, guard, state, setup=None, *,
@@ -390,7 +407,8 @@ def _fill(db, settings: BuildSettings, moves, pool, guard, state, setup=None, *,
                 for r in plan_move(job):
                     write(r)
         else:
-            for rs in pool.imap_unordered(plan_move, [(job,) for job in jobs]):
+            kw = dict(label=_move_label) if isinstance(pool, WorkerPool) else {}
+            for rs in pool.imap_unordered(plan_move, [(job,) for job in jobs], **kw):
                 for r in rs:
                     write(r)
     finally:

@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from planner.feedforward import commands
-from planner.io import atomic_write_bytes, atomic_write_text
+from planner.io import OutputError, atomic_write_bytes, atomic_write_text
+from planner.library.journal import WriteFailed
 from planner.library.store import FORMAT, LibraryStore, StoreError, as_str
 from planner.model.spec import parse_spec
 from planner.trajectory import Trajectory
@@ -251,11 +252,13 @@ def write_single_entry(path, crane, traj: Trajectory, *, entry_id: str, start, g
             db.add(entry_id, traj, start=start, goal=goal, objective=objective, method=method,
                    status="ok", evaluation=evaluation, attrs=attrs)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass  # already gone
+        if isinstance(e, WriteFailed):   # a full disk: name the user's file, not the temporary
+            raise OutputError(path, e.why) from None
         raise
     return path
 

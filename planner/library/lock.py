@@ -83,11 +83,13 @@ def busy_message(path) -> str | None:
     the build's pid from the lock file, else the lock holders from /proc/locks; None when
     neither is known."""
     pid = holder(path)
+    if pid == os.getpid():   # this build's own lock: the file itself is what cannot be opened
+        return None
     if pid is not None:
         who = f"pid {pid}" if pid else "pid not yet recorded"
         return (f"{path} is being written by another build ({who}); wait for it to finish or "
                 "stop it (an interrupted build resumes when rerun)")
-    pids = proc_lock_holders(path)
+    pids = [p for p in proc_lock_holders(path) if p != os.getpid()]
     if pids:
         who = ", ".join(f"pid {p}" + (f" {_process_name(p)}" if _process_name(p) else "")
                         for p in pids)

@@ -37,13 +37,16 @@ for an Evaluation made on a grid without them). Computing the Evaluation is the 
 Crash safety and resume: an entry's group is written completely and flushed, *then* its index
 row is appended and flushed. A group without an index row is an unfinished write: opening the
 file in mode "a" deletes it (``LibraryStore.cleaned`` says how many), so a killed build loses at
-most the entries in flight and resumes with ``has(id)``. (HDF5 does not reclaim the space of
+most the entries in flight and resumes with ``has(id)``. A writer goes through a rollback journal
+(:mod:`planner.library.journal`): a failed write (full disk, file-size limit) or a writer killed
+mid-flush rolls the file back to its last complete entry. (HDF5 does not reclaim the space of
 deleted groups; h5repack compacts a file if that matters.) The driver is the single writer.
 """
 from __future__ import annotations
 
 import json
 import math
+import re
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -51,13 +54,14 @@ import h5py
 import numpy as np
 
 from planner.io import dumps
+from planner.library.fields import MAX_STR, StoreError, check_id, check_text, on_grid, tip3
+from planner.library.journal import abandon_h5, close_h5, open_h5
 from planner.library.lock import LibraryBusy, busy_message
 from planner.library.query import index_summary, nearest_entry
 from planner.trajectory import LIMIT_KINDS, Trajectory
 
 FORMAT = "crane-planner-library"
 FORMAT_VERSION = 1
-MAX_STR = 64  # bytes, fixed-length strings of the index table
 
 _STR = h5py.string_dtype("utf-8", MAX_STR)
 INDEX_DTYPE = np.dtype([("id", _STR), ("start", "<f8", (3,)), ("goal", "<f8", (3,)),
@@ -69,10 +73,6 @@ UNITS = dict(t="s", q="rad|m", qd="rad/s|m/s", qdd="rad/s^2|m/s^2", u="1 (valve 
              x="m", xd="m/s", p_a="Pa", p_b="Pa", q_pump="m^3/s", power="W")
 RESERVED_ATTRS = {"method", "objective", "status", "reason", "solver_stats", "provenance",
                   "joint_names", "interpolation", "limits", "evaluation"}
-
-
-class StoreError(ValueError):
-    """A library file that cannot be used (foreign, corrupt, newer, other crane) or a bad call."""
 
 
 def _planner_version() -> str:
@@ -93,40 +93,21 @@ def as_str(v) -> str:
     return str(v)
 
 
-def _check_text(what: str, value: str, allow_empty=False) -> str:
-    if not isinstance(value, str):
-        raise StoreError(f"{what} must be a string, got {type(value).__name__}")
-    n = len(value.encode("utf-8"))
-    if n > MAX_STR or (n == 0 and not allow_empty):
-        raise StoreError(f"{what} = {value!r}: must be 1..{MAX_STR} bytes (UTF-8), has {n}")
-    return value
+def _unreadable(path, e) -> str:
+    """Why HDF5 cannot open the library ``path`` (``e``), in one line."""
+    m = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", str(e))
+    if m:
+        return (f"{path}: damaged library: the file has {m[1]} of its {m[2]} bytes (cut "
+                "short, e.g. an interrupted copy); restore it, or move it away and rebuild")
+    return f"{path}: cannot open the HDF5 file ({e})"
 
 
-def _check_id(entry_id: str) -> str:
-    _check_text("entry id", entry_id)
-    if ("/" in entry_id or entry_id in (".", "..") or entry_id != entry_id.strip()
-            or any(ord(c) < 32 or ord(c) == 127 for c in entry_id)):
-        raise StoreError(f"entry id {entry_id!r}: no '/', no control characters, no leading or "
-                         "trailing blanks, not '.' or '..'")
-    return entry_id
-
-
-def _tip3(what: str, p) -> np.ndarray:
-    a = np.asarray(p, dtype=float).ravel()
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise StoreError(f"{what} must be 3 finite numbers (r, z, slew), got {p!r}")
-    return a
-
-
-def _on_grid(ev_t, t, a):
-    """Evaluation array ``a`` (on ev_t) at the times t: exact pick, else linear interpolation."""
-    a = np.asarray(a, dtype=float)
-    k = np.clip(np.searchsorted(ev_t, t), 0, len(ev_t) - 1)
-    if np.array_equal(ev_t[k], t):
-        return a[k]
-    if a.ndim == 1:
-        return np.interp(t, ev_t, a)
-    return np.column_stack([np.interp(t, ev_t, a[:, j]) for j in range(a.shape[1])])
+def _abandon(f, jf, e):
+    """Close ``f`` after ``e``: a writer's file is rolled back to its last commit."""
+    if jf is None:
+        f.close()
+        raise e
+    abandon_h5(f, jf, e)
 
 
 class LibraryStore:
@@ -135,8 +116,8 @@ class LibraryStore:
     Writer API: :meth:`add` (one call per finished entry). Reader API: :meth:`has`, :meth:`ids`,
     :meth:`index_rows`, :meth:`trajectory`, :meth:`entry`, :meth:`info`, :meth:`nearest`."""
 
-    def __init__(self, f: h5py.File, path: Path, mode: str):
-        self._f = f
+    def __init__(self, f: h5py.File, path: Path, mode: str, jf=None):
+        self._f, self._jf = f, jf  # jf: the JournaledFile of a writer (planner.library.journal)
         self.path = path
         self.mode = mode
         self.cleaned = 0  # unfinished entry groups removed on open (mode "a")
@@ -160,7 +141,7 @@ class LibraryStore:
         if not getattr(spec, "id", ""):
             raise StoreError(f"{path}: a crane spec with an id is needed to create a library")
         path.parent.mkdir(parents=True, exist_ok=True)
-        f = h5py.File(path, "w")
+        f, jf = open_h5(path, "w")
         try:
             f.attrs["format"] = FORMAT
             f.attrs["format_version"] = np.int64(FORMAT_VERSION)
@@ -174,12 +155,12 @@ class LibraryStore:
                              chunks=(256,))
             f.create_group("entries")
             f.flush()
-            db = cls(f, path, "a")
+            jf.commit()
+            db = cls(f, path, "a", jf)
             db.compress = compress
             return db
-        except BaseException:
-            f.close()
-            raise
+        except BaseException as e:
+            _abandon(f, jf, e)
 
     @classmethod
     def open(cls, path, mode: str = "r", spec=None, *, compress: bool = False) -> "LibraryStore":
@@ -196,25 +177,28 @@ class LibraryStore:
                 head = fh.read(16)
             raise StoreError(f"{path}: not an HDF5 file (first bytes {head!r}); expected a "
                              f"'{FORMAT}' library")
+        jf = None
         try:
-            f = h5py.File(path, mode)
+            f, jf = open_h5(path, mode) if mode == "a" else (h5py.File(path, mode), None)
+        except BlockingIOError:
+            raise LibraryBusy(busy_message(path) or f"{path} is locked by another "
+                              "process") from None
         except OSError as e:  # most often another process has it open for writing
             busy = busy_message(path)
-            raise (LibraryBusy(busy) if busy else StoreError(f"{path}: cannot open the HDF5 "
-                                                             f"file ({e})")) from None
+            raise (LibraryBusy(busy) if busy else StoreError(_unreadable(path, e))) from None
         try:
             cls._check_format(f, path)
             if spec is not None and as_str(f.attrs["crane_id"]) != spec.id:
                 raise StoreError(f"{path}: library is for crane '{as_str(f.attrs['crane_id'])}', "
                                  f"not '{spec.id}'")
-            db = cls(f, path, mode)
+            db = cls(f, path, mode, jf)
             db.compress = compress
             if mode == "a":
                 db.cleaned = db._clean_unfinished()
+                jf.commit()
             return db
-        except BaseException:
-            f.close()
-            raise
+        except BaseException as e:
+            _abandon(f, jf, e)
 
     @staticmethod
     def _check_format(f: h5py.File, path: Path):
@@ -256,7 +240,10 @@ class LibraryStore:
         return len(stale)
 
     def close(self):
-        if self._f is not None and self._f.id.valid:
+        if self._jf is not None:
+            jf, self._jf = self._jf, None
+            close_h5(self._f, jf)
+        elif self._f is not None and self._f.id.valid:
             self._f.close()
 
     def __enter__(self):
@@ -305,14 +292,14 @@ class LibraryStore:
         as such, anything else as JSON)."""
         if self.mode != "a":
             raise StoreError(f"{self.path}: opened read-only; open with mode 'a' to add entries")
-        _check_id(entry_id)
+        check_id(entry_id)
         if entry_id in self._idset:
             raise StoreError(f"{self.path}: entry '{entry_id}' exists already (ids are unique)")
-        start, goal = _tip3("start", start), _tip3("goal", goal)
+        start, goal = tip3("start", start), tip3("goal", goal)
         if isinstance(status, str):
             status = str(status)   # a PlanStatus member is stored as its plain code (h5py)
         for k, v in (("objective", objective), ("method", method), ("status", status)):
-            _check_text(k, v, allow_empty=(k != "status"))
+            check_text(k, v, allow_empty=(k != "status"))
         if status == "ok" and traj is None:
             raise StoreError(f"entry '{entry_id}': status 'ok' needs a trajectory")
         if evaluation is not None and traj is None:
@@ -326,7 +313,9 @@ class LibraryStore:
             self._write_group(entry_id, traj, objective=objective, method=method, status=status,
                               reason=reason, evaluation=evaluation, attrs=attrs)
             self._f.flush()
-        except BaseException:
+        except BaseException as e:
+            if self._jf is not None and self._jf.failed:
+                self._fail(e)
             if entry_id in self._f["entries"]:
                 del self._f["entries"][entry_id]
             raise
@@ -362,13 +351,13 @@ class LibraryStore:
                 if ev_t[0] > traj.t[0] + 1e-9 or ev_t[-1] < traj.t[-1] - 1e-9:
                     raise StoreError(f"entry '{entry_id}': evaluation covers t = [{ev_t[0]}, "
                                      f"{ev_t[-1]}], trajectory [{traj.t[0]}, {traj.t[-1]}]")
-                qe = _on_grid(ev_t, traj.t, evaluation.q)
+                qe = on_grid(ev_t, traj.t, evaluation.q)
                 if qe.shape != traj.q.shape or not np.allclose(qe, traj.q, rtol=0, atol=1e-6):
                     raise StoreError(f"entry '{entry_id}': the evaluation is not of this "
                                      "trajectory (positions differ)")
                 for name in HYD_CHANNELS:
                     if name in evaluation.hyd:
-                        self._dataset(g, name, _on_grid(ev_t, traj.t, evaluation.hyd[name]))
+                        self._dataset(g, name, on_grid(ev_t, traj.t, evaluation.hyd[name]))
                 a["evaluation"] = dumps(evaluation.summary())
             for name in g:
                 g[name].attrs["units"] = UNITS.get(name, "")
@@ -389,12 +378,25 @@ class LibraryStore:
     def _append_row(self, row):
         ds = self._f["index"]
         n = ds.shape[0]
-        ds.resize((n + 1,))
-        ds[n] = row
-        self._f.flush()
+        try:
+            ds.resize((n + 1,))
+            ds[n] = row
+            self._f.flush()
+            if self._jf is not None:
+                self._jf.commit()   # the entry is complete: the state to come back to
+        except BaseException as e:
+            if self._jf is not None and self._jf.failed:
+                self._fail(e)
+            raise
         eid = as_str(row["id"])
         self._ids.append(eid)
         self._idset.add(eid)
+
+    def _fail(self, e):
+        """A write failed: the file is rolled back to its last complete entry and closed
+        (:mod:`planner.library.journal`); raises the one-line :class:`WriteFailed`."""
+        jf, self._jf = self._jf, None
+        _abandon(self._f, jf, e)
 
     # ------------------------------------------------------------------ reading
     def _index_array(self) -> np.ndarray:
@@ -494,5 +496,5 @@ class LibraryStore:
         distance = |start - start_e| + |goal - goal_e| in Cartesian space [m]. Returns
         (entry_id, distance_m); LookupError when there is no candidate.
         (:func:`planner.library.query.nearest_entry` on :meth:`index_columns`.)"""
-        start, goal = _tip3("start", start), _tip3("goal", goal)
+        start, goal = tip3("start", start), tip3("goal", goal)
         return nearest_entry(self.index_columns(), start, goal, objective, where=self.path)

@@ -27,6 +27,7 @@ import sys
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
@@ -49,6 +50,35 @@ class Interrupted(KeyboardInterrupt):
     def exit_code(self) -> int:
         """The shell convention for a process ended by a signal: 128 + signal number."""
         return 128 + self.signum
+
+
+class WorkerLost(RuntimeError):
+    """A worker process ended while it worked (killed by the OOM killer or a process manager,
+    or crashed): ``pid``, ``exitcode`` (negative: the signal), ``task`` (the label of the task it
+    was running, "" when unknown), ``how`` (in words); ``summary`` is set by the build."""
+
+    def __init__(self, pid: int, exitcode: int | None, task: str):
+        if exitcode is not None and exitcode < 0:
+            try:
+                how = f"killed by {signal.Signals(-exitcode).name}"
+            except ValueError:
+                how = f"killed by signal {-exitcode}"
+        else:
+            how = f"exit code {exitcode}"
+        super().__init__(f"worker process {pid} ended ({how})"
+                         + (f" while running {task}" if task else ""))
+        self.pid, self.exitcode, self.task, self.how = pid, exitcode, task, how
+        self.summary: dict = {}
+
+
+_STARTED = None  # in a worker: the queue on which it says which task it starts (pid, index)
+
+
+def _tracked(index: int, fn, *args):
+    """Run one task in a worker, after telling the driver that this process runs it."""
+    if _STARTED is not None:
+        _STARTED.put((os.getpid(), index))
+    return fn(*args)
 
 
 def die_with_parent(parent_pid: int) -> None:
@@ -106,13 +136,15 @@ def run_setup(setup) -> dict:
     return info
 
 
-def worker_init(parent_pid: int, barrier, setup=None, report=None) -> None:
+def worker_init(parent_pid: int, barrier, setup=None, report=None, started=None) -> None:
     """Initializer of every pool worker: ignore SIGINT, SIGTERM ends it (not the driver's
     handler it inherited), die with the driver, run ``setup`` (its timing goes to the
     ``report`` queue), then wait until all workers have started (so that none is forked later,
     after the driver opened files)."""
+    global _STARTED
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _STARTED = started
     die_with_parent(parent_pid)
     info = run_setup(setup)
     if report is not None:
@@ -144,8 +176,10 @@ class WorkerPool:
         before = set(mp.active_children())
         barrier = ctx.Barrier(self.workers)
         report = ctx.SimpleQueue()
+        self._started = ctx.SimpleQueue()
         self._ex = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=worker_init,
-                                       initargs=(os.getpid(), barrier, self.setup, report))
+                                       initargs=(os.getpid(), barrier, self.setup, report,
+                                                 self._started))
         # one trivial task per worker: each submit starts one process (none can finish before
         # the barrier lets all of them through, so no worker is left to be forked later)
         try:
@@ -162,16 +196,38 @@ class WorkerPool:
             raise
         return self
 
-    def imap_unordered(self, fn, arglist):
+    def imap_unordered(self, fn, arglist, label=repr):
         """Yield ``fn(*args)`` for every args tuple of ``arglist``, in completion order. A
-        result is held only until it is yielded (a long build's memory stays flat)."""
-        pending = {self._ex.submit(fn, *args) for args in arglist}
+        result is held only until it is yielded (a long build's memory stays flat). A worker
+        that dies raises :class:`WorkerLost` naming the task it ran (``label(args)``)."""
+        arglist = list(arglist)
+        pending = {self._ex.submit(_tracked, i, fn, *args) for i, args in enumerate(arglist)}
         # no cancel() on the way out: after terminate() the executor fails the pending futures
         # itself (cancelling them as well races with that: InvalidStateError on Python 3.11)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             while done:
-                yield done.pop().result()
+                try:
+                    yield done.pop().result()
+                except BrokenProcessPool:
+                    raise self._lost(arglist, label) from None
+
+    def _lost(self, arglist, label) -> WorkerLost:
+        """Which worker died (the one not ended by the executor's own SIGTERM, if any), how,
+        and the task it had started last."""
+        last: dict = {}
+        while not self._started.empty():
+            pid, i = self._started.get()
+            last[pid] = i
+        for p in self.processes:
+            p.join(1.0)
+        dead = [p for p in self.processes if p.exitcode not in (None, 0)]
+        dead.sort(key=lambda p: p.exitcode == -signal.SIGTERM)
+        if not dead:
+            return WorkerLost(0, None, "")
+        p = dead[0]
+        i = last.get(p.pid)
+        return WorkerLost(p.pid, p.exitcode, "" if i is None else label(arglist[i]))
 
     def terminate(self) -> None:
         """End the workers now: SIGTERM, SIGKILL after GRACE_S; then shut the executor down."""

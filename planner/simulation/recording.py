@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from array import array
 from dataclasses import dataclass, field
 from decimal import Decimal
 
@@ -21,6 +22,7 @@ import numpy as np
 from planner.feedforward import commands
 from planner.io import atomic_write_text
 from planner.simulation.replay import pressures
+from planner.simulation.resample import resample_arrays
 from planner.trajectory import Trajectory
 
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
@@ -256,7 +258,9 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
         line = raw[:e.start].count(b"\n") + 1
         raise fail(f"line {line}: byte {raw[e.start:e.start + 1]!r} is not UTF-8 text; "
                    "expected a UTF-8 (or ASCII) comma-separated file") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
+    del raw
+    reader = csv.reader(_lines(text) if text.count("\r") == text.count("\r\n") else
+                        io.StringIO(text, newline=""))   # lone CRs: StringIO splits at them
 
     def read():
         """(first physical line of the row, row) or None at the end of the file."""
@@ -332,7 +336,8 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
 
     # ------------------------------------------------------------------ data rows
     width = len(header)
-    rows, lines, stamps = [], [], []
+    rows, lines = array("d"), array("q")   # 8 bytes a value: a 10^6-row log in ~0.5 GB
+    stamps = []                            # the time column as written (exact offsets)
     blank_line = None
     while (item := read()) is not None:
         line, row = item
@@ -361,15 +366,16 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
                 if not math.isfinite(v):
                     raise fail(f"{where}: {s!r} is not a finite number; NaN and inf are "
                                "not allowed")
-        rows.append(vals)
+        rows.extend(vals)
         lines.append(line)
         stamps.append(row[0])
-    if len(rows) < 2:
-        at = f"line {lines[0]}: only 1 data row" if rows else "line 1: header only, no data rows"
+    if len(lines) < 2:
+        at = f"line {lines[0]}: only 1 data row" if lines else "line 1: header only, no data rows"
         raise fail(f"{at}; at least 2 data rows are needed (fixed sample rate)")
 
     # ------------------------------------------------------------------ values
-    A = np.array(rows, dtype=float)
+    A = np.frombuffer(rows, dtype=float).reshape(len(lines), len(used))
+    del rows
 
     def first_bad(mask, a0):
         """(line, header column, value) of the first True of mask (N, k) over A[:, a0:a0+k],
@@ -459,34 +465,12 @@ def read_measured_csv(path, joint_names, uniform: bool = True) -> dict:
     return dict(t=t, u=u, q=q, p_a=p_a, p_b=p_b, columns=header, notes=notes, logged=logged)
 
 
-def resample_arrays(t, arrays, rate: float, commands: str = "hold"):
-    """(t_new, arrays on it): a uniform grid from t[0] at ``rate`` [Hz] up to t[-1] (within
-    1e-9 of a step); ``arrays`` (u, q, p_a, p_b) — the readings interpolated linearly, the
-    commands u ``"hold"`` (the command in effect at each new time: a change of rate) or
-    ``"nearest"`` (the sample nearest in time: timestamp jitter, where the command logged
-    with a sample belongs to that sample's controller tick); None stays None."""
-    t = np.asarray(t, float)
-    if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"rate = {rate!r} Hz; allowed: a positive number of Hz")
-    h = 1.0 / rate
-    m = int(math.floor((t[-1] - t[0]) / h + 1e-9)) + 1
-    if m < 2:
-        raise ValueError(f"rate = {rate:g} Hz gives fewer than 2 samples over "
-                         f"{t[-1] - t[0]:g} s")
-    tn = t[0] + np.arange(m) * h
-    k = np.clip(np.searchsorted(t, tn + 1e-9 * h, side="right") - 1, 0, len(t) - 1)
-    if commands == "nearest":
-        k = np.clip(np.searchsorted(t, tn), 1, len(t) - 1)
-        k = np.where(np.abs(t[k - 1] - tn) <= np.abs(t[k] - tn), k - 1, k)
-    elif commands != "hold":
-        raise ValueError(f"commands = {commands!r}; allowed: 'hold', 'nearest'")
-    out = []
-    for i, Y in enumerate(arrays):
-        if Y is None:
-            out.append(None)
-        elif i == 0:
-            out.append(np.asarray(Y, float)[k])
-        else:
-            Y = np.asarray(Y, float)
-            out.append(np.column_stack([np.interp(tn, t, Y[:, c]) for c in range(Y.shape[1])]))
-    return tn, tuple(out)
+def _lines(text: str):
+    """The lines of ``text`` with their endings, one at a time (io.StringIO would hold a
+    4-byte-per-character copy of a large file)."""
+    start, n = 0, len(text)
+    while start < n:
+        k = text.find("\n", start)
+        k = n if k < 0 else k + 1
+        yield text[start:k]
+        start = k

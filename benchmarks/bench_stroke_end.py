@@ -22,6 +22,8 @@ working tree). The judge is the fast quasi-static plant itself (the recordings a
 nothing here speaks for unmodelled dynamics.
 
     python benchmarks/bench_stroke_end.py [--n 20] [--duration 30] [--workers 2] [--before main]
+
+(``--before 47b5389``: main as the issue found it, this branch's base.)
 """
 from __future__ import annotations
 
@@ -177,7 +179,10 @@ def main():
         if args.before:
             base = Path(tmp) / "before"
             base.mkdir()
-            tar = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "planner"],
+            # the package and, where that version keeps them outside it, the machines
+            paths = [p for p in ("planner", "problems") if subprocess.run(
+                ["git", "-C", str(ROOT), "cat-file", "-e", f"{args.before}:{p}"]).returncode == 0]
+            tar = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, *paths],
                                  check=True, capture_output=True).stdout
             subprocess.run(["tar", "-x", "-C", str(base)], input=tar, check=True)
             codes.append((f"before ({args.before})", base))

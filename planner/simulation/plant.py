@@ -45,7 +45,7 @@ from planner.model.effects import as_effects, effect_from_dict, quasi_static
 from planner.simulation.recording import Recording, noise_levels
 from planner.simulation.replay import (Plant, clipped_intervals, commanded, describe_plant,
                                        differences, stroke_stops)
-from planner.simulation.stops import run_to_stops
+from planner.simulation.stops import StopPath, run_to_stops
 from planner.trajectory import Trajectory
 
 __all__ = ["StrokeMap", "stroke_map", "PlantState", "Response", "respond", "chamber_pressures",
@@ -181,18 +181,23 @@ def _fit_start(crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int =
     lo, hi = sm.stops
     qm = np.broadcast_to((q_meas - bias) / gain, np.shape(q_meas))[mask]
 
+    path = StopPath(steps, lo, hi)
+
     def misfit(x0):
-        run = run_to_stops(x0, steps, lo, hi)
+        run = path.run(x0)
         q = sm.q(run.x[mask])
         r = qm - q
         return r, run.free[mask] / sm.dxdq(q), np.sum(r * r, axis=0)
 
     x0 = np.clip(x_guess, lo, hi)
     r, J, cost = misfit(x0)
+    done = np.zeros(len(x0), bool)     # per joint: converged, or no step lowers its misfit
     for _ in range(iters):
         step = np.sum(J * r, axis=0) / np.maximum(np.sum(J * J, axis=0), 1e-300)
-        if np.all(np.abs(step) < 1e-12 * (1 + np.abs(x0))):
+        done |= np.abs(step) <= 1e-10 * (hi - lo)
+        if done.all():
             break
+        step = np.where(done, 0.0, step)
         for _ in range(4):
             x1 = np.clip(x0 + step, lo, hi)
             r1, J1, c1 = misfit(x1)
@@ -200,7 +205,8 @@ def _fit_start(crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int =
             if not worse.any():
                 break
             step = np.where(worse, 0.5 * step, step)
-        keep = c1 <= cost       # per joint: the joints are independent
+        keep = ~worse
+        done |= worse
         x0 = np.where(keep, x1, x0)
         r, J, cost = np.where(keep, r1, r), np.where(keep, J1, J), np.where(keep, c1, cost)
     return x0

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["run_to_stops", "StopRun"]
+__all__ = ["run_to_stops", "StopPath", "StopRun"]
 
 _TOL = 1e-12     # [m] a free path within this of an end is not clipped (round-off)
 
@@ -84,21 +84,35 @@ def _column(x0, dx, lo, hi):
     return x, at
 
 
+class StopPath:
+    """The free stroke changes ``dx`` (K, n) per step and the end stops ``lo``, ``hi`` (n,),
+    prepared for runs from many starts (a fit of the start): :meth:`run` (x_start) ->
+    :class:`StopRun`. A column whose free path stays inside the stops from that start is the
+    free path itself; the others are clipped (:func:`run_to_stops`)."""
+
+    def __init__(self, dx, lo, hi):
+        self.dx = np.atleast_2d(np.asarray(dx, float))
+        self.lo, self.hi = np.asarray(lo, float), np.asarray(hi, float)
+        K, n = self.dx.shape
+        self.D = np.vstack([np.zeros((1, n)), np.cumsum(self.dx, axis=0)])
+        self.d_min, self.d_max = self.D.min(axis=0), self.D.max(axis=0)
+
+    def run(self, x_start) -> StopRun:
+        lo, hi = self.lo, self.hi
+        x_start = np.clip(np.asarray(x_start, float), lo, hi)
+        x = x_start[None, :] + self.D
+        at = np.zeros(x.shape, bool)
+        free = np.ones(x.shape, bool)
+        out = np.flatnonzero((x_start + self.d_min < lo - _TOL) |
+                             (x_start + self.d_max > hi + _TOL))
+        for i in out:
+            x[:, i], at[:, i] = _column(x_start[i], self.dx[:, i], lo[i], hi[i])
+            free[int(np.argmax(at[:, i])):, i] = False
+        return StopRun(x, at, free)
+
+
 def run_to_stops(x_start, dx, lo, hi) -> StopRun:
     """Strokes (K+1, n) from the start strokes ``x_start`` (n,) (clipped into [lo, hi] first)
     and the free stroke changes ``dx`` (K, n) per step, held at the end stops ``lo``, ``hi``
     (n,) — the sequential clip of the module doc, exactly."""
-    dx = np.atleast_2d(np.asarray(dx, float))
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    x_start = np.clip(np.asarray(x_start, float), lo, hi)
-    K, n = dx.shape
-    x = x_start[None, :] + np.vstack([np.zeros((1, n)), np.cumsum(dx, axis=0)])
-    at = np.zeros((K + 1, n), bool)
-    free = np.ones((K + 1, n), bool)
-    out = np.flatnonzero(np.any((x < lo - _TOL) | (x > hi + _TOL), axis=0))
-    for i in out:
-        x[:, i], at[:, i] = _column(x_start[i], dx[:, i], lo[i], hi[i])
-        first = int(np.argmax(at[:, i]))
-        free[first:, i] = False
-    # a start on an end with the first step into it: no sensitivity from sample 0 on
-    return StopRun(x, at, free)
+    return StopPath(dx, lo, hi).run(x_start)

@@ -125,7 +125,10 @@ def pct(a, b):
 def report(results, args, wall):
     L = ["# A clean recording through a stroke end (issue 26, defect 2)", "",
          f"`python benchmarks/bench_stroke_end.py --n {args.n} --duration {args.duration:g} "
-         f"--workers {args.workers} --before {args.before}`, "
+         f"--workers {args.workers} --before {args.before}`"
+         + (" (the two codes' rows run concurrently, each by the same command's `--run "
+            "--rows FILE` with PYTHONPATH at that code, then `--from-rows BEFORE AFTER`)"
+            if args.from_rows else "") + ", "
          f"{datetime.datetime.now().isoformat(timespec='seconds')}, {platform.platform()}, "
          f"{os.cpu_count()} CPUs (shared), {wall / 60:.1f} min wall. Judge: the fast "
          "quasi-static plant (`planner.simulation.plant.respond`; the recordings are made with "
@@ -169,11 +172,19 @@ def main():
                     help="git ref whose planner/ is the 'before' code ('' : none)")
     ap.add_argument("--run", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--rows", help=argparse.SUPPRESS)
+    ap.add_argument("--from-rows", nargs=2, metavar=("BEFORE.json", "AFTER.json"),
+                    help="write the report from rows already computed (each by a run with "
+                         "--run --rows FILE on that code, e.g. concurrently on a busy machine)")
+    ap.add_argument("--wall", type=float, default=0.0, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.run:
         return run(args)
     t0 = time.perf_counter()
     results = {}
+    if args.from_rows:
+        for label, f in zip((f"before ({args.before})", "after (this tree)"), args.from_rows):
+            results[label] = json.loads(Path(f).read_text())
+        return write(results, args, args.wall)
     with tempfile.TemporaryDirectory() as tmp:
         codes = []
         if args.before:
@@ -195,7 +206,10 @@ def main():
                             str(args.n), "--duration", str(args.duration), "--workers",
                             str(args.workers)], env=env, check=True, cwd=tmp)
             results[label] = json.loads(rows.read_text())
-    wall = time.perf_counter() - t0
+    write(results, args, time.perf_counter() - t0)
+
+
+def write(results, args, wall):
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.with_suffix(".json").write_text(json.dumps(results, indent=1, default=str))
     OUT.write_text(report(results, args, wall))

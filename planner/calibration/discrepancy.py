@@ -6,7 +6,8 @@ commanded trajectory:
 1. **Nominal model.** Replay the measured commands on the nominal plant
    (:func:`planner.simulation.plant.respond`); the start pose is fitted to the measured positions (a
    nuisance parameter of every model). Residual = measured − simulated, per channel
-   (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``).
+   (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``). Near a stroke end the model makes no
+   claim (its residual there hinges on the fitted start): :mod:`planner.calibration.ends`.
 2. **Noise floor** from the data: per channel, σ = 1.4826·MAD(Δ²y)/√6 (the second difference
    of white noise has variance 6σ²; smooth motion contributes little at 50 Hz, sparse jumps are
    rejected by the median). Nothing is claimed below it (seed 001's lesson).
@@ -45,7 +46,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
+from planner.calibration.ends import near_stroke_end
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
+from planner.calibration.report import calibrated_spec_text
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
@@ -218,6 +221,11 @@ class Discrepancy:
         self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p
         self._train, self._test = train, ~train
         self._cache = {}
+        # no claim near a stroke end (planner.calibration.ends): out of the fit and the verdict
+        near = self._near = near_stroke_end(crane, self.response(()).state.q, sig[:n])
+        self._train, self._test = train & ~near, ~train & ~near
+        self._notes += [f"{int(near.sum())} samples within 3 σ of a stroke end left out (the "
+                        "model's residual there hinges on its fitted start)"] * bool(near.any())
 
     def _channels(self, rec):
         """(N, C) measured channels: q, then p_a, p_b interleaved per joint (if present)."""
@@ -240,6 +248,9 @@ class Discrepancy:
         rec = self._rec
         return respond(self.crane, rec.t, rec.u, rec.q[0], tuple(effects), t_end=rec.t[-1],
                        q_fit=rec.q, fit_mask=self._train, replay_cache=self._cache)
+
+    def _claimed(self, Yp):     # the measurement itself where the model makes no claim
+        return np.where(self._near[:, None], self._Y, Yp)
 
     def _J(self, Yp, mask):
         R = (self._Y - Yp)[mask] / self._sig
@@ -395,9 +406,10 @@ class Discrepancy:
         final = second or chosen
         r0 = self.response(())
         conds = operating_conditions(crane, self._rec.u, r0.state)
-        ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols, self.predict,
+        ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols,
+                      lambda effects: self._claimed(self.predict(effects)),
                       self.threshold, conds, crane.spec.id)
-        v = judge(ev, Y0, cands, final, chosen)
+        v = judge(ev, self._claimed(Y0), cands, final, chosen)
         if v["verdict"] == "unexplained":
             final = chosen = second = None
         Yf = self.predict(final.effects) if final else Y0
@@ -413,8 +425,9 @@ class Discrepancy:
         var = np.var(Yt, axis=0)
         vaf0 = 100 * (1 - np.var(E0, axis=0) / np.maximum(var, 1e-300))
         vaf1 = 100 * (1 - np.var(E1, axis=0) / np.maximum(var, 1e-300))
-        ex0 = np.maximum(smoothed_excess((self._Y - Y0) / sig, self._rec.t, te)[0], 0.0)
-        ex1 = np.maximum(smoothed_excess((self._Y - Yf) / sig, self._rec.t, te)[0], 0.0)
+        R0, R1 = (self._Y - self._claimed(Y0)) / sig, (self._Y - self._claimed(Yf)) / sig
+        ex0 = np.maximum(smoothed_excess(R0, self._rec.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess(R1, self._rec.t, te)[0], 0.0)
         tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
         gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
         per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
@@ -458,8 +471,7 @@ class Discrepancy:
                    + (f"; second effect {sec['effect']}" + (f" on {sec['joint']}"
                                                             if sec['joint'] else "")
                       if sec else ""))
-        where = locate(self.crane, self._rec.t, (self._Y - Y0) / sig, cols, conds,
-                       self._has_p)
+        where = locate(self.crane, self._rec.t, R0, cols, conds, self._has_p)
         series = dict(t=self._rec.t, Y=self._Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
                       threshold=self.threshold)
         return DiscrepancyResult(
@@ -482,19 +494,3 @@ def _single(cands, effect):
     return next((c for c in cands if (c.effects[0].name, c.effects[0].joint)
                  == (effect.name, effect.joint)), None)
 
-
-# ---------------------------------------------------------------------------- the model
-def calibrated_spec_text(crane, effects, source: str = "") -> str:
-    """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
-    if not crane.spec.text:
-        raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")
-    lines = [crane.spec.text.rstrip(), "",
-             f"# calibrated: effects identified by crane-planner discrepancy {source}".rstrip()]
-    for e in effects:
-        lines.append("[[effects]]")
-        lines.append(f'name = "{e.name}"')
-        if e.joint:
-            lines.append(f'joint = "{e.joint}"')
-        for k, v in e.values.items():
-            lines.append(f"{k} = {v!r}")
-    return "\n".join(lines) + "\n"

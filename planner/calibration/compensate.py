@@ -1,5 +1,6 @@
 """Compensation: feed-forward re-planned on the calibrated model (the nominal model plus the
-identified effects), and its open-loop tracking against the plain feed-forward."""
+identified effects), and its open-loop tracking against the plain feed-forward; the calibrated
+model's spec text (:func:`calibrated_spec_text`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,7 +11,7 @@ from planner.model.valves import command_to_stroke_rate, draws_pump, valve_param
 from planner.simulation.plant import respond
 from planner.simulation.replay import valve_set
 
-__all__ = ["compensate", "closed_loop"]
+__all__ = ["compensate", "closed_loop", "calibrated_spec_text"]
 
 
 def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
@@ -85,3 +86,19 @@ def closed_loop(crane, plan, calibrated, plant_effects=None, rate: float = 50.0)
     return dict(before=before, after=after, predicted=plant_effects is None,
                 reduction=(1.0 - after["rms_m"] / before["rms_m"]) if before["rms_m"] > 0
                 else 0.0)
+
+
+def calibrated_spec_text(crane, effects, source: str = "") -> str:
+    """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
+    if not crane.spec.text:
+        raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")
+    lines = [crane.spec.text.rstrip(), "",
+             f"# calibrated: effects identified by crane-planner discrepancy {source}".rstrip()]
+    for e in effects:
+        lines.append("[[effects]]")
+        lines.append(f'name = "{e.name}"')
+        if e.joint:
+            lines.append(f'joint = "{e.joint}"')
+        for k, v in e.values.items():
+            lines.append(f"{k} = {v!r}")
+    return "\n".join(lines) + "\n"

@@ -46,9 +46,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
+from planner.calibration.compensate import calibrated_spec_text
 from planner.calibration.ends import near_stroke_end
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
-from planner.calibration.report import calibrated_spec_text
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions

@@ -1,5 +1,5 @@
 """The discrepancy report: markdown, the JSON result and the figures of a
-:class:`planner.calibration.discrepancy.DiscrepancyResult`; the calibrated model's spec text."""
+:class:`planner.calibration.discrepancy.DiscrepancyResult`."""
 from __future__ import annotations
 
 import math
@@ -11,7 +11,7 @@ from planner.io import atomic_write_text, write_json
 if TYPE_CHECKING:
     from planner.calibration.discrepancy import DiscrepancyResult
 
-__all__ = ["write_report", "calibrated_spec_text"]
+__all__ = ["write_report"]
 
 
 def _fmt(v, unit=""):
@@ -110,19 +110,3 @@ def write_report(res: DiscrepancyResult, out_dir, *, crane, measured: str = "",
           "![ranking](ranking.png)", "", f"Runtime {res.runtime_s:.1f} s."]
     atomic_write_text(out / "report.md", "\n".join(L) + "\n")
     return [out / "report.md", out / "result.json"] + [out / n for n in figs]
-
-
-def calibrated_spec_text(crane, effects, source: str = "") -> str:
-    """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
-    if not crane.spec.text:
-        raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")
-    lines = [crane.spec.text.rstrip(), "",
-             f"# calibrated: effects identified by crane-planner discrepancy {source}".rstrip()]
-    for e in effects:
-        lines.append("[[effects]]")
-        lines.append(f'name = "{e.name}"')
-        if e.joint:
-            lines.append(f'joint = "{e.joint}"')
-        for k, v in e.values.items():
-            lines.append(f"{k} = {v!r}")
-    return "\n".join(lines) + "\n"

@@ -139,7 +139,7 @@ def report(results, args, wall):
          "excitation (inner 70 % of every range). Recording i hides the (i mod 9)-th of "
          f"{', '.join(EFFECTS)}, drawn by `Effect.trial`. Effect named = `named` right "
          "(effect and joint) or `ambiguous` with the truth among the candidates.", "",
-         "| code | set | clean `explained` | effect named | plant held at a stop, median s "
+         "| code | set | clean `explained` | effect named | recordings the plant held at a stop "
          "(clean / hidden) |",
          "| --- | --- | ---: | ---: | ---: |"]
     for label, rows in results.items():
@@ -148,8 +148,8 @@ def report(results, args, wall):
             L.append(f"| {label} | {name} | "
                      f"{pct(sum(r['clean']['verdict'] == 'explained' for r in sub), len(sub))} | "
                      f"{pct(sum(r['hidden']['ok'] for r in sub), len(sub))} | "
-                     f"{np.median([r['clean']['plant_clipped_s'] for r in sub]):.2f} / "
-                     f"{np.median([r['hidden']['plant_clipped_s'] for r in sub]):.2f} |")
+                     f"{sum(r['clean']['plant_clipped_s'] > 0 for r in sub)} / "
+                     f"{sum(r['hidden']['plant_clipped_s'] > 0 for r in sub)} |")
     L += ["", "## Every recording", "",
           "| code | set | i | machine | hidden | joint | clean verdict | hidden verdict | "
           "named | ok |", "| --- | --- | ---: | --- | --- | --- | --- | --- | --- | --- |"]

@@ -1,5 +1,6 @@
 """Compensation: feed-forward re-planned on the calibrated model (the nominal model plus the
-identified effects), and its open-loop tracking against the plain feed-forward."""
+identified effects), and its open-loop tracking against the plain feed-forward (the calibrated
+model's spec text: :func:`planner.calibration.calibrated.calibrated_spec_text`)."""
 from __future__ import annotations
 
 import numpy as np

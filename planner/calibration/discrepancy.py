@@ -6,7 +6,8 @@ commanded trajectory:
 1. **Nominal model.** Replay the measured commands on the nominal plant
    (:func:`planner.simulation.plant.respond`); the start pose is fitted to the measured positions (a
    nuisance parameter of every model). Residual = measured − simulated, per channel
-   (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``).
+   (``q_<joint>``, ``p_<joint>_a``, ``p_<joint>_b``). Near a stroke end the model makes no
+   claim (its residual there hinges on the fitted start): :mod:`planner.calibration.ends`.
 2. **Noise floor** from the data: per channel, σ = 1.4826·MAD(Δ²y)/√6 (the second difference
    of white noise has variance 6σ²; smooth motion contributes little at 50 Hz, sparse jumps are
    rejected by the median). Nothing is claimed below it (seed 001's lesson).
@@ -43,14 +44,15 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
+from planner.calibration.ends import near_stroke_end
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
 from planner.calibration.rate import analysis_note, analysis_rate
-from planner.calibration.calibrated import calibrated_spec_text
+from planner.calibration.result import Candidate, DiscrepancyResult
+from planner.calibration.calibrated import calibrated_spec_text  # re-exported
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate, operating_conditions
@@ -65,84 +67,6 @@ VERDICTS = ("explained", "named", "ambiguous", "unexplained")
 
 PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
 POSITION_FLOOR = 1e-6    # [rad | m]
-
-
-@dataclass
-class Candidate:
-    """One fitted model: the effects (fitted values), its held-out score and diagnostics."""
-    effects: tuple
-    k: int
-    J_train: float
-    J_test: float
-    score: float = 0.0
-    std: dict = field(default_factory=dict)
-    cond: float = 1.0
-    excited: bool = True
-    nfev: int = 0
-
-    @property
-    def label(self) -> str:
-        return " + ".join(f"{e.name}" + (f"[{e.joint}]" if e.joint else "")
-                          for e in self.effects) or "nominal"
-
-    def summary(self) -> dict:
-        return dict(model=self.label, effects=[e.to_dict() for e in self.effects],
-                    k=self.k, J_train=self.J_train, J_test=self.J_test, score=self.score,
-                    std=self.std, cond=self.cond, excited=self.excited)
-
-
-@dataclass
-class DiscrepancyResult:
-    """``verdict`` (one of :data:`VERDICTS`, :mod:`planner.calibration.verdict`) with
-    ``confidence`` (named), ``candidates`` (ambiguous), ``signature`` and ``not_credible``
-    (unexplained), ``reasons`` and ``notes`` (how the data were read: upsampled, resampled),
-    ``analysis`` (the rate analysed at, :func:`planner.calibration.rate.analysis_rate`);
-    ``effect``: the named catalogue effect (None = nothing named; when ambiguous, the best of
-    the candidates),
-    ``joint``, ``parameters`` (fitted values) with ``uncertainty`` (standard errors),
-    ``second``: a further effect (or None), per-channel ``rms_before``/``rms_after`` (held-out,
-    channel units), ``vaf_before``/``vaf_after`` [%], ``noise``, ``gap_reduction`` (share of the
-    above-noise held-out residual removed, overall and per channel), ``ranking`` (every
-    candidate), ``where`` (:func:`locate`), ``runtime_s``."""
-    effect: str | None
-    joint: str | None
-    parameters: dict
-    uncertainty: dict
-    effects: tuple
-    second: dict | None
-    rms_before: dict
-    rms_after: dict
-    vaf_before: dict
-    vaf_after: dict
-    noise: dict
-    gap_reduction: float
-    gap_reduction_channels: dict
-    ranking: list
-    where: dict
-    identifiable: bool
-    message: str
-    runtime_s: float
-    series: dict = field(default_factory=dict, repr=False)
-    verdict: str = "explained"
-    confidence: float | None = None
-    candidates: list = field(default_factory=list)
-    signature: list = field(default_factory=list)
-    not_credible: dict | None = None
-    suggest: str | None = None
-    reasons: list = field(default_factory=list)
-    notes: list = field(default_factory=list)
-    analysis: dict = field(default_factory=dict)
-
-    def to_json(self) -> dict:
-        out = {k: getattr(self, k) for k in (
-            "verdict", "effect", "joint", "parameters", "uncertainty", "confidence",
-            "candidates", "suggest", "signature", "not_credible", "reasons", "notes", "second",
-            "rms_before", "rms_after", "vaf_before", "vaf_after", "noise", "gap_reduction",
-            "gap_reduction_channels", "identifiable", "message", "where", "runtime_s",
-            "analysis")}
-        out["effects"] = [e.to_dict() for e in self.effects]
-        out["ranking"] = self.ranking
-        return out
 
 
 def candidates(crane, names=None) -> list[Effect]:
@@ -233,6 +157,11 @@ class Discrepancy:
         self._rec, self._Y, self._sig, self._cols, self._has_p = rec, Y, sig, cols, has_p
         self._train, self._test = train, ~train
         self._cache = {}
+        # no claim near a stroke end (planner.calibration.ends): out of the fit and the verdict
+        near = self._near = near_stroke_end(crane, self.response(()).state.q, sig[:n])
+        self._train, self._test = train & ~near, ~train & ~near
+        self._notes += [f"{int(near.sum())} samples within 3 σ of a stroke end left out (the "
+                        "model's residual there hinges on its fitted start)"] * bool(near.any())
 
     def _channels(self, rec):
         """(N, C) measured channels: q, then p_a, p_b interleaved per joint (if present)."""
@@ -256,6 +185,9 @@ class Discrepancy:
         return respond(self.crane, rec.t, rec.u, rec.q[0], tuple(effects), t_end=rec.t[-1],
                        dt=(rec.t[-1] - rec.t[0]) / (len(rec.t) - 1),   # one step per sample
                        q_fit=rec.q, fit_mask=self._train, replay_cache=self._cache)
+
+    def _claimed(self, Yp):     # the measurement itself where the model makes no claim
+        return np.where(self._near[:, None], self._Y, Yp)
 
     def _J(self, Yp, mask):
         R = (self._Y - Yp)[mask] / self._sig
@@ -411,9 +343,10 @@ class Discrepancy:
         final = second or chosen
         r0 = self.response(())
         conds = operating_conditions(crane, self._rec.u, r0.state)
-        ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols, self.predict,
+        ev = Evidence(self._Y, self._sig, self._test, self._rec.t, self._cols,
+                      lambda effects: self._claimed(self.predict(effects)),
                       self.threshold, conds, crane.spec.id)
-        v = judge(ev, Y0, cands, final, chosen)
+        v = judge(ev, self._claimed(Y0), cands, final, chosen)
         if v["verdict"] == "unexplained":
             final = chosen = second = None
         Yf = self.predict(final.effects) if final else Y0
@@ -429,8 +362,9 @@ class Discrepancy:
         var = np.var(Yt, axis=0)
         vaf0 = 100 * (1 - np.var(E0, axis=0) / np.maximum(var, 1e-300))
         vaf1 = 100 * (1 - np.var(E1, axis=0) / np.maximum(var, 1e-300))
-        ex0 = np.maximum(smoothed_excess((self._Y - Y0) / sig, self._rec.t, te)[0], 0.0)
-        ex1 = np.maximum(smoothed_excess((self._Y - Yf) / sig, self._rec.t, te)[0], 0.0)
+        R0, R1 = (self._Y - self._claimed(Y0)) / sig, (self._Y - self._claimed(Yf)) / sig
+        ex0 = np.maximum(smoothed_excess(R0, self._rec.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess(R1, self._rec.t, te)[0], 0.0)
         tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
         gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
         per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
@@ -474,8 +408,7 @@ class Discrepancy:
                    + (f"; second effect {sec['effect']}" + (f" on {sec['joint']}"
                                                             if sec['joint'] else "")
                       if sec else ""))
-        where = locate(self.crane, self._rec.t, (self._Y - Y0) / sig, cols, conds,
-                       self._has_p)
+        where = locate(self.crane, self._rec.t, R0, cols, conds, self._has_p)
         series = dict(t=self._rec.t, Y=self._Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
                       threshold=self.threshold)
         return DiscrepancyResult(

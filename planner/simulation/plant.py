@@ -3,8 +3,9 @@
 :func:`respond` runs the stages in order (see :mod:`planner.model.effects`):
 
 1. commands — what the valves act on (delay, spool lag);
-2. valves — :func:`planner.simulation.replay.replay` with the effects' valve and pump parameters
-   (pressure-compensated valves, dead band, flow sharing, end stops) -> strokes x(t);
+2. valves — :func:`planner.simulation.replay.commanded` with the effects' valve and pump
+   parameters (pressure-compensated valves, dead band, flow sharing) -> the free stroke motion,
+   taken through the end stops by :func:`planner.simulation.stops.run_to_stops` -> strokes x(t);
 3. forces — actuator forces from the model's inverse dynamics at the replayed states (payload
    from the effects) plus the effects' extra forces (friction, actuator mass); chamber pressures
    from the forces (:func:`chamber_pressures`, the load-holding model of
@@ -23,8 +24,13 @@ robustness study's deviations, themselves effects), then the ones given.
 
 With ``q_fit`` (measured positions) the initial strokes are not taken from ``q0`` but fitted to
 the measurement (least squares per joint on ``fit_mask``): the start pose is a nuisance
-parameter of every model, as in any calibration. The replay itself does not depend on the start
-(valve flows depend on the commands only), so re-anchoring is exact, except at end stops.
+parameter of every model, as in any calibration. The free stroke motion does not depend on the
+start (valve flows depend on the commands only); the end stops do: a cylinder that reaches its
+end forgets where it started. So the plant never re-anchors a clipped run: the free motion
+(:func:`planner.simulation.replay.commanded`, plus the drift) goes through the end stops from
+the start — the true one, or each trial start of the fit — by the one code path
+:func:`planner.simulation.stops.run_to_stops`, and the plant that records and the model that
+diagnoses reach a stroke end the same way, at the same time.
 """
 from __future__ import annotations
 
@@ -37,7 +43,9 @@ from planner.feedforward import commands
 from planner.model import Crane, flows
 from planner.model.effects import as_effects, effect_from_dict, quasi_static
 from planner.simulation.recording import Recording, noise_levels
-from planner.simulation.replay import Plant, describe_plant, differences, replay, stroke_stops
+from planner.simulation.replay import (Plant, clipped_intervals, commanded, describe_plant,
+                                       differences, stroke_stops)
+from planner.simulation.stops import StopPath, run_to_stops
 from planner.trajectory import Trajectory
 
 __all__ = ["StrokeMap", "stroke_map", "PlantState", "Response", "respond", "chamber_pressures",
@@ -163,29 +171,51 @@ def _by_stage(effects, stage):
     return [e for e in effects if e.stage == stage]
 
 
-def _fit_start(crane, dx, x_guess, q_meas, bias, mask, gain=1.0, iters: int = 4):
-    """Initial strokes (n,) so that bias + gain·q(x0 + dx) fits q_meas on mask (per joint,
-    Gauss-Newton on the 1-D problems)."""
+def _fit_start(crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int = 8):
+    """Initial strokes (n,) so that bias + gain·q(x) fits q_meas on mask, x the run from them
+    through the end stops (:func:`planner.simulation.stops.run_to_stops`, as the plant runs):
+    per joint, Gauss-Newton on the 1-D problems with the run's own sensitivity (1 until the
+    first contact with an end, 0 after: the stop has forgotten the start), a step that does not
+    lower the misfit halved."""
     sm = stroke_map(crane)
-    x0 = x_guess.copy()
-    qm = ((q_meas - bias) / gain)[mask]
-    d_m = dx[mask]
-    for _ in range(iters):
-        q = sm.q(x0 + d_m)
-        J = 1.0 / sm.dxdq(q)
+    lo, hi = sm.stops
+    qm = np.broadcast_to((q_meas - bias) / gain, np.shape(q_meas))[mask]
+
+    path = StopPath(steps, lo, hi)
+
+    def misfit(x0):
+        run = path.run(x0)
+        q = sm.q(run.x[mask])
         r = qm - q
+        return r, run.free[mask] / sm.dxdq(q), np.sum(r * r, axis=0)
+
+    x0 = np.clip(x_guess, lo, hi)
+    r, J, cost = misfit(x0)
+    done = np.zeros(len(x0), bool)     # per joint: converged, or no step lowers its misfit
+    for _ in range(iters):
         step = np.sum(J * r, axis=0) / np.maximum(np.sum(J * J, axis=0), 1e-300)
-        x0 = x0 + step
-        if np.all(np.abs(step) < 1e-12 * (1 + np.abs(x0))):
+        done |= np.abs(step) <= 1e-10 * (hi - lo)
+        if done.all():
             break
+        step = np.where(done, 0.0, step)
+        for _ in range(4):
+            x1 = np.clip(x0 + step, lo, hi)
+            r1, J1, c1 = misfit(x1)
+            worse = c1 > cost
+            if not worse.any():
+                break
+            step = np.where(worse, 0.5 * step, step)
+        keep = ~worse
+        done |= worse
+        x0 = np.where(keep, x1, x0)
+        r, J, cost = np.where(keep, r1, r), np.where(keep, J1, J), np.where(keep, c1, cost)
     return x0
 
 
-def _q_from_strokes(crane, x, lo, hi):
-    x = np.clip(x, lo, hi)
+def _q_from_strokes(crane, x):
     q = stroke_map(crane).q(x)
     L = crane.limit_arrays()
-    return np.clip(q, L["q_min"], L["q_max"]), x
+    return np.clip(q, L["q_min"], L["q_max"])
 
 
 def _forces(crane, effects, t, q, dt, x, payload):
@@ -221,15 +251,12 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
     u = np.atleast_2d(np.asarray(u, float))
     key = tuple(e for e in effects if e.replayed)
     if replay_cache is not None and key in replay_cache:
-        sim = replay_cache[key]
+        cmd = replay_cache[key]
     else:
-        sim = replay(crane, t_u, u, q0, key, dt=dt, t_end=t_end)
+        cmd = commanded(crane, t_u, u, q0, key, dt=dt, t_end=t_end)
         if replay_cache is not None:
-            replay_cache[key] = sim
-    dt = sim.meta["dt"]
-    t = sim.t
-    x_sim = stroke_map(crane).x(sim.q)
-    dx = x_sim - x_sim[0]
+            replay_cache[key] = cmd
+    dt, t = cmd.dt, cmd.t
     lo, hi = stroke_map(crane).stops
     payload = crane.spec.payload.total
     for e in _by_stage(effects, "forces"):
@@ -245,16 +272,17 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
         gain = one - bias
     mask = np.ones(len(t), bool) if fit_mask is None else np.asarray(fit_mask, bool)
 
-    def anchor(dx):
-        if q_fit is None:
-            return x_sim[0]
-        return _fit_start(crane, dx, x_sim[0], np.asarray(q_fit, float), bias, mask, gain)
+    def run(steps):
+        # the start (the true one, or fitted to the measurement) and the strokes from it,
+        # through the end stops: one code path for the plant and for every fit
+        x0 = cmd.x_start if q_fit is None else _fit_start(
+            crane, steps, cmd.x_start, np.asarray(q_fit, float), bias, mask, gain)
+        r = run_to_stops(x0, steps, lo, hi)
+        return r, _q_from_strokes(crane, r.x)
 
-    x0 = anchor(dx)
-    q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
-    s = _forces(crane, effects, t, q, dt, x, payload)
+    stops, q = run(cmd.steps)
+    s = _forces(crane, effects, t, q, dt, stops.x, payload)
     drifting = _by_stage(effects, "strokes")
-    dx_cmd = dx
     prev = None
     for _ in range(6 if drifting else 0):
         # fixed-point passes: the drift from the pressures of the current (drifted, re-anchored)
@@ -263,17 +291,14 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
         rate = sum(d for d in (e.drift(crane, s) for e in drifting) if d is not None)
         if np.isscalar(rate):
             break
-        # trapezoid integral of the extra stroke rate on the sample grid
-        drift = np.vstack([np.zeros((1, crane.n)),
-                           np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None],
-                                     axis=0)])
+        # trapezoid integral of the extra stroke rate over each step of the sample grid
+        extra = 0.5 * (rate[1:] + rate[:-1]) * np.diff(t)[:, None]
+        drift = np.cumsum(extra, axis=0)
         settled = prev is not None and np.all(np.abs(drift - prev).max(axis=0)
                                               <= 1e-7 * (hi - lo))
         prev = drift
-        dx = dx_cmd + drift
-        x0 = anchor(dx)
-        q, x = _q_from_strokes(crane, x0 + dx, lo, hi)
-        s = _forces(crane, effects, t, q, dt, x, payload)
+        stops, q = run(cmd.steps + extra)
+        s = _forces(crane, effects, t, q, dt, stops.x, payload)
         if settled:
             break
     q_s = q
@@ -285,9 +310,15 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
     # the commanded u in effect at each sample (not what the valves saw)
     # (1e-6 of a step: the replay's sample times carry rounding from summing steps)
     j = np.clip(np.searchsorted(t_u, t + 1e-6 * dt, side="right") - 1, 0, len(t_u) - 1)
+    names = tuple(crane.names)
+    clipped = clipped_intervals(t, stops.at_stop, names)
+    plant_dict, plant_str = describe_plant(plant)
+    sim = Trajectory.trusted(t, q, s.qd, s.qdd, joint_names=names, method="replay",
+                             interpolation="quintic", u=u[j],
+                             meta=dict(plant=plant_dict, plant_str=plant_str, dt=dt,
+                                       payload=cmd.payload, clipped=clipped, pump=cmd.pump))
     return Response(t=t, u=u[j], q=q_s, p_a=p_a, p_b=p_b, state=s, sim=sim, effects=given,
-                    meta=dict(pump=sim.meta["pump"], clipped=sim.meta["clipped"], dt=dt,
-                              payload=payload))
+                    meta=dict(pump=cmd.pump, clipped=clipped, dt=dt, payload=payload))
 
 
 # ----------------------------------------------------------------------------- CLI helper

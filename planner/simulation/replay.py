@@ -18,7 +18,9 @@ Plant model (one step per fixed time step; everything per actuator unless said o
   the stroke rate is piecewise constant between command instants and each step's displacement is
   the *exact* integral of the held rates over the step (steps need not line up with the command
   grid). The stroke stops at the **end stops** (the strokes at the joint limits — the model is
-  defined only inside them); clipping is reported in ``meta["clipped"]``.
+  defined only inside them), through :func:`planner.simulation.stops.run_to_stops` — the one
+  code path of every replay, the plant's and a diagnosis's alike (:func:`commanded` gives the
+  free stroke motion it takes to the stops); clipping is reported in ``meta["clipped"]``.
 * joint positions from the inverse stroke map (``crane.joint_from_stroke`` + Newton polish);
   an actuator whose stroke did not change stands exactly still (no round-off drift).
 * qd, qdd by consistent finite differences of the positions on the step grid (central first
@@ -50,9 +52,11 @@ from planner.feedforward import commands
 from planner.model.valves import steady_flows, valve_params
 from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
                                         ValveDeadband, ValveSet, as_effects, quasi_static)
+from planner.simulation.stops import run_to_stops
 from planner.trajectory import Trajectory
 
-__all__ = ["Plant", "describe_plant", "replay", "pressures", "valve_set", "plant_valves",
+__all__ = ["Plant", "describe_plant", "replay", "Commanded", "commanded", "clipped_intervals",
+           "pressures", "valve_set", "plant_valves",
            "stroke_rates", "stroke_stops", "differences", "default_perturbations", "robustness"]
 
 
@@ -226,25 +230,28 @@ def _runs(mask):
     return list(zip(d[::2], d[1::2]))
 
 
-def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
-           t_end: float | None = None, joint_names=None) -> Trajectory:
-    """Open-loop replay of valve commands on the plant (see the module doc): a :class:`Plant`
-    or a sequence of effects, of which the commands, start and valves stages are applied.
+@dataclass(frozen=True)
+class Commanded:
+    """What the commands make of the strokes before the end stops (:func:`commanded`): sample
+    times ``t`` (K+1,), ``j`` (K+1,) the command in effect at each, ``steps`` (K, n) the stroke
+    change of each step as metered (no end stops), the true start ``q_start`` (n,) (start-stage
+    effects, clipped into the joint range) and its strokes ``x_start``, ``dt``, ``pump``
+    (statistics), ``payload`` (forces-stage effects' load, None: the spec's)."""
+    t: np.ndarray
+    j: np.ndarray
+    steps: np.ndarray
+    q_start: np.ndarray
+    x_start: np.ndarray
+    dt: float
+    pump: dict
+    payload: float | None
 
-    ``t_u`` (M,) strictly increasing command instants [s], ``u`` (M, n): u[k] is held over
-    [t_u[k], t_u[k+1]) (zero-order hold); the last row is held until ``t_end`` (default t_u[-1],
-    i.e. the last row is unused — as in :func:`planner.feedforward.predict_motion`). ``q0``: the
-    nominal initial configuration (the start-stage effects move it, e.g. ``plant.q0_offset``
-    is added; the result is clipped to the joint limits). ``dt``: the fixed step [s] (default: the command period, the shortest
-    interval of ``t_u``); the grid is t_u[0] + k·dt up to t_end. The step is exact for any dt
-    (held rates integrated exactly), so smaller steps only give more samples.
 
-    Returns a :class:`Trajectory` (quintic interpolation through q and the difference-based qd,
-    qdd) with ``u`` = the command in effect at each sample (as commanded, before the
-    commands-stage effects), and ``meta``: plant, plant_str, payload (the forces-stage
-    effects' load in the grapple, None: the spec's), dt, clipped
-    (joint -> [(t0, t1)] at an end stop while commanded beyond it), pump (peak flow drawn,
-    time the pump was short of the demand, smallest sharing factor)."""
+def commanded(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
+              t_end: float | None = None) -> Commanded:
+    """The commands, start and valves stages of :func:`replay` (same arguments): the free
+    stroke motion, which :func:`planner.simulation.stops.run_to_stops` takes to the end stops
+    from whichever start (the replay's own, or one fitted to a measurement)."""
     t_u = np.asarray(t_u, float).ravel()
     u = np.atleast_2d(np.asarray(u, float))
     q0 = np.asarray(q0, float).ravel()
@@ -291,28 +298,59 @@ def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
     j = np.clip(np.searchsorted(t_u, t + 1e-9 * dt, side="right") - 1, 0, t_u.size - 1)
     t = np.where(np.abs(t - t_u[j]) <= 1e-9 * dt, t_u[j], t)
     Xt = X[j] + xd[j] * (t - t_u[j])[:, None]
-    dx = np.diff(Xt, axis=0)                                   # (K, n) per step
-
     x_start, _ = crane.stroke(q_start)
-    lo, hi = stroke_stops(crane)
-    x_start = np.clip(x_start, lo, hi)
-    x = x_start[None, :] + np.vstack([np.zeros((1, n)), np.cumsum(dx, axis=0)])
-    tol = 1e-12
-    at_stop = np.zeros((K + 1, n), bool)
-    out = np.flatnonzero(np.any((x < lo - tol) | (x > hi + tol), axis=0))
-    if out.size:                                               # the sequential part, rarely
-        xs = x[:, out].copy()
-        lo_o, hi_o = lo[out], hi[out]
-        for k in range(K):
-            nxt = xs[k] + dx[k, out]
-            c = np.clip(nxt, lo_o, hi_o)
-            at_stop[k + 1, out] = c != nxt
-            xs[k + 1] = c
-        x[:, out] = xs
+    # pump statistics over the replayed span (interval k of the commands covers its hold time)
+    Tk = np.diff(np.append(t_u, max(t_end, t_u[-1])))
+    payload = total = crane.spec.payload.total
+    for e in effects:
+        payload = e.payload(crane, payload)
+    pump = dict(peak_flow_m3s=float(np.max(qpump)), short_s=float(np.sum(Tk[share < 1.0])),
+                min_share=float(np.min(share)), max_flow_m3s=qmax)
+    return Commanded(t=t, j=j, steps=np.diff(Xt, axis=0), q_start=q_start,
+                     x_start=np.clip(np.ravel(x_start), *stroke_stops(crane)), dt=dt,
+                     pump=pump, payload=None if payload == total else payload)
 
+
+def clipped_intervals(t, at_stop, names) -> dict:
+    """joint -> [(t0, t1)] of the runs of samples at an end stop while commanded beyond it."""
+    clipped = {}
+    for i, name in enumerate(names):
+        for a, b in _runs(at_stop[:, i]):
+            clipped.setdefault(name, []).append((float(t[a - 1] if a else t[a]),
+                                                 float(t[b - 1])))
+    return clipped
+
+
+def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
+           t_end: float | None = None, joint_names=None) -> Trajectory:
+    """Open-loop replay of valve commands on the plant (see the module doc): a :class:`Plant`
+    or a sequence of effects, of which the commands, start and valves stages are applied.
+
+    ``t_u`` (M,) strictly increasing command instants [s], ``u`` (M, n): u[k] is held over
+    [t_u[k], t_u[k+1]) (zero-order hold); the last row is held until ``t_end`` (default t_u[-1],
+    i.e. the last row is unused — as in :func:`planner.feedforward.predict_motion`). ``q0``: the
+    nominal initial configuration (the start-stage effects move it, e.g. ``plant.q0_offset``
+    is added; the result is clipped to the joint limits). ``dt``: the fixed step [s] (default: the command period, the shortest
+    interval of ``t_u``); the grid is t_u[0] + k·dt up to t_end. The step is exact for any dt
+    (held rates integrated exactly), so smaller steps only give more samples. The end stops:
+    :func:`planner.simulation.stops.run_to_stops` (the plant's one code path for them).
+
+    Returns a :class:`Trajectory` (quintic interpolation through q and the difference-based qd,
+    qdd) with ``u`` = the command in effect at each sample (as commanded, before the
+    commands-stage effects), and ``meta``: plant, plant_str, payload (the forces-stage
+    effects' load in the grapple, None: the spec's), dt, clipped
+    (joint -> [(t0, t1)] at an end stop while commanded beyond it), pump (peak flow drawn,
+    time the pump was short of the demand, smallest sharing factor)."""
+    c = commanded(crane, t_u, u, q0, plant, dt, t_end)
+    u = np.atleast_2d(np.asarray(u, float))
+    L = crane.limit_arrays()
+    lo, hi = stroke_stops(crane)
+    run = run_to_stops(c.x_start, c.steps, lo, hi)
+    x = run.x
+    K, n = c.steps.shape
     # joint positions: inverse stroke map + polish; unchanged strokes stand exactly still
     q = crane.joint_from_stroke(x)
-    q[0] = q_start
+    q[0] = c.q_start
     for _ in range(2):
         xq, d = crane.stroke(q[1:])
         q[1:] -= (xq - x[1:]) / d
@@ -321,27 +359,14 @@ def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
     last = np.maximum.accumulate(np.where(moved, kk, 0), axis=0)
     q = np.take_along_axis(q, last, axis=0)
     q = np.clip(q, L["q_min"], L["q_max"])
-    qd, qdd = differences(q, dt)
+    qd, qdd = differences(q, c.dt)
 
     names = tuple(joint_names) if joint_names else tuple(crane.names)
-    clipped = {}
-    for i in range(n):
-        for a, b in _runs(at_stop[:, i]):
-            clipped.setdefault(names[i], []).append((float(t[a - 1] if a else t[a]),
-                                                     float(t[b - 1])))
-    # pump statistics over the replayed span (interval k of the commands covers its hold time)
-    Tk = np.diff(np.append(t_u, max(t_end, t_u[-1])))
-    short = float(np.sum(Tk[share < 1.0]))
-    payload = total = crane.spec.payload.total
-    for e in effects:
-        payload = e.payload(crane, payload)
     as_dict, as_text = describe_plant(plant)
-    meta = dict(plant=as_dict, plant_str=as_text, dt=dt,
-                payload=None if payload == total else payload, clipped=clipped,
-                pump=dict(peak_flow_m3s=float(np.max(qpump)), short_s=short,
-                          min_share=float(np.min(share)), max_flow_m3s=qmax))
-    return Trajectory(t, q, qd, qdd, joint_names=names, method="replay",
-                      interpolation="quintic", u=u[j], meta=meta)
+    meta = dict(plant=as_dict, plant_str=as_text, dt=c.dt, payload=c.payload,
+                clipped=clipped_intervals(c.t, run.at_stop, names), pump=c.pump)
+    return Trajectory(c.t, q, qd, qdd, joint_names=names, method="replay",
+                      interpolation="quintic", u=u[c.j], meta=meta)
 
 
 def pressures(crane, sim: Trajectory, payload=None):

@@ -23,6 +23,8 @@ matplotlib is imported only here, and this module only by the commands that draw
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import html
 import math
 import re
@@ -33,6 +35,9 @@ import numpy as np
 
 from planner.geometry.obstacles import Plate, Wall
 from planner.io import atomic_write_bytes, atomic_write_text
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["ANIMATION_FORMATS", "MAX_FPS", "MAX_FRAMES", "DEFAULT_FPS", "AnimationError",
            "animation_format", "check_fps", "frame_count", "MoveAnimation", "animate"]
@@ -148,7 +153,7 @@ def _plate_cut(p: Plate, phi: float):
     return np.array([[r, p.z_bottom], [r, p.z_top]])
 
 
-def build_animation(crane, traj, obstacles=(), fps: float = DEFAULT_FPS,
+def build_animation(crane: Crane, traj, obstacles=(), fps: float = DEFAULT_FPS,
                     title: str = "") -> MoveAnimation:
     """The figure, its artists and every frame's geometry (nothing written)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -244,7 +249,7 @@ def build_animation(crane, traj, obstacles=(), fps: float = DEFAULT_FPS,
     return anim
 
 
-def animate(crane, traj, path, obstacles=(), fps: float = DEFAULT_FPS, title: str = "",
+def animate(crane: Crane, traj, path, obstacles=(), fps: float = DEFAULT_FPS, title: str = "",
             dpi: int = 80) -> dict:
     """Write the animation of ``traj`` to ``path`` (format from the suffix,
     :func:`animation_format`), atomically. Returns dict file, format, frames, fps, speedup."""

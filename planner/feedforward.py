@@ -33,6 +33,8 @@ those intervals are reported.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import dataclass, field
 
@@ -42,6 +44,9 @@ from numpy.polynomial import Polynomial
 from planner.model.valves import (command_to_stroke_rate, stroke_rate_to_command,
                                   valve_params)
 from planner.trajectory import Trajectory, evaluate
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
            "ProgressEstimator", "progress_estimator"]
@@ -145,7 +150,7 @@ def _runs(mask):
     return list(zip(d[::2], d[1::2]))
 
 
-def commands(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") -> FeedForward:
+def commands(crane: Crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") -> FeedForward:
     """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
 
     The grid is t0 + k/rate, k = 0 … ceil(duration·rate) (the last instant may lie up to one
@@ -187,7 +192,7 @@ def commands(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") ->
 
 
 # ----------------------------------------------------------------------------- replay
-def predict_motion(crane, t, u, q0, flow_scale=1.0, substeps: int = 1,
+def predict_motion(crane: Crane, t, u, q0, flow_scale=1.0, substeps: int = 1,
                    joint_names=None) -> Trajectory:
     """Kinematic open-loop replay of valve commands (the inverse of :func:`commands`).
 
@@ -235,7 +240,7 @@ def predict_motion(crane, t, u, q0, flow_scale=1.0, substeps: int = 1,
                                 substeps=substeps))
 
 
-def round_trip(crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean",
+def round_trip(crane: Crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean",
                substeps: int = 8) -> dict:
     """commands -> predict_motion -> compare with ``traj``. Returns max |q_pred − q_plan| per
     joint at the control instants (``at_samples``) and on the ``substeps``-refined grid
@@ -323,7 +328,7 @@ class ProgressEstimator:
         return f"progress from ΔP of '{self.cylinder}' ({mono}); fit RMS: {rms}"
 
 
-def progress_estimator(crane, traj: Trajectory, degree: int = 5, rate: float = 200.0,
+def progress_estimator(crane: Crane, traj: Trajectory, degree: int = 5, rate: float = 200.0,
                        candidates=None, tol: float = 1e-3, min_range: float = 1e5,
                        payload=None) -> ProgressEstimator:
     """Seed 003's position estimate from pressures along the planned motion of ``traj``.

@@ -8,6 +8,8 @@ re-exported for the benchmark scripts that draw with pyplot; pyplot itself picks
 is no display."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import io
 import math
 from pathlib import Path
@@ -20,6 +22,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from planner.io import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["FIGURE_FORMATS", "FigureFormatError", "figure_format", "new_figure", "save", "plt",
            "workspace_extent", "reachable_region", "workspace_figure", "trajectory_figure",
@@ -72,14 +77,14 @@ def _finish(fig, path):
     return fig
 
 
-def _planar(crane, q):
+def _planar(crane: Crane, q):
     """(ρ, z) of points given as (x, y, z) at slew 0: ρ along the boom plane."""
     o = crane.frame_origins(q)
     h = np.array([math.cos(crane.chain.psi_h), math.sin(crane.chain.psi_h), 0.0])
     return o @ h, o[:, 2]
 
 
-def workspace_extent(crane, n: int = 90) -> dict:
+def workspace_extent(crane: Crane, n: int = 90) -> dict:
     """Largest reach r_max and the tip height range z_min … z_max [m] at slew 0, from an
     n × n × 6 grid of (boom, jib, telescope) over the joint ranges."""
     L = crane.limit_arrays()
@@ -98,7 +103,7 @@ def workspace_extent(crane, n: int = 90) -> dict:
                 z_max=float(np.max(tip[:, 1])))
 
 
-def reachable_region(crane, n: int = 48) -> np.ndarray:
+def reachable_region(crane: Crane, n: int = 48) -> np.ndarray:
     """The reachable tip region at slew 0 as quadrilaterals in (r, z) [m], shape (M, 4, 2).
 
     The (boom, jib[, telescope]) box maps onto the plane; a point's preimage is a curve that
@@ -132,7 +137,7 @@ def reachable_region(crane, n: int = 48) -> np.ndarray:
 REGION_COLOUR = "#cfe8c9"  # the reachable region's fill (light green)
 
 
-def workspace_figure(crane, path=None, n: int = 90) -> Figure:
+def workspace_figure(crane: Crane, path=None, n: int = 90) -> Figure:
     """Reachable r–z region at slew 0 (filled, all telescope values: :func:`reachable_region`),
     its joint-limit boundaries, and the crane drawn at mid-range. Written to ``path`` if given
     (:func:`save`); the extent numbers are :func:`workspace_extent`."""
@@ -180,7 +185,7 @@ def workspace_figure(crane, path=None, n: int = 90) -> Figure:
     return _finish(fig, path)
 
 
-def _joint_panel(ax, crane, ev):
+def _joint_panel(ax, crane: Crane, ev):
     """Joint positions: revolute in degrees on ``ax``, prismatic (telescope) in metres on a
     twin axis of their own (dashed). Joint i is drawn in colour C{i}."""
     prismatic = [i for i, j in enumerate(crane.spec.joints) if not j.revolute]
@@ -201,7 +206,7 @@ def _joint_panel(ax, crane, ev):
     return axm
 
 
-def _pump_panel(ax, crane, ev):
+def _pump_panel(ax, crane: Crane, ev):
     """Pump flow [L/min] (left axis, with its limit) and power [kW] (right axis) in colours
     outside the joints' cycle, one legend for both."""
     ax.plot(ev.t, ev.hyd["q_pump"] * 6e4, color=PUMP_FLOW_COLOUR, label="pump flow [L/min]")
@@ -219,7 +224,7 @@ def _pump_panel(ax, crane, ev):
     return axp
 
 
-def trajectory_figure(crane, ev, path=None, title: str = "", walls=()) -> Figure:
+def trajectory_figure(crane: Crane, ev, path=None, title: str = "", walls=()) -> Figure:
     """Joint positions (telescope metres on their own axis), rates relative to their limits,
     the tip path in r–z, and pump flow / power of an evaluated trajectory (an
     :class:`~planner.trajectory.Evaluation`). Written to ``path`` if given."""

@@ -13,6 +13,8 @@ Benchmarks compare methods only through it.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import dataclass, field, replace
 
@@ -20,6 +22,9 @@ import numpy as np
 
 from planner.io import atomic_write_text
 from planner.model.flows import actuator_table
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 LIMIT_KINDS = ("position", "velocity", "acceleration", "jerk", "pump_flow", "pressure", "tension")
 
@@ -319,7 +324,7 @@ class Evaluation:
         return "\n".join(lines)
 
 
-def evaluate(crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
+def evaluate(crane: Crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
              payload: float | None = None) -> Evaluation:
     """Judge a trajectory on the crane model at ``rate`` [Hz] (plus every original sample).
 

@@ -6,7 +6,10 @@ Everything inside the package is SI (m, rad, s, Pa, m³/s, J). Human input may w
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "check_joint_range",
            "checked_trajectory", "DEG"]
@@ -122,7 +125,7 @@ def check_joint_range(joints, names, q, source: str = "trajectory") -> None:
                              f"{tol:.2g}); allowed: a trajectory of this machine")
 
 
-def checked_trajectory(crane, traj, source: str = "trajectory", crane_id: str | None = None):
+def checked_trajectory(crane: Crane, traj, source: str = "trajectory", crane_id: str | None = None):
     """``traj`` (a :class:`~planner.trajectory.Trajectory` read for ``crane``) checked against
     the machine where a trajectory file is read: the recorded ``crane_id`` (a library entry's)
     is ``crane``'s, the joints are the machine's (names and count), the positions are not in

@@ -250,3 +250,14 @@ def test_imports_under_type_checking_are_not_counted(tmp_path):
                  "    from planner.model import Crane\n", encoding="utf-8")
     got = {t for t, _, _ in _imports("planner.m", f)}
     assert "json" in got and "planner.model" not in got
+
+
+def test_every_crane_parameter_is_typed():
+    """A ``crane`` parameter says what it takes (``Crane``; imported under TYPE_CHECKING
+    where the module does not use it at run time)."""
+    bare = [f"{m}:{node.lineno} {node.name}" for m, p in MODULES.items()
+            for node in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+            for a in node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+            if a.arg == "crane" and a.annotation is None]
+    assert bare == []

@@ -73,7 +73,7 @@ class Ctx:
     """Per-suite context: the crane, settings, obstacles, the suite's DP grid and a cache of
     MoveNLP objects (built once; build times in ``build_s``)."""
 
-    def __init__(self, crane, settings: Settings, suite):
+    def __init__(self, crane: Crane, settings: Settings, suite):
         self.crane, self.settings, self.suite = crane, settings, suite
         self.obstacles = tuple(suite.obstacles)
         self.build_s: dict = {}

@@ -12,6 +12,8 @@ does not carry.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from contextlib import contextmanager
 
 from planner.bench.context import Outcome
@@ -23,11 +25,14 @@ from planner.methods.topp import retime
 from planner.tasks.cycles import START_TELE, cycle, labels
 from planner.trajectory import evaluate
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["dp_energy_cycle", "dp_energy_cycle_pinned", "topp_dp_cycle", "nlp_energy_cycle",
            "dp_chain"]
 
 
-def _dp_tele_step(crane, path_speed, step, window):
+def _dp_tele_step(crane: Crane, path_speed, step, window):
     """Telescope grid so that ``window`` steps per stage reach the telescope's rate limit
     (≤ 0.02 m), as benchmarks/seed002_table.py."""
     vmax = float(crane.limit_arrays()["qd_max"][crane.chain.tele])

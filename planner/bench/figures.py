@@ -4,10 +4,15 @@ timed cycles, whose durations are equal), and the joint and actuator-stroke prof
 per method. Units: s, kJ, rad or m."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.bench.methods import method_names
 from planner.bench.rows import by_move, succeeded
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 def _colour(m, methods=None):
@@ -89,7 +94,7 @@ def fig_bars(name, sres, path):
     save(fig, path)
 
 
-def fig_profiles(name, keep, crane, move_id, path):
+def fig_profiles(name, keep, crane: Crane, move_id, path):
     """Joint positions (left) and cylinder strokes (right) of one move, one line per method."""
     from planner.plots import plt, save
     n = crane.n

@@ -95,7 +95,7 @@ def timed_run(runner, ctx, move, repeats: int):
     return first, times
 
 
-def implied_accel(crane, traj):
+def implied_accel(crane: Crane, traj):
     """Largest |Δq̇|/Δt over the limit (ratio) of a piecewise-linear trajectory at its own
     sample spacing, from rest and back to rest (evaluate() sees q̈ = 0 on such trajectories:
     the velocity steps of laws and DP are invisible to it). None for smooth trajectories."""

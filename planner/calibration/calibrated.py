@@ -3,8 +3,13 @@ as ``[[effects]]`` tables (what ``discrepancy --save-model`` writes; the spec re
 as the machine with those effects, :mod:`planner.model.effects`)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
 
-def calibrated_spec_text(crane, effects, source: str = "") -> str:
+if TYPE_CHECKING:
+    from planner.model import Crane
+
+
+def calibrated_spec_text(crane: Crane, effects, source: str = "") -> str:
     """The crane's TOML spec with the effects appended as ``[[effects]]`` tables."""
     if not crane.spec.text:
         raise ValueError(f"crane '{crane.spec.id}': the spec's TOML text is not available")

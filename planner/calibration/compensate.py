@@ -3,6 +3,8 @@ identified effects), and its open-loop tracking against the plain feed-forward (
 model's spec text: :func:`planner.calibration.calibrated.calibrated_spec_text`)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.feedforward import commands
@@ -11,10 +13,13 @@ from planner.model.valves import command_to_stroke_rate, draws_pump, valve_param
 from planner.simulation.plant import respond
 from planner.simulation.replay import valve_set
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["compensate", "closed_loop"]
 
 
-def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
+def compensate(crane: Crane, plan, effects, rate: float = 50.0, iterations: int = 10):
     """Re-plan the feed-forward of ``plan`` on the calibrated model (the plant *with*
     ``effects``). Returns (plan_used, t, u, q0_reading):
 
@@ -62,7 +67,7 @@ def compensate(crane, plan, effects, rate: float = 50.0, iterations: int = 10):
     return plan, t, u, q0_reading
 
 
-def closed_loop(crane, plan, calibrated, plant_effects=None, rate: float = 50.0) -> dict:
+def closed_loop(crane: Crane, plan, calibrated, plant_effects=None, rate: float = 50.0) -> dict:
     """Open-loop tracking of ``plan`` on a plant with ``plant_effects`` (default: the
     calibrated effects themselves — a prediction), with the nominal feed-forward and with the
     feed-forward re-planned on the calibrated model (:func:`compensate`). The crane is

@@ -42,6 +42,8 @@ to: a registered effect is searched with no change here.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time as _time
 
@@ -60,6 +62,9 @@ from planner.model.effects import CATALOGUE, Effect, fittable, quasi_static
 from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["Discrepancy", "DiscrepancyResult", "Candidate", "candidates", "noise_floor",
            "locate", "calibrated_spec_text", "VERDICTS"]
 
@@ -69,7 +74,7 @@ PRESSURE_FLOOR = 1e3     # [Pa] smallest σ used (noise-free data)
 POSITION_FLOOR = 1e-6    # [rad | m]
 
 
-def candidates(crane, names=None) -> list[Effect]:
+def candidates(crane: Crane, names=None) -> list[Effect]:
     """The effects the search fits (at their neutral values): every catalogue effect named in
     ``names`` (default: :func:`fittable`, in catalogue order), per-joint ones on every joint."""
     out = []
@@ -89,7 +94,7 @@ class Discrepancy:
     train/held-out blocks; threshold: least held-out score to name an effect (calibrated on
     clean data); grid: scan points per parameter before the local fit."""
 
-    def __init__(self, crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
+    def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
                  grid: int = 13, second: bool = True):
         unknown = [c for c in (candidates or []) if c not in CATALOGUE]
         if unknown:

@@ -12,14 +12,19 @@ differences span them) are left out of the fit, the held-out scores and the verd
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.simulation.plant import stroke_map
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["near_stroke_end"]
 
 
-def near_stroke_end(crane, q, sigma_q, k: float = 3.0, pad: int = 2) -> np.ndarray:
+def near_stroke_end(crane: Crane, q, sigma_q, k: float = 3.0, pad: int = 2) -> np.ndarray:
     """(N,) rows where some joint of ``q`` (N, n) lies within ``k``·``sigma_q`` (n,) [rad | m]
     of the stroke at one of its limits (the end stops), widened by ``pad`` samples."""
     sm = stroke_map(crane)

@@ -40,6 +40,8 @@ the designs tried, the pair is not separable, and ``ambiguous`` is the right ver
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -52,6 +54,9 @@ from planner.calibration.trials import SequenceBuilder, excitation, record
 from planner.calibration.verdict import TIE_Z
 from planner.model.effects import CATALOGUE, Effect
 from planner.trajectory import evaluate
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Design", "Family", "parse_candidates", "candidates_from_result", "separation",
            "separation_details", "design_excitation", "lengthen", "needed_duration",
@@ -97,7 +102,7 @@ class Design:
     moves: int = 3
 
 
-def parse_candidates(crane, text: str, joint: str | None = None, seed: int = 0) -> tuple:
+def parse_candidates(crane: Crane, text: str, joint: str | None = None, seed: int = 0) -> tuple:
     """``NAME[@JOINT],…`` -> effects at a realistic magnitude (the class's trial magnitude
     drawn from ``seed``); a per-joint effect without ``@JOINT`` takes ``joint``."""
     rng = np.random.default_rng(seed)
@@ -124,7 +129,7 @@ def parse_candidates(crane, text: str, joint: str | None = None, seed: int = 0) 
     return tuple(out)
 
 
-def candidates_from_result(crane, result: dict, where: str = "result") -> tuple:
+def candidates_from_result(crane: Crane, result: dict, where: str = "result") -> tuple:
     """The candidates of an ``ambiguous`` discrepancy result (the dict its JSON holds) at the
     values each was fitted to: a design for them separates the effects at the magnitudes the
     data showed (a weak effect needs a stronger design than its trial magnitude suggests)."""
@@ -158,7 +163,7 @@ def _label(e: Effect) -> str:
     return e.name + (f"@{e.joint}" if e.joint else "")
 
 
-def separation_details(crane, plan, ff, effects, seed: int = 0) -> tuple[dict, dict]:
+def separation_details(crane: Crane, plan, ff, effects, seed: int = 0) -> tuple[dict, dict]:
     """((A label, B label) -> D for every ordered pair, A label -> A's own held-out signal
     J_nominal − J_A [σ²]) on the sequence (module doc)."""
     out, signal = {}, {}
@@ -176,7 +181,7 @@ def separation_details(crane, plan, ff, effects, seed: int = 0) -> tuple[dict, d
     return out, signal
 
 
-def separation(crane, plan, ff, effects, seed: int = 0) -> dict:
+def separation(crane: Crane, plan, ff, effects, seed: int = 0) -> dict:
     """(A label, B label) -> D for every ordered pair of ``effects`` on the sequence
     (module doc)."""
     return separation_details(crane, plan, ff, effects, seed)[0]
@@ -192,7 +197,7 @@ class Family:
     HOLD = (0.3, 3.0)        # [s]
     MARGIN = 0.05
 
-    def __init__(self, crane, duration: float, rate: float = 50.0, joints=None,
+    def __init__(self, crane: Crane, duration: float, rate: float = 50.0, joints=None,
                  moves: int = 3):
         if moves < 2:
             raise ValueError(f"moves = {moves}; allowed: 2 or more")
@@ -278,7 +283,7 @@ def _unseparated(pairs: dict, signal: dict, duration: float) -> list:
     return out
 
 
-def lengthen(crane, design: Design, duration: float) -> Design:
+def lengthen(crane: Crane, design: Design, duration: float) -> Design:
     """The same design (the same periodic sequence, or the default sequence of its seed) run
     for ``duration`` s, its separation recomputed: what a longer recording of it buys."""
     effects = design.effects
@@ -296,7 +301,7 @@ def lengthen(crane, design: Design, duration: float) -> Design:
                    unseparated=_unseparated(pairs, signal, float(plan.duration)))
 
 
-def design_excitation(crane, effects, duration: float = 60.0, rate: float = 50.0,
+def design_excitation(crane: Crane, effects, duration: float = 60.0, rate: float = 50.0,
                       candidates: int = 6, seed: int = 0, budget: int = 40,
                       method: str = "optimise", moves: int = 3, progress=None) -> Design:
     """The design (module doc). ``candidates``: random starting designs (optimise) or
@@ -375,7 +380,7 @@ def design_excitation(crane, effects, duration: float = 60.0, rate: float = 50.0
                   rate=rate, moves=moves)
 
 
-def _random(crane, effects, duration, rate, candidates, seed, first, tried, t0) -> Design:
+def _random(crane: Crane, effects, duration, rate, candidates, seed, first, tried, t0) -> Design:
     """The best-of-K search over the trials' random sequences (module doc)."""
     own = sorted({e.joint for e in effects if e.joint})
     best = first

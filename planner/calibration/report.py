@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from planner.io import atomic_write_text, write_json
 
 if TYPE_CHECKING:
+    from planner.model import Crane
     from planner.calibration.discrepancy import DiscrepancyResult
 
 __all__ = ["write_report"]
@@ -20,7 +21,7 @@ def _fmt(v, unit=""):
     return f"{v:.4g}{unit}"
 
 
-def write_report(res: DiscrepancyResult, out_dir, *, crane, measured: str = "",
+def write_report(res: DiscrepancyResult, out_dir, *, crane: Crane, measured: str = "",
                  closed: dict | None = None) -> list:
     """Markdown report, JSON result and figures into ``out_dir`` (created); every file is
     written atomically. Returns the paths written."""

@@ -14,6 +14,8 @@ the catalogue that has a ``trial_range`` can be drawn; nothing here names one.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from collections.abc import Mapping
 from functools import cached_property
 
@@ -27,6 +29,9 @@ from planner.simulation.plant import respond
 from planner.simulation.recording import Recording
 from planner.simulation.replay import stroke_rates
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["excitation", "SequenceBuilder", "TrialSequence", "record", "hidden_trial", "trackable", "draw",
            "observable_joints", "TRIAL_MAGNITUDES"]
@@ -66,7 +71,7 @@ class TrialSequence:
     ``trial_values`` see it: ``peak_demand`` = its peak pump demand / the pump's maximum flow
     (computed when first asked for)."""
 
-    def __init__(self, crane, plan: Trajectory, ff):
+    def __init__(self, crane: Crane, plan: Trajectory, ff):
         self.crane, self.plan, self.ff = crane, plan, ff
 
     @cached_property
@@ -81,7 +86,7 @@ class SequenceBuilder:
     ``hold(T)``, ``move(goal, scale)``, ``t_now``, ``q`` (the current pose), ``finish(meta)``
     -> (plan, feed-forward)."""
 
-    def __init__(self, crane, q0, rate: float = 50.0):
+    def __init__(self, crane: Crane, q0, rate: float = 50.0):
         self.crane, self.rate, self.q = crane, float(rate), np.asarray(q0, float)
         n = crane.n
         self._t, self._q = [np.zeros(1)], [self.q[None]]
@@ -119,7 +124,7 @@ class SequenceBuilder:
         return plan, commands(self.crane, plan, self.rate)
 
 
-def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
+def excitation(crane: Crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
                margin: float = 0.15, joints=None, speed=(0.3, 1.0),
                first_full: bool = True) -> tuple[Trajectory, object]:
     """(plan, feed-forward) of a test sequence at least ``duration`` [s] long (see module doc).
@@ -151,7 +156,7 @@ def excitation(crane, duration: float = 60.0, rate: float = 50.0, seed: int = 0,
     return b.finish(dict(seed=seed, duration=duration))
 
 
-def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) -> Trajectory:
+def trackable(crane: Crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) -> Trajectory:
     """``plan`` slowed uniformly until its nominal feed-forward asks at most ``margin`` of
     every valve (|u|) and of the pump: a plan the nominal plant can follow open loop (as every
     library entry is), for judging re-planned feed-forward on a calibrated model."""
@@ -163,7 +168,7 @@ def trackable(crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) 
     return stretch(plan, plan.duration * need / margin)
 
 
-def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
+def record(crane: Crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
            positions_only: bool = False) -> Recording:
     """Replay ``ff`` on the plant with ``effects`` from the plan's start; sensor noise at
     seed 001's levels (``noise`` as in :func:`planner.simulation.recording.noise_levels`)."""
@@ -172,7 +177,7 @@ def record(crane, plan: Trajectory, ff, effects=(), noise=True, seed: int = 0,
     return rec.positions_only() if positions_only else rec
 
 
-def observable_joints(crane, name: str) -> list[str]:
+def observable_joints(crane: Crane, name: str) -> list[str]:
     """The joints on which the effect ``name`` leaves a trace in positions and pressures (its
     class's ``observable`` rule): the ones trials draw it on."""
     return _effect_class(name).observable_joints(crane)
@@ -184,13 +189,13 @@ def _effect_class(name: str) -> type[Effect]:
     return CATALOGUE[name]
 
 
-def draw(crane, name: str, rng, joint: str | None = None, sequence=None) -> Effect:
+def draw(crane: Crane, name: str, rng, joint: str | None = None, sequence=None) -> Effect:
     """A hidden effect ``name`` of realistic magnitude (:meth:`Effect.trial`), for the test
     ``sequence`` (a :class:`TrialSequence`; None: a pump-limited sequence is assumed)."""
     return _effect_class(name).trial(crane, rng, joint, sequence)
 
 
-def hidden_trial(crane, effect: str | None, seed: int, duration: float = 60.0,
+def hidden_trial(crane: Crane, effect: str | None, seed: int, duration: float = 60.0,
                  joint: str | None = None, noise=True):
     """(recording, plan, feed-forward, truth) — ``truth`` the injected effect (None: clean)."""
     if effect is not None:

@@ -3,16 +3,21 @@ motion, speed, load, pump saturation) — for the report (:func:`locate`) and fo
 ambiguous candidates apart (:func:`operating_conditions`)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import numpy as np
 
 from planner.simulation.replay import stroke_rates
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["operating_conditions", "locate"]
 
 
-def operating_conditions(crane, u, state) -> dict:
+def operating_conditions(crane: Crane, u, state) -> dict:
     """joint -> condition -> row mask (N,): extending / retracting / still, slow / fast (of
     the moving samples, below or above half the peak stroke rate), high / low load (actuator
     force above or below its median), pump saturated or not (the replay's sharing factor).
@@ -33,7 +38,7 @@ def operating_conditions(crane, u, state) -> dict:
     return out
 
 
-def locate(crane, t, R, columns, conditions, has_pressures: bool,
+def locate(crane: Crane, t, R, columns, conditions, has_pressures: bool,
            window_s: float = 2.0) -> dict:
     """Where the nominal residual ``R`` (N, C) in noise units lives: channels (RMS / σ), time
     windows with an excess above 2 (RMS/σ over the window, worst channel), and per joint the

@@ -2,6 +2,8 @@
 argument types (tip points, method names) and reading a trajectory named on the command line."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import argparse
 import os
 import sys
@@ -12,6 +14,9 @@ from planner.io import OutputError, check_output, missing_dirs, output_target, w
 from planner.methods import available
 from planner.trajectory import Trajectory
 from planner.units import checked_trajectory, parse_point
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 class CLIError(Exception):
@@ -142,7 +147,7 @@ def check_distinct(args) -> None:
         seen.append((label, v, keys))
 
 
-def read_trajectory(crane, ref: str) -> Trajectory:
+def read_trajectory(crane: Crane, ref: str) -> Trajectory:
     """A trajectory named on the command line: FILE.csv, or FILE.h5#ID (an entry of a library
     database; the ID may be left out when the file holds one entry; :func:`split_ref` for a
     '#' in the file name), checked against ``crane`` (:func:`planner.units.checked_trajectory`:

@@ -12,7 +12,7 @@ from planner.model.spec import parse_spec
 from planner.simulation.recording import Recording
 
 
-def read_recording(args, crane, plan):
+def read_recording(args, crane: Crane, plan):
     """``--measured``: the measured-data CSV, or a ROS 2 bag read through ``--map``
     (planner.simulation.bag; the rosbags library only then)."""
     from planner.simulation.bag import is_bag

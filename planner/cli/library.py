@@ -4,6 +4,8 @@ The store and the export need h5py; they are imported inside the commands so tha
 ``crane-planner --help`` does not load it."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import os
 import shlex
 import sys
@@ -17,6 +19,9 @@ from planner.library.build import build
 from planner.library.query import JoinError, far_warning, join_from, library_crane
 from planner.library.workers import Interrupted, WorkerLost
 from planner.units import parse_angle
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 def cpu_count() -> int:
@@ -181,7 +186,7 @@ def cmd_library_query(args):
     return 0
 
 
-def joint_state(crane, text: str) -> np.ndarray:
+def joint_state(crane: Crane, text: str) -> np.ndarray:
     """``--from q1,q2,...`` -> one value per joint of ``crane`` (SI; angles may be '30deg')."""
     try:
         q = np.array([parse_angle(v) for v in text.split(",")], float)

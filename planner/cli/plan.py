@@ -143,7 +143,7 @@ def check_animation(args) -> None:
         raise CLIError(f"--fps {args.fps:g}: allowed 0 < fps <= {MAX_FPS:g}") from None
 
 
-def write_outputs(args, crane, res, ev, walls, out: dict) -> None:
+def write_outputs(args, crane: Crane, res, ev, walls, out: dict) -> None:
     """``--out`` (trajectory CSV, fixed-rate controller CSV, or a one-entry database) and
     ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
     traj = res.trajectory

@@ -102,7 +102,7 @@ def cmd_simulate(args):
     return 0
 
 
-def _simulate_dynamic(args, crane, traj, effects, note=None):
+def _simulate_dynamic(args, crane: Crane, traj, effects, note=None):
     """``--plant exudyn`` (or another registered dynamic plant); a run that diverges or times
     out writes nothing and exits with status 3 (its status and failure time in the JSON)."""
     if args.flow_gain != 1.0 or args.pump_flow != 1.0:

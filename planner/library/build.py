@@ -34,6 +34,8 @@ refused before any file is created.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import signal
 import time as _time
@@ -48,6 +50,9 @@ from planner.library.workers import (Interrupted, SignalGuard, WorkerLost, Worke
                                      run_setup)
 from planner.methods import PlanStatus, UnsupportedRequest, get, plan
 from planner.tasks.suites import Move, load_suite
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 OBJECTIVES = ("time", "energy")
 ENERGY_BUDGET = 1.2  # energy entries: least energy within 1.2 × the minimum time
@@ -123,7 +128,7 @@ def clear_planner_caches() -> None:
         get(name).clear()
 
 
-def check_method(settings: BuildSettings, crane, moves) -> None:
+def check_method(settings: BuildSettings, crane: Crane, moves) -> None:
     """Refuse, before anything is written, a method that cannot plan the suite's requests
     (UnsupportedRequest / KeyError with the reason)."""
     p = get(settings.method)
@@ -200,7 +205,7 @@ def _failed(out: EntryResult, e: Exception, t0: float) -> EntryResult:
                    solve_s=_time.perf_counter() - t0)
 
 
-def _entry(crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> EntryResult:
+def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> EntryResult:
     """One entry of :func:`plan_move`: the plan ``res`` of its objective (``rt``, the move's
     minimum-time result, for the time entry) judged, with its feed-forward and robustness."""
     from planner.feedforward import commands

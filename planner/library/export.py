@@ -24,6 +24,8 @@ Every file is written atomically; the library is opened read-only.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import csv
 import json
 import math
@@ -42,6 +44,9 @@ from planner.library.journal import WriteFailed
 from planner.library.store import FORMAT, LibraryStore, StoreError, as_str
 from planner.model.spec import parse_spec
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 INDEX_CSV_COLUMNS = ("id", "file", "start_r", "start_z", "start_slew", "goal_r", "goal_z",
                      "goal_slew", "objective", "method", "status", "duration_s", "energy_J",
@@ -168,7 +173,7 @@ def table_csv_text(cols, units, data, units_row: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
-def fixed_rate(crane, traj: Trajectory, rate: float):
+def fixed_rate(crane: Crane, traj: Trajectory, rate: float):
     """``traj`` on the fixed control grid t0 + k/rate (k = 0 … ceil(duration·rate)) with the
     valve commands of :func:`planner.feedforward.commands` at that rate (zero-order hold, "mean"
     hold) and the hydraulic channels of the crane model on the same rows.
@@ -179,7 +184,7 @@ def fixed_rate(crane, traj: Trajectory, rate: float):
     return out, crane.hydraulics(out.q, out.qd, out.qdd)
 
 
-def write_trajectory_csv(path, crane, traj: Trajectory, *, rate: float | None = None,
+def write_trajectory_csv(path, crane: Crane, traj: Trajectory, *, rate: float | None = None,
                          units_row: bool = False) -> Trajectory:
     """A controller's trajectory CSV: with ``rate`` the fixed-rate samples with valve commands
     ``u_*`` (:func:`fixed_rate`), else the trajectory's own samples (``u_*`` if it has them);
@@ -226,7 +231,7 @@ def _dump_ros(doc: dict, fmt: str) -> str:
 
 
 # ----------------------------------------------------------------------------- one-entry database
-def write_single_entry(path, crane, traj: Trajectory, *, entry_id: str, start, goal,
+def write_single_entry(path, crane: Crane, traj: Trajectory, *, entry_id: str, start, goal,
                        objective: str, method: str, evaluation=None, attrs=None) -> Path:
     """``plan --out FILE.h5``: a library database holding this one entry (CONTRACT: trajectory
     database), written to a temporary file beside ``path`` and renamed over it, so an existing

@@ -55,9 +55,12 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 from planner.units import check_tip
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["OBJECTIVES", "PATHS", "OPTION_RULES", "PlanRequest", "PlanResult", "PlanStatus",
            "Planner", "UnsupportedRequest"]
@@ -287,13 +290,13 @@ class Planner(ABC):
     def clear(self) -> None:
         """Forget anything built and kept between calls (built solvers); default: nothing."""
 
-    def prepare(self, crane, request: PlanRequest, compile: bool = False) -> float:
+    def prepare(self, crane: Crane, request: PlanRequest, compile: bool = False) -> float:
         """Build (``compile``: and store for other processes) whatever planning ``request``
         will need, before the first plan — e.g. a library build's driver before its workers
         start. Returns the seconds it took; default: nothing to build."""
         return 0.0
 
-    def library_request(self, crane, move, objective: str, *, time_result: PlanResult | None
+    def library_request(self, crane: Crane, move, objective: str, *, time_result: PlanResult | None
                         = None, settings) -> PlanRequest:
         """The request a library build (:mod:`planner.library.build`) plans for the
         ``objective`` entry of ``move`` (its ``start`` and ``goal`` tips) on ``crane``.
@@ -312,7 +315,7 @@ class Planner(ABC):
                            duration=duration, obstacles=settings.obstacles)
 
     @abstractmethod
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         """Plan ``request`` on ``crane``; failures come back as a status, not an exception."""
 
     def __repr__(self) -> str:

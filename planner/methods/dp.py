@@ -20,6 +20,8 @@ peak memory is estimated before anything is allocated (:func:`grid_bytes`) and a
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time as _time
 
 import numpy as np
@@ -31,6 +33,9 @@ from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
 from planner.methods.registry import register
 from planner.model.flows import swept_volume
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 MAX_BYTES = 2 * 2 ** 30   # [B] largest DP grid planned (peak estimate of grid_bytes)
@@ -74,7 +79,7 @@ def _windows(a, w, fill):
     return np.moveaxis(v, -1, 2)
 
 
-def edge_times(crane, Q, dXdq, w, pump=True):
+def edge_times(crane: Crane, Q, dXdq, w, pump=True):
     """Minimum traversal time of every edge: array (N, M+1, 2w+1) (inf where infeasible), and
     the joint changes dq (N, M+1, 2w+1, n). Loops run over the few joints, each step works on
     whole edge arrays."""
@@ -99,7 +104,7 @@ def edge_times(crane, Q, dXdq, w, pump=True):
     return np.where(np.isnan(T), np.inf, T), dq
 
 
-def edge_energy(crane, Q, dq, dt, w, payload=None):
+def edge_energy(crane: Crane, Q, dq, dt, w, payload=None):
     """Pump energy [J] of every edge traversed in dt [s] (scalar or (N, M+1, 2w+1))."""
     Qs = _windows(Q[:-1], w, np.nan)
     mid = 0.5 * (Q[1:, :, None, :] + Qs)
@@ -134,7 +139,7 @@ def _too_fast(T, start, w, dt, tip_speed, length) -> str:
             f"{length / v:.4g} s")
 
 
-def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
+def dp(crane: Crane, path: Path, objective: str = "time", *, step: float = 0.01,
        stages: int | None = None, tele_step: float = 0.01, window: int = 5,
        tip_speed: float | None = None, duration: float | None = None, lam: float = 0.0,
        pump: bool = True, tele_start: float | None = None, tele_goal: float | None = None,
@@ -277,7 +282,7 @@ def dp(crane, path: Path, objective: str = "time", *, step: float = 0.01,
                     warnings=warn)
 
 
-def dp_time_reference(crane, path: Path, *, step: float = 0.01, stages: int | None = None,
+def dp_time_reference(crane: Crane, path: Path, *, step: float = 0.01, stages: int | None = None,
                       tele_step: float = 0.01, window: int = 5) -> float:
     """Minimum time by the same Bellman recursion written as plain per-node Python loops
     (velocity limits only, no pump). The readable reference that the vectorised :func:`dp`
@@ -335,7 +340,7 @@ class DPPlanner(Planner):
                                      "of `tip_speed` [m/s] or `duration` [s] (the clock it "
                                      "saves energy on)")
 
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         return dp(crane, Line(request.start, request.goal), objective=request.objective,
                   **self.grid(request))
 

@@ -15,6 +15,8 @@ cylinder-space laws live in :mod:`planner.methods.laws_energy`.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time as _time
 from abc import ABC, abstractmethod
@@ -27,6 +29,9 @@ from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
                                   UnsupportedRequest)
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 DEFAULT_TIP_SPEED = 1.0   # [m/s] a law's tip speed when the request gives none
 MAX_STEPS = 100_000       # nominal control steps of one law move (1000 s at 100 Hz)
@@ -54,30 +59,30 @@ class Law(ABC):
     tip velocity v = (ṙ, ż, slew rate). β ∈ [0, 1] is the factor the command was scaled by."""
     name = "law"
 
-    def start_tele(self, crane, tip) -> float | None:
+    def start_tele(self, crane: Crane, tip) -> float | None:
         """Telescope value the law needs at the start tip (None: any)."""
         return None
 
-    def missing(self, crane) -> str:
+    def missing(self, crane: Crane) -> str:
         """What this machine lacks for the law ("" when it has everything)."""
         return ""
 
     @abstractmethod
-    def rates(self, crane, st: Step, v: np.ndarray) -> tuple[np.ndarray, float]:
+    def rates(self, crane: Crane, st: Step, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Joint rates [rad/s | m/s] and the command scale β."""
 
     def __repr__(self):
         return f"{type(self).__name__}()"
 
 
-def planar_slew_split(crane):
+def planar_slew_split(crane: Crane):
     """Indices of the slew joint and of the planar joints (boom, jib[, tele])."""
     pc = crane.chain
     planar = [pc.boom, pc.jib] + ([pc.tele] if pc.tele is not None else [])
     return pc.slew, np.array(planar)
 
 
-def rate_box(crane, q):
+def rate_box(crane: Crane, q):
     """Allowed joint-rate box: velocity limits, reduced near a position limit so the joint can
     still stop there with its acceleration limit (v ≤ sqrt(2·a·distance)); zero at the limit."""
     L = crane.limit_arrays()
@@ -86,7 +91,7 @@ def rate_box(crane, q):
     return np.maximum(L["qd_min"], -dn), np.minimum(L["qd_max"], up)
 
 
-def flow_share(crane, q, qd, payload=None):
+def flow_share(crane: Crane, q, qd, payload=None):
     """Load-sensing flow sharing: when the actuators ask for more than the pump delivers, every
     function slows in proportion (flow-sharing valves). Returns (q̇ scaled, factor ≤ 1)."""
     Q = crane.hydraulics(q, qd, np.zeros_like(qd), payload)["q_pump"]
@@ -174,7 +179,7 @@ class LeastNorm(Law):
     """Plain pseudo-inverse q̇ = J⁺v on the planar joints, uniform scaling at saturation."""
     name = "least_norm"
 
-    def rates(self, crane, st, v):
+    def rates(self, crane: Crane, st, v):
         s, P = planar_slew_split(crane)
         qd = np.zeros(crane.n)
         qd[P] = np.linalg.pinv(st.J[:2, P]) @ v[:2]
@@ -191,7 +196,7 @@ class MaxVelocity(Law):
     def __init__(self, weights=None):
         self.weights = weights
 
-    def rates(self, crane, st, v):
+    def rates(self, crane: Crane, st, v):
         s, P = planar_slew_split(crane)
         wmap = self.weights or crane.spec.laws.weights
         w = np.array([wmap.get(crane.names[i], 1.0) for i in P])
@@ -215,7 +220,7 @@ class MaxLift(Law):
         self.p = dict(rc=rc, zc=zc, rho_min=rho_min, rho_max=rho_max)
         self.gain = gain  # [1/s] pulls the telescope onto d3(ρ) (numerical drift only)
 
-    def _params(self, crane):
+    def _params(self, crane: Crane):
         p = {k: (v if v is not None else crane.spec.laws.max_lift.get(k))
              for k, v in self.p.items()}
         if any(v is None for v in p.values()):
@@ -223,7 +228,7 @@ class MaxLift(Law):
                              "has no [laws] max_lift table)")
         return p
 
-    def missing(self, crane) -> str:
+    def missing(self, crane: Crane) -> str:
         if crane.chain.tele is None:
             return "it moves a telescope, and the machine has none"
         try:
@@ -232,7 +237,7 @@ class MaxLift(Law):
             return str(e)
         return ""
 
-    def tele_of(self, crane, r, z):
+    def tele_of(self, crane: Crane, r, z):
         """(d3, ∂d3/∂r, ∂d3/∂z) at tip (r, z) — the seed's cubic d3(ρ)."""
         p = self._params(crane)
         lo, hi = crane.tele_range
@@ -248,10 +253,10 @@ class MaxLift(Law):
         c = 0.75 * d3max / qh * (1 - u * u / (qh * qh))  # dd3/dρ (the digest's /2q² is garbled)
         return d3, c * (r - p["rc"]) / rho, c * (z - p["zc"]) / rho
 
-    def start_tele(self, crane, tip):
+    def start_tele(self, crane: Crane, tip):
         return self.tele_of(crane, tip[0], tip[1])[0]
 
-    def rates(self, crane, st, v):
+    def rates(self, crane: Crane, st, v):
         s, P = planar_slew_split(crane)
         t = crane.chain.tele
         if t is None:
@@ -285,7 +290,7 @@ def _tip_rate_along(path, s, h=1e-4):
     return d / (min(s + h, path.length) - max(s - h, 0.0))
 
 
-def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None,
+def follow(crane: Crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None,
            rate: float = 100.0, gain: float = 5.0, max_time: float | None = None) -> PlanResult:
     """Drive the tip along ``path`` at ``tip_speed`` [m/s] with ``law`` at ``rate`` [Hz].
 
@@ -368,7 +373,7 @@ def follow(crane, path: Path, law: Law, tip_speed: float, *, q0=None, tele0=None
                      solve_time_s=_time.perf_counter() - t_start)
 
 
-def follow_command(crane, law: Law, command, duration: float, *, q0, rate: float = 100.0,
+def follow_command(crane: Crane, law: Law, command, duration: float, *, q0, rate: float = 100.0,
                    gain: float = 5.0, payload: float | None = None) -> PlanResult:
     """Run ``law`` for ``duration`` [s] on a time-based command: ``command(t)`` returns the
     reference tip (r, z, slew) and its velocity at time t (e.g. seed 002's h/v/d cycles with
@@ -439,7 +444,7 @@ class LawPlanner(Planner):
                 f"for the {length:.3g} m line at {rate:g} Hz; allowed at most {MAX_STEPS} "
                 f"(`tip_speed` >= {length * rate / MAX_STEPS:.3g} m/s at this rate)")
 
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         """Raises :class:`UnsupportedRequest` when the machine lacks what the law needs (the
         ``max_lift`` law's [laws] table and a telescope)."""
         law = self.law_cls()

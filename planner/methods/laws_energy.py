@@ -46,11 +46,16 @@ the transformer (the jib and telescope saturate and the tip lags by 7–40 mm).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.methods.laws import Law, LawPlanner, planar_slew_split, scale_into_box
 from planner.methods.registry import register
 from planner.model.flows import actuator_table
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 K_JLA = -1e-2       # [m²/s] joint-limit-avoidance gain (Chan–Dubey gradient in 1/m)
 K_Q = -5.0          # [-] flow-criterion gain (areas normalised by the largest piston area)
@@ -67,12 +72,12 @@ ZONE = 0.15         # seed 002: JLA rows act only within 15 % of a stroke end
 P_REF = 1.0e7       # [Pa] pressure normalisation
 
 
-def transformer_enabled(crane) -> bool:
+def transformer_enabled(crane: Crane) -> bool:
     t = crane.spec.transformer
     return bool(t is not None and t.enabled)
 
 
-def cylinder_setup(crane, ht: bool | None = None) -> dict:
+def cylinder_setup(crane: Crane, ht: bool | None = None) -> dict:
     """Constants of the planar cylinders: indices, stroke range (the joint limits mapped to
     strokes), areas, single-acting flags, transformer coupling T (3 × 3) and k."""
     s, P = planar_slew_split(crane)
@@ -165,7 +170,7 @@ class CylinderLaw(Law):
         return f"{type(self).__name__}(ht={self.ht}{extra})"
 
     # ------------------------------------------------------------------ pieces (also for tests)
-    def setup(self, crane, memo=None) -> dict:
+    def setup(self, crane: Crane, memo=None) -> dict:
         if memo is not None and "_cyl" in memo and memo["_cyl"]["crane"] is crane:
             return memo["_cyl"]
         c = cylinder_setup(crane, self.ht)
@@ -197,7 +202,7 @@ class CylinderLaw(Law):
     def _areas(self, c, u):
         return np.where(u > 0, c["A_ext"], np.where(u < 0, c["A_ret"], 0.0)) / c["A_ref"]
 
-    def _pressures(self, crane, c, st, u):
+    def _pressures(self, crane: Crane, c, st, u):
         """Load pressure of every planar cylinder in its direction of motion [Pa]."""
         P = c["P"]
         qd = np.zeros(crane.n)
@@ -205,7 +210,7 @@ class CylinderLaw(Law):
         h = crane.hydraulics(st.q, qd, np.zeros(crane.n), st.memo.get("payload"))
         return np.where(u >= 0, h["p_a"][P], h["p_b"][P])
 
-    def null_term(self, crane, c, st):
+    def null_term(self, crane: Crane, c, st):
         """z (pump-command rates, 3): JLA + the law's criterion term."""
         P = c["P"]
         z = self.k_jla * (c["T"].T @ jla_gradient(st.x[P], c["x_lo"], c["x_hi"], self.zone))
@@ -219,7 +224,7 @@ class CylinderLaw(Law):
         st.memo["_p"] = p
         return z + self.k_p * np.abs(u) * (p ** self.n) * A * np.sign(u)
 
-    def rates(self, crane, st, v):
+    def rates(self, crane: Crane, st, v):
         c = self.setup(crane, st.memo)
         s, P = c["slew"], c["P"]
         _, Ju = self.task_jacobian(c, st.J, st.dxdq)

@@ -10,11 +10,16 @@ Adding a method is one module: subclass :class:`~planner.methods.base.Planner` a
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import importlib
 import time
 from importlib.metadata import entry_points
 
 from planner.methods.base import Planner, PlanRequest, PlanResult
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["register", "unregister", "get", "available", "plan", "BUILTIN_MODULES"]
 
@@ -71,7 +76,7 @@ def get(name: str) -> Planner:
         raise KeyError(f"unknown method {name!r}: known {', '.join(sorted(_REGISTRY))}") from None
 
 
-def plan(crane, request: PlanRequest, method: str = "nlp") -> PlanResult:
+def plan(crane: Crane, request: PlanRequest, method: str = "nlp") -> PlanResult:
     """Plan ``request`` on ``crane`` with the registered ``method``. Raises
     :class:`~planner.methods.base.UnsupportedRequest` for a request the method does not plan;
     every other failure is a result status. Sets ``method`` and (when the method left it at 0)

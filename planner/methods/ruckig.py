@@ -20,6 +20,8 @@ default guess (:mod:`planner.methods.nlp.move`) use this module.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import itertools
 import math
 import threading
@@ -33,6 +35,9 @@ from planner.bounds import lower_bound
 from planner.methods.base import Planner, PlanRequest, PlanResult, PlanStatus
 from planner.methods.registry import register
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["NO_JERK", "MIN_GAP", "state_to_state", "state_to_state_relaxed", "JerkProfile",
            "switch_times", "sample_times", "states_at", "thin", "sample", "rest_to_rest",
@@ -49,7 +54,7 @@ _chain = itertools.chain.from_iterable
 _RUCKIG_LIMITS = weakref.WeakKeyDictionary()  # crane -> {scale: limit lists}, see below
 
 
-def _ruckig_limits(crane, scale: float) -> tuple:
+def _ruckig_limits(crane: Crane, scale: float) -> tuple:
     """(vmax, vmin, amax, jmax) lists of the crane's joint limits times ``scale`` (jerk: the
     crane's, or :data:`NO_JERK` where it has none), then the position range (lower, upper,
     each widened by 1e-9), made once per crane and scale."""
@@ -296,7 +301,7 @@ def sample(traj: ruckig.Trajectory, rate: float, min_samples: int = 60,
     return (t,) + prof.at(t)
 
 
-def rest_to_rest(crane, q0, q1, *, sample_rate: float | None = 200.0,
+def rest_to_rest(crane: Crane, q0, q1, *, sample_rate: float | None = 200.0,
                  scale: float = 1.0) -> PlanResult:
     """Time-optimal synchronised jerk-limited move from q0 to q1 (both at rest).
 
@@ -377,7 +382,7 @@ class RuckigPlanner(Planner):
     objectives = ("time",)
     paths = ("free",)
 
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         lb = lower_bound(crane, request.start, request.goal)
         return rest_to_rest(crane, crane.ik(request.start, lb.tele_start),
                             crane.ik(request.goal, lb.tele_goal))

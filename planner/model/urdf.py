@@ -27,12 +27,17 @@ piston area through the actuator's lever arm) [N·m | N].
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import xml.etree.ElementTree as ET
 
 import numpy as np
 
 from planner.model.dynamics import lumped_links
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["urdf_xml", "dh_split"]
 
@@ -91,7 +96,7 @@ def _inertial(link, mass, com, inertia):
                   izz=_num(inertia[2, 2]))
 
 
-def joint_efforts(crane, n: int = 201) -> np.ndarray:
+def joint_efforts(crane: Crane, n: int = 201) -> np.ndarray:
     """Per joint the largest p_max·max(A_a, A_b)·|dx/dq| over its range [N·m | N] (NaN when
     the pump has no maximum pressure)."""
     spec = crane.spec
@@ -106,7 +111,7 @@ def joint_efforts(crane, n: int = 201) -> np.ndarray:
     return p * area * np.max(np.abs(dxdq), axis=0)
 
 
-def urdf_xml(crane) -> str:
+def urdf_xml(crane: Crane) -> str:
     """The URDF (XML text) of ``crane`` (a :class:`planner.model.Crane`); see the module doc."""
     spec = crane.spec
     L = crane.limit_arrays()

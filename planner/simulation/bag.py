@@ -37,6 +37,8 @@ interpolated and each command kept with its sample, said in ``notes``); otherwis
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import tomllib
 from pathlib import Path
@@ -46,6 +48,9 @@ import numpy as np
 from planner.feedforward import commands
 from planner.simulation.recording import (JITTER, P_MIN, Recording, check_units,
                                           resample_arrays)
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["ROS_EXTRA_HINT", "need_rosbags", "MapError", "read_map", "read_bag_recording",
            "is_bag", "UNITS"]
@@ -88,7 +93,7 @@ def is_bag(path) -> bool:
 
 
 # ----------------------------------------------------------------------------- the map
-def read_map(path, crane) -> dict:
+def read_map(path, crane: Crane) -> dict:
     """Read and check a map file against ``crane``: returns dict time, rate, names (crane
     joint -> name in the bag), and per channel present: topic, field, index (dict or None),
     factor (n,) to SI."""
@@ -133,7 +138,7 @@ def read_map(path, crane) -> dict:
     return out
 
 
-def _channel(tab, ch, crane, fail) -> dict:
+def _channel(tab, ch, crane: Crane, fail) -> dict:
     if not isinstance(tab, dict):
         raise fail(f"{ch} must be a table [{ch}] with topic, field, unit")
     bad = sorted(set(tab) - CHANNEL_KEYS)
@@ -266,7 +271,7 @@ def _at(ts, t_s, Y, hold: bool):
     return np.column_stack([np.interp(t_s, ts, Y[:, c]) for c in range(Y.shape[1])])
 
 
-def read_bag_recording(path, map_path, crane, plan=None) -> Recording:
+def read_bag_recording(path, map_path, crane: Crane, plan=None) -> Recording:
     """The measured record of a ROS 2 bag through a map file (module docstring): the same
     :class:`Recording` the measured-data CSV gives, checked the same way (strictly increasing
     time, a fixed rate (jitter resampled), |u| <= 1, pressures in range, the unit check).

@@ -63,7 +63,7 @@ class StrokeMap:
     model's calls. Agreement with ``crane.stroke`` is checked at construction (≤ 1e-9 of the
     stroke range at the midpoints)."""
 
-    def __init__(self, crane, points: int = 4001):
+    def __init__(self, crane: Crane, points: int = 4001):
         L = crane.limit_arrays()
         Q = np.linspace(L["q_min"], L["q_max"], points)
         X, D = crane.stroke(Q)
@@ -96,7 +96,7 @@ class StrokeMap:
         return np.column_stack([f(x[:, i]) for i, f in enumerate(self.inv)])
 
 
-def stroke_map(crane) -> StrokeMap:
+def stroke_map(crane: Crane) -> StrokeMap:
     """The crane's :class:`StrokeMap` (cached per model object; the cache holds the model, so
     its id cannot be reused)."""
     hit = _MAP_CACHE.get(id(crane))
@@ -105,7 +105,7 @@ def stroke_map(crane) -> StrokeMap:
     return hit[1]
 
 
-def chamber_pressures(crane, force):
+def chamber_pressures(crane: Crane, force):
     """Chamber pressures p_a, p_b (N, n) [Pa] from actuator forces (N, n), load-holding model
     (:func:`planner.model.flows.chamber_pressures`: F ≥ 0 the piston side carries it, the rod
     side at tank; F < 0 the other way round; single-acting: piston side only). The plant does
@@ -171,7 +171,7 @@ def _by_stage(effects, stage):
     return [e for e in effects if e.stage == stage]
 
 
-def _fit_start(crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int = 8):
+def _fit_start(crane: Crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int = 8):
     """Initial strokes (n,) so that bias + gain·q(x) fits q_meas on mask, x the run from them
     through the end stops (:func:`planner.simulation.stops.run_to_stops`, as the plant runs):
     per joint, Gauss-Newton on the 1-D problems with the run's own sensitivity (1 until the
@@ -212,13 +212,13 @@ def _fit_start(crane, steps, x_guess, q_meas, bias, mask, gain=1.0, iters: int =
     return x0
 
 
-def _q_from_strokes(crane, x):
+def _q_from_strokes(crane: Crane, x):
     q = stroke_map(crane).q(x)
     L = crane.limit_arrays()
     return np.clip(q, L["q_min"], L["q_max"])
 
 
-def _forces(crane, effects, t, q, dt, x, payload):
+def _forces(crane: Crane, effects, t, q, dt, x, payload):
     qd, qdd = differences(q, dt)
     dxdq = stroke_map(crane).dxdq(q)
     xd = dxdq * qd
@@ -235,7 +235,7 @@ def _forces(crane, effects, t, q, dt, x, payload):
     return s
 
 
-def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
+def respond(crane: Crane, t_u, u, q0, effects=(), *, plant=Plant(),
             dt: float | None = None, t_end: float | None = None, q_fit=None, fit_mask=None,
             replay_cache: dict | None = None) -> Response:
     """The plant's response to commands ``u`` (M, n) held over ``t_u`` (M,), from ``q0`` (n,)
@@ -322,7 +322,7 @@ def respond(crane, t_u, u, q0, effects=(), *, plant=Plant(),
 
 
 # ----------------------------------------------------------------------------- CLI helper
-def simulate_to_csv(crane, traj: Trajectory, out, plant=Plant(), rate: float = 50.0,
+def simulate_to_csv(crane: Crane, traj: Trajectory, out, plant=Plant(), rate: float = 50.0,
                     noise=None, seed: int = 0, effects=()) -> dict:
     """What ``crane-planner simulate`` does: replay ``traj``'s valve commands (its own ``u``
     when it carries them on a uniform grid, else :func:`planner.feedforward.commands` at

@@ -31,12 +31,15 @@ from __future__ import annotations
 import importlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from planner.model.effects import as_effects, effect_from_dict, refuse
 from planner.model.effects.hooks import DYNAMIC_HOOKS, QUASI_STATIC_HOOKS
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["PlantRecord", "BasePlant", "FastPlant", "PLANTS", "plant_class", "make_plant",
            "applying", "PlantDiverged", "plant_to_csv"]
@@ -91,7 +94,7 @@ class BasePlant(ABC):
     hooks: ClassVar[tuple[str, ...]] = ()
     physical_first: ClassVar[bool] = False
 
-    def _take_effects(self, crane, effects) -> tuple:
+    def _take_effects(self, crane: Crane, effects) -> tuple:
         """The spec's effects, then ``effects``; each checked against this plant's hooks
         (:class:`EffectRefused` for one it cannot apply). Sets ``self.effects`` and
         ``self.applied`` (effect -> the hooks it acts through here)."""
@@ -141,7 +144,7 @@ class FastPlant(BasePlant):
     description = "quasi-static open-loop replay plus effects (the model's own family)"
     hooks = QUASI_STATIC_HOOKS
 
-    def __init__(self, crane, effects=(), plant=None):
+    def __init__(self, crane: Crane, effects=(), plant=None):
         from planner.simulation.replay import Plant
         self.crane = crane
         self._take_effects(crane, effects)
@@ -184,7 +187,7 @@ def plant_class(name: str) -> type:
     return getattr(importlib.import_module(mod), cls)
 
 
-def make_plant(name: str, crane, effects=()) -> BasePlant:
+def make_plant(name: str, crane: Crane, effects=()) -> BasePlant:
     """The plant ``name`` of ``crane`` with ``effects``."""
     return plant_class(name)(crane, effects)
 
@@ -201,7 +204,7 @@ def _elsewhere(effect, here: str) -> str:
             else "no registered plant applies it")
 
 
-def plant_to_csv(crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
+def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
                  seed: int = 0, effects=(), **run_kw) -> dict:
     """What ``crane-planner simulate --plant NAME`` does for a registered plant: replay
     ``traj``'s commands (its own ``u`` on a uniform grid, else the feed-forward at ``rate``)

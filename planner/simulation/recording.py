@@ -10,6 +10,8 @@ trajectory (:meth:`Recording.from_csv`). Written with 10 significant digits, ato
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import csv
 import io
 import math
@@ -24,6 +26,9 @@ from planner.io import atomic_write_text
 from planner.simulation.replay import pressures
 from planner.simulation.resample import resample_arrays
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["NOISE_DEFAULTS", "noise_levels", "add_noise", "Recording", "measured_table",
            "write_measured_csv", "read_measured_csv", "resample_arrays", "check_units"]
@@ -56,7 +61,7 @@ def noise_levels(noise) -> dict | None:
     return levels
 
 
-def add_noise(crane, q, p_a, p_b, noise=None, seed: int = 0):
+def add_noise(crane: Crane, q, p_a, p_b, noise=None, seed: int = 0):
     """Sensor readings (new arrays) with Gaussian noise at ``noise``'s levels
     (:func:`noise_levels`): q (N, n) per joint type, p_a, p_b (N, n) [Pa]; drawn from
     ``numpy.random.default_rng(seed)`` in that order (deterministic)."""
@@ -89,7 +94,7 @@ class Recording:
     logged: "Recording | None" = field(default=None, repr=False, compare=False)
 
     @classmethod
-    def from_replay(cls, crane, sim: Trajectory, u_at_samples=None,
+    def from_replay(cls, crane: Crane, sim: Trajectory, u_at_samples=None,
                     payload=None) -> "Recording":
         """The exact readings of a replay (:func:`planner.simulation.replay.replay`):
         positions, pressures from the model's dynamics (:func:`pressures`) and the commands in
@@ -101,7 +106,7 @@ class Recording:
         pa, pb = pressures(crane, sim, payload)
         return cls(sim.t, u, sim.q, pa, pb)
 
-    def with_noise(self, crane, noise=True, seed: int = 0) -> "Recording":
+    def with_noise(self, crane: Crane, noise=True, seed: int = 0) -> "Recording":
         """The readings with sensor noise (:func:`add_noise`; positions-only stays so)."""
         if self.p_a is None:
             q, _, _ = add_noise(crane, self.q, np.zeros_like(self.q), np.zeros_like(self.q),
@@ -113,7 +118,7 @@ class Recording:
     def positions_only(self) -> "Recording":
         return Recording(self.t, self.u, self.q)
 
-    def table(self, crane) -> tuple[list, np.ndarray]:
+    def table(self, crane: Crane) -> tuple[list, np.ndarray]:
         """(column names, (N, columns) array) in the contract's order."""
         names = tuple(crane.names)
         cols = (["t"] + [f"u_{j}" for j in names] + [f"q_{j}" for j in names])
@@ -125,7 +130,7 @@ class Recording:
             blocks.append(P)
         return cols, np.hstack(blocks)
 
-    def to_csv(self, path, crane) -> list:
+    def to_csv(self, path, crane: Crane) -> list:
         """Write the CSV (atomically, 10 significant digits); returns the column names."""
         cols, M = self.table(crane)
         lines = [",".join(cols)] + [",".join(f"{v:.10g}" for v in row) for row in M]
@@ -133,7 +138,7 @@ class Recording:
         return cols
 
     @classmethod
-    def from_csv(cls, path, crane, plan: Trajectory | None = None) -> "Recording":
+    def from_csv(cls, path, crane: Crane, plan: Trajectory | None = None) -> "Recording":
         """Read a measured CSV (:func:`read_measured_csv`). Without command columns, the
         commands are the nominal feed-forward of ``plan`` (the commanded trajectory) at the
         file's sample rate, which must then start with the plan."""
@@ -165,7 +170,7 @@ class Recording:
                          self if self.logged is None else self.logged)
 
 
-def check_units(crane, d: dict, path) -> None:
+def check_units(crane: Crane, d: dict, path) -> None:
     """Refuse pressures that are all below 1 bar (bar, MPa or kPa given) and positions that
     are far outside the crane's joint ranges but inside them once converted (degrees for
     revolute joints, mm for prismatic ones), naming the conversion.
@@ -197,7 +202,7 @@ def check_units(crane, d: dict, path) -> None:
                 f"positions look like {unit}: {conv}")
 
 
-def measured_table(crane, sim: Trajectory, u_at_samples=None, noise=None, seed: int = 0,
+def measured_table(crane: Crane, sim: Trajectory, u_at_samples=None, noise=None, seed: int = 0,
                    payload=None):
     """(column names, (N, cols) array) of the measured-data CSV of a replay (see
     :func:`write_measured_csv`)."""
@@ -205,7 +210,7 @@ def measured_table(crane, sim: Trajectory, u_at_samples=None, noise=None, seed: 
     return rec.table(crane)
 
 
-def write_measured_csv(path, crane, traj_sim: Trajectory, u_at_samples=None, noise=None,
+def write_measured_csv(path, crane: Crane, traj_sim: Trajectory, u_at_samples=None, noise=None,
                        seed: int = 0, payload=None) -> list:
     """Write the measured-data CSV of a replay ``traj_sim``: its commands, positions and the
     model's pressures (:meth:`Recording.from_replay`). ``noise``: None/False (exact), True

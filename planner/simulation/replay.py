@@ -42,6 +42,8 @@ optional hydraulic transformer of s100f (as in :mod:`planner.feedforward`).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time as _time
 from dataclasses import dataclass, replace
@@ -54,6 +56,9 @@ from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOf
                                         ValveDeadband, ValveSet, as_effects, quasi_static)
 from planner.simulation.stops import run_to_stops
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Plant", "describe_plant", "replay", "Commanded", "commanded", "clipped_intervals",
            "pressures", "valve_set", "plant_valves",
@@ -100,7 +105,7 @@ class Plant:
                                                     (np.asarray(self.deadband) < 1)):
             raise ValueError(f"Plant.deadband must lie in [0, 1), got {self.deadband}")
 
-    def effects(self, crane) -> tuple:
+    def effects(self, crane: Crane) -> tuple:
         """The effect set of this plant on ``crane`` (ValueError when a per-joint field has
         the wrong number of values)."""
         names = tuple(crane.names)
@@ -169,7 +174,7 @@ def describe_plant(plant):
             "Plant(" + (", ".join(map(str, effects)) or "nominal") + ")")
 
 
-def valve_set(crane, plant=Plant()) -> ValveSet:
+def valve_set(crane: Crane, plant=Plant()) -> ValveSet:
     """The valves-stage effects of ``plant`` (a Plant or a sequence of effects) applied in
     order to the spec's valves: per-valve gain factors and dead bands, the pump factor."""
     vs = ValveSet(flow_gain_scale=np.ones(crane.n),
@@ -179,7 +184,7 @@ def valve_set(crane, plant=Plant()) -> ValveSet:
     return vs
 
 
-def plant_valves(crane, plant=Plant()):
+def plant_valves(crane: Crane, plant=Plant()):
     """(valve data :class:`planner.model.valves.ValveParams`, pump maximum flow [m³/s]) of the
     plant (a Plant or a sequence of effects)."""
     vs = valve_set(crane, plant)
@@ -188,14 +193,14 @@ def plant_valves(crane, plant=Plant()):
     return vp, crane.spec.pump.max_flow * vs.pump_flow_scale
 
 
-def stroke_stops(crane):
+def stroke_stops(crane: Crane):
     """Strokes at the joint limits (the end stops of the replay): (lo, hi), each (n,)."""
     L = crane.limit_arrays()
     x, _ = crane.stroke(np.vstack([L["q_min"], L["q_max"]]))
     return x.min(axis=0), x.max(axis=0)
 
 
-def stroke_rates(crane, u, plant=Plant()):
+def stroke_rates(crane: Crane, u, plant=Plant()):
     """Commands (M, n) -> (stroke rates (M, n), pump flow drawn (M,), sharing factor (M,)) on
     the plant (a Plant or a sequence of effects: its valves stage).
 
@@ -247,7 +252,7 @@ class Commanded:
     payload: float | None
 
 
-def commanded(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
+def commanded(crane: Crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
               t_end: float | None = None) -> Commanded:
     """The commands, start and valves stages of :func:`replay` (same arguments): the free
     stroke motion, which :func:`planner.simulation.stops.run_to_stops` takes to the end stops
@@ -321,7 +326,7 @@ def clipped_intervals(t, at_stop, names) -> dict:
     return clipped
 
 
-def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
+def replay(crane: Crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
            t_end: float | None = None, joint_names=None) -> Trajectory:
     """Open-loop replay of valve commands on the plant (see the module doc): a :class:`Plant`
     or a sequence of effects, of which the commands, start and valves stages are applied.
@@ -369,7 +374,7 @@ def replay(crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
                       interpolation="quintic", u=u[c.j], meta=meta)
 
 
-def pressures(crane, sim: Trajectory, payload=None):
+def pressures(crane: Crane, sim: Trajectory, payload=None):
     """Chamber pressures p_a, p_b (N, n) [Pa] at the samples of a replay, from the model's
     inverse dynamics (``payload`` default: the replay's plant payload, else the spec's)."""
     if payload is None:
@@ -380,7 +385,7 @@ def pressures(crane, sim: Trajectory, payload=None):
 
 
 # ----------------------------------------------------------------------------- robustness
-def default_perturbations(crane, angle=math.radians(1.0), length=0.02, gain=0.02,
+def default_perturbations(crane: Crane, angle=math.radians(1.0), length=0.02, gain=0.02,
                           pump=0.10) -> dict:
     """Seed 003's lesson as a default set: initial mismatch ±``angle`` on each revolute joint
     and ±``length`` on each prismatic one, flow-gain error ±``gain`` on every valve, pump flow
@@ -405,7 +410,7 @@ def default_perturbations(crane, angle=math.radians(1.0), length=0.02, gain=0.02
     return out
 
 
-def robustness(crane, traj: Trajectory, perturbations=None, rate: float = 50.0,
+def robustness(crane: Crane, traj: Trajectory, perturbations=None, rate: float = 50.0,
                series: bool = False) -> dict:
     """Replay the feed-forward of ``traj`` (:func:`planner.feedforward.commands` at ``rate``)
     open loop on perturbed plants and record the tip drift vs the plan.

@@ -13,6 +13,8 @@ grapple as a point mass at the tip, and refuses a swinging one by name.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.model.effects import EffectRefused
@@ -20,6 +22,9 @@ from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.model.twin import Twin
 from planner.simulation.plants import BasePlant, PlantRecord
 from planner.simulation.replay import valve_set
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["TwinPlant"]
 
@@ -33,7 +38,7 @@ class TwinPlant(BasePlant):
     hooks = DYNAMIC_HOOKS
     physical_first = True
 
-    def __init__(self, crane, effects=(), dynamics=None, step: float = 2e-3):
+    def __init__(self, crane: Crane, effects=(), dynamics=None, step: float = 2e-3):
         spec = crane.spec
         self.crane = crane
         self._take_effects(crane, effects)

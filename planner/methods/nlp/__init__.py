@@ -21,6 +21,8 @@
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import replace
 
 from planner.geometry.obstacles import Plate, Wall
@@ -31,6 +33,9 @@ from planner.methods.nlp.kinematic import kinematic_line_nlp
 from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import STATUS_OK, Layout
 from planner.methods.registry import register
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["MoveNLP", "Layout", "energy_optimal", "pareto_front", "stretch",
            "kinematic_line_nlp", "OBSTACLE_TYPES", "Wall", "Plate", "STATUS_OK", "NLPPlanner"]
@@ -64,7 +69,7 @@ class NLPPlanner(Planner):
             raise UnsupportedRequest("`method` nlp with `objective` energy needs `duration` "
                                      "[s] (e.g. 1.2 × the minimum time)")
 
-    def built(self, crane, objective: str, path: str = "free", N: int = 40,
+    def built(self, crane: Crane, objective: str, path: str = "free", N: int = 40,
               obstacles: tuple = (), cache: str | None = None, paid: list | None = None
               ) -> MoveNLP:
         """The MoveNLP for this formulation, built (or loaded from the disk cache) on first use
@@ -79,7 +84,7 @@ class NLPPlanner(Planner):
                 paid.append(nlp)
         return self._built[key][1]
 
-    def prepare(self, crane, request: PlanRequest, compile: bool = False) -> float:
+    def prepare(self, crane: Crane, request: PlanRequest, compile: bool = False) -> float:
         """Build the NLPs ``request`` needs (``compile``: into the per-user cache, so worker
         processes load them instead of building their own). Returns the seconds it took."""
         N, obs, paid = request.option("intervals", 40), request.obstacles, []
@@ -92,7 +97,7 @@ class NLPPlanner(Planner):
             n.build_twins()   # adds its seconds to the NLP's build_time_s
         return sum(n.build_time_s for n in paid)
 
-    def library_request(self, crane, move, objective: str, *, time_result=None,
+    def library_request(self, crane: Crane, move, objective: str, *, time_result=None,
                         settings) -> PlanRequest:
         """The plain library request (:meth:`Planner.library_request`) with the NLP's own
         options: ``intervals`` (``settings.intervals``) and, for an entry after the move's
@@ -107,7 +112,7 @@ class NLPPlanner(Planner):
         """Forget the NLPs built in this process (a timed build then starts from scratch)."""
         self._built.clear()
 
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         N = request.option("intervals", 40)
         obs = request.obstacles
         cache, paid = request.option("nlp_cache"), []

@@ -11,9 +11,14 @@ double-acting one retracting (annulus side): :func:`mask_size` entries in all.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.model.hydraulics import ACTIVE_FLOW
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Activity", "mask_size"]
 
@@ -30,7 +35,7 @@ class Activity:
     (:class:`~planner.methods.nlp.transcription.Layout`: the node states "X" and the
     "pressure" rows) and its actuator table ``acts``."""
 
-    def __init__(self, crane, layout, acts):
+    def __init__(self, crane: Crane, layout, acts):
         self.crane, self.layout = crane, layout
         self.Aa, self.Ab, self.dbl = acts.area_a, acts.area_b, ~acts.single
 

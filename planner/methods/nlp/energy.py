@@ -7,6 +7,8 @@ always-feasible incumbents and the warm starts.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time as _time
 
 from planner.methods.base import PlanResult, PlanStatus
@@ -15,10 +17,13 @@ from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import nlp_result
 from planner.trajectory import evaluate
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["energy_optimal", "pareto_front", "stretch"]
 
 
-def pareto_front(crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,
+def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,
                  time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None):
     """Time–energy trade-off: the minimum time T_min, then the least pump energy with a time
     budget T ≤ k·T_min for each factor k. Each point is the best candidate within the limits
@@ -47,7 +52,7 @@ def pareto_front(crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int =
     return out
 
 
-def energy_optimal(crane, start, goal, T_max: float, *, time_result: PlanResult | None = None,
+def energy_optimal(crane: Crane, start, goal, T_max: float, *, time_result: PlanResult | None = None,
                    time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None,
                    N: int = 40) -> tuple[PlanResult, dict]:
     """Least pump energy with duration ≤ T_max: the energy NLP warm-started from the

@@ -14,6 +14,8 @@
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.bounds import lower_bound
@@ -23,6 +25,9 @@ from planner.methods.nlp.tip import CHECKS
 from planner.methods.ruckig import rest_to_rest
 from planner.methods.topp import retime
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["stretch", "ruckig_guess", "vias", "over_obstacles_guess", "path_guess", "Guesses",
            "GUESS_BOUND"]
@@ -42,7 +47,7 @@ def stretch(traj: Trajectory, T: float) -> Trajectory:
                       limits=traj.limits, meta=dict(traj.meta, stretched_by=k))
 
 
-def ruckig_guess(crane, start, goal, lb, q_start=None, q_goal=None) -> tuple:
+def ruckig_guess(crane: Crane, start, goal, lb, q_start=None, q_goal=None) -> tuple:
     """(the guess: the Ruckig rest-to-rest move slowed to 1.05 × the combined bound when
     faster, the Ruckig move itself) between tips ``start`` and ``goal`` at the telescopes of
     the lower bound ``lb`` (:func:`~planner.bounds.lower_bound`), or between the joint
@@ -62,7 +67,7 @@ def vias(obstacles, start, goal) -> list:
     return out
 
 
-def over_obstacles_guess(crane, obstacles, start, goal, lb) -> Trajectory:
+def over_obstacles_guess(crane: Crane, obstacles, start, goal, lb) -> Trajectory:
     """Rest-to-rest Ruckig segments through a via point above every obstacle crossed (at the
     wall's r, 1.5 clearances above its top, slew interpolated): a guess on the right side of
     the obstacles."""
@@ -83,7 +88,7 @@ def over_obstacles_guess(crane, obstacles, start, goal, lb) -> Trajectory:
                       joint_names=tuple(crane.names))
 
 
-def path_guess(crane, path) -> Trajectory:
+def path_guess(crane: Crane, path) -> Trajectory:
     """A coarse DP (5 cm stations and telescope grid) along ``path`` retimed by TOPP-RA
     (velocity, acceleration, pump); ValueError with the method's reason when either fails."""
     d = dp(crane, path, step=0.05, tele_step=0.05, window=3)
@@ -102,7 +107,7 @@ class Guesses:
     curve mode, else None). Keeps the Ruckig move of the last move asked for: the default
     guess and the exact-move check share it."""
 
-    def __init__(self, crane, layout, lbw, ubw, N: int, path: str, curve=None):
+    def __init__(self, crane: Crane, layout, lbw, ubw, N: int, path: str, curve=None):
         self.crane, self.layout, self.lbw, self.ubw = crane, layout, lbw, ubw
         self.N, self.path, self.curve = N, path, curve
         self._plain = (None, None)   # (key, plain_traj result) of the last move: built once

@@ -2,6 +2,8 @@
 only (the DP's model), for comparisons with the Bellman DP (:mod:`planner.methods.dp`)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time as _time
 
 import casadi as ca
@@ -13,10 +15,13 @@ from planner.methods.dp import dp
 from planner.methods.nlp.transcription import STATUS_OK, nlp_result
 from planner.trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["kinematic_line_nlp"]
 
 
-def kinematic_line_nlp(crane, start, goal, N: int = 100, w0_traj=None) -> PlanResult:
+def kinematic_line_nlp(crane: Crane, start, goal, N: int = 100, w0_traj=None) -> PlanResult:
     """Velocity-limits-only minimum time along the straight line (seed 000's setting, the DP's
     model): piecewise-constant joint rates on N equal time steps, the tip on the line at every
     node, no rest conditions (the seed's DP starts and ends at speed). Warm start: the DP path

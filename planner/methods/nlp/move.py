@@ -39,6 +39,8 @@ forwarder moves), so the exact move is returned when faster (``stats["winner"] =
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time as _time
 from functools import partial
 
@@ -59,6 +61,9 @@ from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp
 from planner.methods.nlp.twins import SolverTwins, warm_rounds
 from planner.model.flows import actuator_table
 from planner.trajectory import Trajectory, evaluate
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
 
@@ -88,7 +93,7 @@ class MoveNLP:
     other solver settings, :class:`~planner.methods.nlp.twins.SolverTwins`); the pump rows
     are written by :class:`~planner.methods.nlp.pump.PumpRows` while it is built."""
 
-    def __init__(self, crane, objective: str = "time", path: str = "free", N: int = 40,
+    def __init__(self, crane: Crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float | None = None,
                  obstacles: tuple = (), ipopt_options: dict | None = None,
                  cache: str | None = None, solver: str = "auto"):

@@ -12,6 +12,8 @@ and velocity limits only (:data:`CLAIMS`).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import dataclass
 
@@ -20,6 +22,9 @@ import numpy as np
 from planner.geometry.paths import SeedPath
 from planner.trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["CLAIMS", "joint_path", "rate_bounds", "Envelope", "envelope", "feasible_band",
            "tele_grid", "constant_scan", "path_states", "Profile", "time_efficient_profile"]
 
@@ -27,7 +32,7 @@ CLAIMS = ("position", "velocity")  # what the phase-plane profiles guarantee
 _H = 1e-5                          # finite-difference step in θ for Φ'' and f'
 
 
-def joint_path(crane, path: SeedPath, tele, coef, theta, explain: bool = False):
+def joint_path(crane: Crane, path: SeedPath, tele, coef, theta, explain: bool = False):
     """q = Φ(θ) (IK with q4 = φ4(θ)) and Φ'(θ) (analytic: J_xyz(q)·Φ' = dp/dθ, Φ'_4 = φ4').
 
     Returns (q (K, n), dq (K, n), reasons (K,)); failing rows are NaN with a reason."""
@@ -86,7 +91,7 @@ class Envelope:
         return float(np.trapezoid(1.0 / self.envelope, self.theta))
 
 
-def envelope(crane, path: SeedPath, tele, coef, theta=None, n: int = 401,
+def envelope(crane: Crane, path: SeedPath, tele, coef, theta=None, n: int = 401,
              explain: bool = False) -> Envelope:
     """Phase-plane velocity envelope along ``theta`` (default: n points over the path)."""
     theta = path.grid(n) if theta is None else np.asarray(theta, float)
@@ -100,7 +105,7 @@ def envelope(crane, path: SeedPath, tele, coef, theta=None, n: int = 401,
     return Envelope(theta, tele.value(coef, theta), q, dq, b, env, feas, reasons, area, binding)
 
 
-def feasible_band(crane, path: SeedPath, theta, tele_grid) -> np.ndarray:
+def feasible_band(crane: Crane, path: SeedPath, theta, tele_grid) -> np.ndarray:
     """(K, M) mask: IK succeeds (reachable, all joints and the telescope within limits) at θ_k
     with telescope tele_grid[m]."""
     theta = np.asarray(theta, float)
@@ -111,13 +116,13 @@ def feasible_band(crane, path: SeedPath, theta, tele_grid) -> np.ndarray:
     return np.all(np.isfinite(q), axis=1).reshape(K, M)
 
 
-def tele_grid(crane, step: float) -> np.ndarray:
+def tele_grid(crane: Crane, step: float) -> np.ndarray:
     """The telescope range [m] on a grid of spacing ``step`` [m] (both ends included)."""
     lo, hi = crane.tele_range
     return np.linspace(lo, hi, int(round((hi - lo) / step)) + 1)
 
 
-def constant_scan(crane, path: SeedPath, theta, tele_grid):
+def constant_scan(crane: Crane, path: SeedPath, theta, tele_grid):
     """Envelope area for every constant telescope in tele_grid (NaN when infeasible somewhere)."""
     theta = np.asarray(theta, float)
     L = crane.limit_arrays()
@@ -144,7 +149,7 @@ def constant_scan(crane, path: SeedPath, theta, tele_grid):
     return areas
 
 
-def path_states(crane, path, tele, coef, theta, fraction, side=0):
+def path_states(crane: Crane, path, tele, coef, theta, fraction, side=0):
     """q, Φ', Φ'', f = fraction·envelope and f' at θ; derivatives by finite differences of the
     analytic Φ' and of f: central (side=0), or one-sided second order forward (+1) / back (−1).
     Points where a central stencil would leave a non-periodic path use the inward one-sided."""
@@ -196,21 +201,21 @@ class Profile:
     def envelope(self) -> np.ndarray:
         return self.f / self.fraction
 
-    def joint_state(self, crane, theta, theta_dot, theta_ddot, side=0):
+    def joint_state(self, crane: Crane, theta, theta_dot, theta_ddot, side=0):
         """Joint (q, q̇, q̈) for path states (θ, θ̇, θ̈)."""
         q, dq, ddq, _, _ = path_states(crane, self.path, self.tele, self.coef, theta,
                                    self.fraction, side)
         td, tdd = np.asarray(theta_dot, float), np.asarray(theta_ddot, float)
         return q, dq * td[..., None], ddq * (td ** 2)[..., None] + dq * tdd[..., None]
 
-    def nominal_state(self, crane, theta, side=0):
+    def nominal_state(self, crane: Crane, theta, side=0):
         """((θ̇, θ̈) = (f, f·f'), (q, q̇, q̈)) of the nominal profile at θ (f' one-sided with
         ``side`` = ±1: the derivative on the side where the nominal motion continues)."""
         q, dq, ddq, f, df = path_states(crane, self.path, self.tele, self.coef, theta,
                                     self.fraction, side)
         return (f, f * df), (q, dq * f[:, None], ddq * (f ** 2)[:, None] + dq * (f * df)[:, None])
 
-    def trajectory(self, crane) -> Trajectory:
+    def trajectory(self, crane: Crane) -> Trajectory:
         """The nominal profile as a Trajectory: q = Φ(θ), q̇ = Φ'f, q̈ = Φ''f² + Φ'f f'."""
         f, df = self.f, self.df
         qd = self.dq * f[:, None]
@@ -221,7 +226,7 @@ class Profile:
                                     profile="fraction of the phase-plane envelope"))
 
 
-def time_efficient_profile(crane, path: SeedPath, tele, coef, fraction: float = 0.9,
+def time_efficient_profile(crane: Crane, path: SeedPath, tele, coef, fraction: float = 0.9,
                            n: int = 2001) -> Profile:
     """Seed IV.B: θ̇ = f(θ) = fraction·envelope(θ) on n points, time t = ∫ dθ/f (trapezoid)."""
     if not 0 < fraction <= 1:

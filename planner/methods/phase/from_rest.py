@@ -14,6 +14,8 @@ Acceleration and jerk limits in the spec of umea-lab are assumptions (seed 003 g
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import dataclass
 
@@ -23,6 +25,9 @@ from scipy.spatial import cKDTree
 from planner.methods.phase.envelope import CLAIMS, Profile, path_states
 from planner.methods.ruckig import NO_JERK, sample, state_to_state_relaxed
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Junction", "FromRest", "from_rest", "V_HEADROOM", "SPEED_RATIO_MAX"]
 
@@ -84,7 +89,7 @@ def _jerk_for(v, a, vmin, vmax, forward: bool):
     return need * (1 + 1e-6)
 
 
-def _transition(crane, profile, where, th_rest, th_j, junction, space, rate, accel_scale):
+def _transition(crane: Crane, profile, where, th_rest, th_j, junction, space, rate, accel_scale):
     """Ruckig transition between rest at θ = th_rest and the nominal state at θ = th_j.
     ``junction`` = ((f, f f'), (q, q̇, q̈)) of the nominal there. Returns samples in local
     time (t, q, qd, qdd, θ, θ̇), the Junction (with t relative to the transition) and info."""
@@ -164,7 +169,7 @@ def _transition(crane, profile, where, th_rest, th_j, junction, space, rate, acc
     return (t, q, qd, qdd, th, thd), junc, info
 
 
-def from_rest(crane, profile: Profile, *, start_frac: float = 0.05,
+def from_rest(crane: Crane, profile: Profile, *, start_frac: float = 0.05,
               end_frac: float | None = None, space: str = "theta",
               sample_rate: float = 200.0, accel_scale: float = 1.0) -> FromRest:
     """Start from rest at the path start and join the nominal profile at

@@ -11,6 +11,8 @@ paths with their telescope models.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time as _time
 from dataclasses import dataclass
@@ -21,6 +23,9 @@ from scipy.optimize import minimize
 from planner.geometry.paths import SeedPath, circle_path, parabola_path
 from planner.methods.phase.envelope import (Envelope, constant_scan, envelope, feasible_band,
                                             tele_grid)
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["FourierTele", "BezierTele", "TeleOpt", "optimise_telescope", "seed_setup"]
 
@@ -154,7 +159,7 @@ class TeleOpt:
                     starts=self.starts, nfev=self.nfev, solve_time_s=self.solve_time_s)
 
 
-def optimise_telescope(crane, path: SeedPath, tele, *, n_theta: int = 241,
+def optimise_telescope(crane: Crane, path: SeedPath, tele, *, n_theta: int = 241,
                        n_fine: int = 2001, tele_step: float = 0.01, maxfev: int = 3000,
                        penalty: float = 10.0, restarts: int = 2,
                        margin: float = 1e-3) -> TeleOpt:

@@ -20,6 +20,8 @@ s quadratic in t on each interval).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time as _time
 
 import numpy as np
@@ -37,11 +39,14 @@ from planner.methods.topp.solve import TimedPath, time_path
 from planner.methods.topp.verify import PathTiming, Peaks, interval_peaks
 from planner.trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["PumpFlowConstraint", "ScaledAcceleration", "SpeedCap", "PathTiming", "Peaks",
            "interval_peaks", "time_path", "TimedPath", "retime", "ToppPlanner"]
 
 
-def retime(crane, path_q, *, ss=None, gridpoints: int = 100,
+def retime(crane: Crane, path_q, *, ss=None, gridpoints: int = 100,
            limits=("velocity", "acceleration", "pump_flow"), duration: float | None = None,
            sample_rate: float = 500.0, tol: float = 1e-3, max_iter: int = 8,
            adapt: int = 3) -> PlanResult:
@@ -98,7 +103,7 @@ def retime(crane, path_q, *, ss=None, gridpoints: int = 100,
                       duration_s=T, solve_time_s=_time.perf_counter() - t0, **stats)
 
 
-def raw_retime(crane, path_q, gridpoints: int = 200, rate: float = 500.0) -> Trajectory:
+def raw_retime(crane: Crane, path_q, gridpoints: int = 200, rate: float = 500.0) -> Trajectory:
     """The peer: toppra as its documentation shows it, on the same path parameter, limits
     (velocity, acceleration, pump) and grid as :func:`retime` — ConstAccel, then toppra's own
     sampling at ``rate`` [Hz], nothing verified between grid points. For comparisons only
@@ -129,7 +134,7 @@ class ToppPlanner(Planner):
     paths = ("line",)
     uses_duration = True
 
-    def plan(self, crane, request: PlanRequest) -> PlanResult:
+    def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         res = dp(crane, Line(request.start, request.goal), objective="time",
                  **DPPlanner.grid(request))
         if not res.ok:

@@ -3,12 +3,17 @@ per idea): the pump flow as a bound on ṡ², a per-grid-point speed cap, and th
 acceleration scaled per grid point and joint (the verification's tightening)."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import toppra
 import toppra.constraint as constraint
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 
 from planner.model.flows import swept_volume
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["SCHEMES", "PumpFlowConstraint", "pump_flow_per_speed", "SpeedCap",
            "ScaledAcceleration"]
@@ -22,7 +27,7 @@ SCHEMES = {"interpolation": constraint.DiscretizationType.Interpolation,
 class PumpFlowConstraint(constraint.LinearConstraint):
     """Σ A_dir,i |dx_i/ds| · ṡ ≤ Q_max as a bound on x = ṡ² (first order, direction-aware)."""
 
-    def __init__(self, crane, scale: float = 1.0):
+    def __init__(self, crane: Crane, scale: float = 1.0):
         super().__init__()
         self.crane = crane
         self.dof = crane.n
@@ -37,7 +42,7 @@ class PumpFlowConstraint(constraint.LinearConstraint):
         return None, None, None, None, None, None, xbound
 
 
-def pump_flow_per_speed(crane, q, dq) -> np.ndarray:
+def pump_flow_per_speed(crane: Crane, q, dq) -> np.ndarray:
     """Pump flow [m³ per unit of s] of moving along a path at ṡ = 1: Σ A_dir |dx/ds| at the
     joint positions ``q`` (..., n) with path tangents ``dq`` = dq/ds (..., n)."""
     _, dxdq = crane.stroke(q)

@@ -9,11 +9,16 @@ logger started): reading = true + rate · (t − t₀).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import numpy as np
 
 from planner.model.effects.base import Effect, Parameter, is_slew
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["SensorGain", "SensorDrift", "PressureDrift"]
 
@@ -37,18 +42,18 @@ class SensorGain(Effect):
     per_joint, stage, acts_on = True, "sensors", "positions and pressures"
     trial_range = (0.02, 0.05)          # relative scale error
 
-    def sense_q(self, crane, q):
+    def sense_q(self, crane: Crane, q):
         q = q.copy()
         q[:, self.index(crane)] *= self.scale
         return q
 
     @classmethod
-    def observable(cls, crane, i):
+    def observable(cls, crane: Crane, i):
         # on the slew the pressures do not depend on the angle: only flow_gain-like motion
         return not is_slew(crane, i)
 
     @classmethod
-    def trial_values(cls, crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
         return dict(scale=1.0 + sign * magnitude)
 
 
@@ -64,13 +69,13 @@ class SensorDrift(Effect):
     per_joint, stage, acts_on = True, "sensors", "positions"
     trial_range = (math.radians(0.03), math.radians(0.1))   # rad/s; prismatic: the same in m/s
 
-    def sense_q_at(self, crane, t, q):
+    def sense_q_at(self, crane: Crane, t, q):
         q = q.copy()
         q[:, self.index(crane)] += self.rate * _elapsed(t, q)[:, 0]
         return q
 
     @classmethod
-    def trial_values(cls, crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
         return dict(rate=sign * magnitude)
 
 
@@ -84,7 +89,7 @@ class PressureDrift(Effect):
     per_joint, stage, acts_on = True, "sensors", "pressures"
     trial_range = (5.0e3, 2.0e4)        # Pa/s on one chamber drawn at random
 
-    def sense_p_at(self, crane, t, p_a, p_b):
+    def sense_p_at(self, crane: Crane, t, p_a, p_b):
         i = self.index(crane)
         p_a, p_b = p_a.copy(), p_b.copy()
         dt = _elapsed(t, p_a)[:, 0]
@@ -93,6 +98,6 @@ class PressureDrift(Effect):
         return p_a, p_b
 
     @classmethod
-    def trial_values(cls, crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
         return (dict(rate_a=sign * magnitude) if rng.uniform() < 0.5
                 else dict(rate_b=sign * magnitude))

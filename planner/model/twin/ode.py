@@ -37,12 +37,17 @@ tests/model/test_twin.py compares the two on every machine.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from planner.model.actuators import stroke_expr
 from planner.model.dynamics import rnea
 from planner.model.twin.params import PER_ACTUATOR, SCALARS
 from planner.model.valve_physics import function as valve_function
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["STOP_STIFFNESS", "STOP_DAMPING", "STOP_RAMP", "STOP_SOFT", "state_size",
            "unpack", "build_rhs"]
@@ -81,7 +86,7 @@ def _stop_force(x, xd, lo, hi):
     return -STOP_STIFFNESS * (spring + STOP_DAMPING * ramp * xd)
 
 
-def build_rhs(crane, spec=None):
+def build_rhs(crane: Crane, spec=None):
     """The twin's right-hand side as SX functions of ``crane`` (the rigid bodies of ``spec``,
     default the crane's own: a dynamic plant may integrate other masses than the model
     plans with). Returns dict of :class:`casadi.Function`:

@@ -24,12 +24,17 @@ fields of :data:`SCALARS`. Where they come from:
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.model.actuators import stroke_range
 from planner.model.valves import valve_circuit
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["PER_ACTUATOR", "SCALARS", "TwinParams", "twin_params", "COULOMB_SMOOTHING"]
 
@@ -61,14 +66,14 @@ class TwinParams:
         return len(PER_ACTUATOR) * self.n + len(SCALARS)
 
 
-def joint_limit_strokes(crane):
+def joint_limit_strokes(crane: Crane):
     """Strokes at the joint limits (lo, hi), each (n,) (ordered: lo ≤ hi)."""
     L = crane.limit_arrays()
     x, _ = crane.stroke(np.vstack([L["q_min"], L["q_max"]]))
     return x.min(axis=0), x.max(axis=0)
 
 
-def twin_params(crane, dynamics, payload: float, gain_scale=1.0, deadband=None,
+def twin_params(crane: Crane, dynamics, payload: float, gain_scale=1.0, deadband=None,
                 pump_scale: float = 1.0) -> TwinParams:
     """The :class:`TwinParams` of ``crane`` with ``dynamics`` (a
     :class:`~planner.model.dynamics_spec.DynamicsSpec`), the tip ``payload`` [kg] and the

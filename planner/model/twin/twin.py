@@ -19,6 +19,8 @@ stops it with ``status`` "diverged" and ``t_fail``.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,6 +30,9 @@ import numpy as np
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
 from planner.model.twin.params import twin_params
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Twin", "TwinRun"]
 
@@ -70,7 +75,7 @@ class TwinRun:
         return lin(self.q), lin(self.p_a), lin(self.p_b), self.u[k]
 
 
-def _stepper(crane, spec, step, newton, chunk):
+def _stepper(crane: Crane, spec, step, newton, chunk):
     key = (id(crane), crane.spec.path, repr(spec.joints) if spec is not crane.spec else "",
            step, newton, chunk)
     st = _STEPPERS.get(key)
@@ -88,7 +93,7 @@ class Twin:
     spec with other masses; default the crane's), integrated with ``step`` [s] and ``newton``
     Newton iterations per step."""
 
-    def __init__(self, crane, dynamics=None, payload=None, gain_scale=1.0, deadband=None,
+    def __init__(self, crane: Crane, dynamics=None, payload=None, gain_scale=1.0, deadband=None,
                  pump_scale: float = 1.0, bodies=None, step: float = 2e-3, newton: int = 3,
                  chunk: int = 50):
         spec = crane.spec

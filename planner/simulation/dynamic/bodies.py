@@ -3,11 +3,16 @@ transforms, link masses, centres of mass and inertias, the payload at the tip) a
 map as dense tables cheap enough for the integrator's Newton iterations."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import casadi as ca
 import numpy as np
 
 from planner.model.dynamics import lumped_links
 from planner.model.kinematics import joint_transforms
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["StrokeTable", "tree_parameters"]
 
@@ -17,7 +22,7 @@ class StrokeTable:
     range, linear interpolation, linear extrapolation beyond the limits) from the model's
     exact map — cheap enough to call inside the integrator's Newton iterations."""
 
-    def __init__(self, crane, points: int = 4001):
+    def __init__(self, crane: Crane, points: int = 4001):
         L = crane.limit_arrays()
         self.Q = np.linspace(L["q_min"], L["q_max"], points)
         self.X, self.D = crane.stroke(self.Q)

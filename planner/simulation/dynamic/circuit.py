@@ -32,12 +32,17 @@ the implicit integrator sees finite slopes.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.model.valves import valve_params
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["Circuit", "root"]
 
@@ -102,7 +107,7 @@ class Circuit:
     efficiency: float
 
     @classmethod
-    def from_crane(cls, crane, dyn, stops, gain_scale=1.0, deadband=None, pump_scale=1.0,
+    def from_crane(cls, crane: Crane, dyn, stops, gain_scale=1.0, deadband=None, pump_scale=1.0,
                    leak=None) -> "Circuit":
         """The circuit of ``crane`` with dynamics ``dyn`` (:class:`DynamicsSpec`), stroke end
         stops ``stops`` = (lo, hi) (n,) and the valves-stage deviations of a plant: per-valve

@@ -13,6 +13,8 @@ the same commands, so that every number can be shown beside its quasi-static cou
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -22,6 +24,9 @@ from planner.simulation.dynamic.energy import energy_balance
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant
 from planner.simulation.replay import replay
 from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["settling_time", "ResidualOscillation", "residual_oscillation", "stored_commands",
            "pieces_commands", "ReplayMeasures", "replay_move"]
@@ -101,7 +106,7 @@ def stored_commands(traj: Trajectory, rate: float = 50.0):
     return traj.t[on], np.asarray(traj.u)[on]
 
 
-def pieces_commands(crane, pieces, rate: float = 50.0):
+def pieces_commands(crane: Crane, pieces, rate: float = 50.0):
     """One command sequence (t_u, u) for trajectory ``pieces`` [(t0 [s], Trajectory)] placed
     on one clock (each piece's feed-forward at ``rate`` from its own start, the valves closed
     between pieces and after the last)."""
@@ -163,7 +168,7 @@ def _reference(pieces):
     return q_at
 
 
-def _measures(crane, t, q, q_at, t_arrive, goal_tip, tol):
+def _measures(crane: Crane, t, q, q_at, t_arrive, goal_tip, tol):
     err = np.linalg.norm(crane.fk(q) - crane.fk(q_at(t)), axis=1)
     during = t <= t_arrive + 1e-9
     k = min(int(np.searchsorted(t, t_arrive - 1e-9)), len(t) - 1)
@@ -175,7 +180,7 @@ def _measures(crane, t, q, q_at, t_arrive, goal_tip, tol):
                 joint_osc=np.abs(after - rest).max(axis=0).tolist(), **res.as_dict())
 
 
-def replay_move(crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: float = 0.005,
+def replay_move(crane: Crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: float = 0.005,
                 plant: ExudynPlant | None = None, t_u=None, u=None, max_wall_s: float = 600.0,
                 retries: int = 2, keep_runs: bool = False):
     """Replay a planned move open loop on the Exudyn plant and on the fast replay plant.

@@ -106,7 +106,7 @@ class ExudynPlant(BasePlant):
     hooks = DYNAMIC_HOOKS
     physical_first = True
 
-    def __init__(self, crane, effects=(), dynamics=None, step: float = 2e-3):
+    def __init__(self, crane: Crane, effects=(), dynamics=None, step: float = 2e-3):
         spec = crane.spec
         dyn = dynamics if dynamics is not None else spec.dynamics
         if dyn is None:

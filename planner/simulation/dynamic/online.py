@@ -10,6 +10,8 @@ of the model's inverse dynamics (:class:`MeasuredPOptimal`).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import numpy as np
@@ -20,6 +22,9 @@ from planner.model.valves import stroke_rate_to_command, valve_params
 from planner.simulation.dynamic.energy import energy_balance
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["MeasuredPOptimal", "OnlineLaw", "run_online", "make_online_law"]
 
 
@@ -28,7 +33,7 @@ class MeasuredPOptimal(POptimal):
     latest sample) in each cylinder's direction of motion, not the model's."""
     name = "p_optimal"
 
-    def _pressures(self, crane, c, st, u):
+    def _pressures(self, crane: Crane, c, st, u):
         p_a, p_b = st.memo["measured"]
         P = c["P"]
         return np.where(u >= 0, p_a[P], p_b[P])
@@ -52,7 +57,7 @@ class OnlineLaw:
     (``command(t) -> (ref tip, ref velocity)``); keeps the largest tip error and the smallest
     scaling factor β."""
 
-    def __init__(self, crane, law, command, rate: float = 100.0, gain: float = 5.0):
+    def __init__(self, crane: Crane, law, command, rate: float = 100.0, gain: float = 5.0):
         self.crane, self.law, self.command, self.gain = crane, law, command, gain
         self.dt = 1.0 / rate
         self.vp = valve_params(crane)
@@ -82,7 +87,7 @@ class OnlineLaw:
         return np.clip(u, -1.0, 1.0)
 
 
-def run_online(crane, law_key: str, command, duration: float, q0, *, rate: float = 100.0,
+def run_online(crane: Crane, law_key: str, command, duration: float, q0, *, rate: float = 100.0,
                gain: float = 5.0, settle: float = 1.0, plant: ExudynPlant | None = None,
                max_wall_s: float = 900.0) -> dict:
     """One law closed loop on the Exudyn plant for ``duration`` s of ``command`` from ``q0``

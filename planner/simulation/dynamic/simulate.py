@@ -3,6 +3,8 @@ contract as the fast plant's), and the helpers the validation and the claims stu
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.feedforward import commands
@@ -10,10 +12,13 @@ from planner.simulation.dynamic.exudyn_plant import ExudynPlant, PlantDiverged
 from planner.simulation.plants import plant_to_csv
 from planner.trajectory import Trajectory
 
+if TYPE_CHECKING:
+    from planner.model import Crane
+
 __all__ = ["trajectory_commands", "slowed", "simulate_trajectory", "exudyn_to_csv"]
 
 
-def trajectory_commands(crane, traj: Trajectory, rate: float = 50.0):
+def trajectory_commands(crane: Crane, traj: Trajectory, rate: float = 50.0):
     """(t_u, u, source): the trajectory's own commands when it carries them on a uniform grid,
     else the feed-forward of :func:`planner.feedforward.commands` at ``rate`` (as the fast
     plant's ``simulate`` does)."""
@@ -34,7 +39,7 @@ def slowed(traj: Trajectory, factor: float) -> Trajectory:
                       objective=traj.objective, interpolation=traj.interpolation)
 
 
-def simulate_trajectory(crane, traj: Trajectory, rate: float = 50.0, effects=(),
+def simulate_trajectory(crane: Crane, traj: Trajectory, rate: float = 50.0, effects=(),
                         settle: float = 0.0, plant: ExudynPlant | None = None, **run_kw):
     """Run ``traj``'s valve commands open loop on the Exudyn plant (``plant``, default one
     built with ``effects``), ``settle`` seconds past the end with the valves closed. Returns
@@ -52,7 +57,7 @@ def simulate_trajectory(crane, traj: Trajectory, rate: float = 50.0, effects=(),
     return run, t_u, u, src
 
 
-def exudyn_to_csv(crane, traj: Trajectory, out, rate: float = 50.0, noise=None, seed: int = 0,
+def exudyn_to_csv(crane: Crane, traj: Trajectory, out, rate: float = 50.0, noise=None, seed: int = 0,
                   effects=(), max_wall_s: float = 600.0) -> dict:
     """What ``crane-planner simulate --plant exudyn`` does
     (:func:`planner.simulation.plants.plant_to_csv` on the Exudyn plant): nothing is written

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planner.model.commands import held_commands
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
 from planner.model.twin.params import twin_params
@@ -167,19 +168,7 @@ class Twin:
         every chunk of steps (0.1 s at the defaults) and held over it."""
         wall0 = time.perf_counter()
         n, h = self.crane.n, self.step
-        t_u = np.asarray(t_u, float).ravel()
-        u = np.atleast_2d(np.asarray(u, float))
-        q0 = np.asarray(q0, float).ravel()
-        if u.shape != (t_u.size, n) or q0.shape != (n,) or not np.all(np.isfinite(u)):
-            raise ValueError(f"Twin.simulate: expected finite t_u (M,), u (M, {n}), q0 ({n},);"
-                             f" got {t_u.shape}, {u.shape}, {q0.shape}")
-        if t_u.size > 1 and np.any(np.diff(t_u) <= 0):
-            raise ValueError("Twin.simulate: t_u must increase strictly")
-        t0 = float(t_u[0])
-        t_end = float(t_u[-1]) if t_end is None else float(t_end)
-        K = int(math.ceil((t_end - t0) / h - 1e-9))
-        if K < 1:
-            raise ValueError(f"Twin.simulate: span {t_end - t0:g} s shorter than one step")
+        t_u, u, q0, t0, t_end, K = held_commands(t_u, u, q0, n, t_end, h, "Twin.simulate")
         tk = t0 + h * np.arange(K + 1)
         j = np.clip(np.searchsorted(t_u, tk + 1e-9 * h, side="right") - 1, 0, t_u.size - 1)
         uk = u[j]

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner.model import Crane
+from planner.model.commands import held_commands
 from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import Circuit
@@ -258,19 +259,7 @@ class ExudynPlant(BasePlant):
     def _integrate(self, h, t_u, u, q0, t_end, max_wall_s, spectral_radius, controller,
                    stop=None):
         crane, n = self.crane, self.crane.n
-        t_u = np.asarray(t_u, float).ravel()
-        u = np.atleast_2d(np.asarray(u, float))
-        q0 = np.asarray(q0, float).ravel()
-        if u.shape != (t_u.size, n) or q0.shape != (n,) or not np.all(np.isfinite(u)):
-            raise ValueError(f"ExudynPlant.run: expected finite t_u (M,), u (M, {n}), "
-                             f"q0 ({n},); got {t_u.shape}, {u.shape}, {q0.shape}")
-        if t_u.size > 1 and np.any(np.diff(t_u) <= 0):
-            raise ValueError("ExudynPlant.run: t_u must increase strictly")
-        t0 = float(t_u[0])
-        t_end = float(t_u[-1]) if t_end is None else float(t_end)
-        K = int(math.ceil((t_end - t0) / h - 1e-9))
-        if K < 1:
-            raise ValueError(f"ExudynPlant.run: span {t_end - t0:g} s shorter than one step")
+        t_u, u, q0, t0, t_end, K = held_commands(t_u, u, q0, n, t_end, h, "ExudynPlant.run")
         u_valves = u
         for e in self.acting("commands"):
             u_valves = e.commands(crane, t_u, u_valves)

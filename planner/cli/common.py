@@ -97,9 +97,10 @@ def split_ref(ref: str) -> tuple[str, str]:
 # the arguments that name files, by their argparse dest: read by a command, or written by it
 # (how the one-line refusal names them); every command is checked by :func:`check_distinct`
 INPUT_DESTS = dict(crane="CRANE", trajectory="--trajectory", measured="MEASURED.csv",
-                   library="LIB.h5", tasks="--tasks", from_result="--from", results="--results")
+                   library="LIB.h5", tasks="--tasks", from_result="--from", results="--results",
+                   entry="LIB.h5#ID", map="--map")
 OUTPUT_DESTS = dict(out="--out", json="--json", plot="--plot", save_model="--save-model",
-                    report="--report")
+                    report="--report", animate="--animate")
 
 
 def _identity(path: str) -> set:
@@ -123,7 +124,8 @@ def check_distinct(args) -> None:
     files = []
     for dest, label in INPUT_DESTS.items():
         v = getattr(args, dest, None)
-        path = split_ref(v)[0] if dest == "trajectory" and isinstance(v, str) else v
+        path = (split_ref(v)[0] if dest in ("trajectory", "entry") and isinstance(v, str)
+                else v)
         if isinstance(path, str) and path and os.path.isfile(path):
             files.append((label, v, path))
     for dest, label in OUTPUT_DESTS.items():

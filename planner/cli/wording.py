@@ -34,6 +34,7 @@ FLAGS = {
     "units_row": "--units-row",
     "plant": "--plant",
     "joint": "--joint",
+    "map": "--map",
 }
 
 # a command's own names for a field (checked before FLAGS)

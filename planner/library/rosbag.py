@@ -134,7 +134,7 @@ def export_rosbag2(db_path, out_dir, rate: float | None = None) -> list[Path]:
     except MapError as e:
         raise StoreError(f"export format 'rosbag2': {str(e).split(': ', 1)[1]}") from None
     if rate is not None and not (math.isfinite(rate) and rate > 0):
-        raise StoreError(f"--rate {rate}: must be a positive number of Hz")
+        raise StoreError(f"`rate` = {rate}: must be a positive number of Hz")
     from planner.model import Crane  # the CasADi model: commands and pressures
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

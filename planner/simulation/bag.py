@@ -102,12 +102,12 @@ def read_map(path, crane: Crane) -> dict:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)
     except OSError as e:
-        raise MapError(f"--map {src}: cannot read it ({e.strerror})") from None
+        raise MapError(f"`map` = {src}: cannot read it ({e.strerror})") from None
     except tomllib.TOMLDecodeError as e:
-        raise MapError(f"--map {src}: not valid TOML ({e})") from None
+        raise MapError(f"`map` = {src}: not valid TOML ({e})") from None
 
     def fail(msg):
-        return MapError(f"--map {src}: {msg}")
+        return MapError(f"`map` = {src}: {msg}")
     bad = sorted(set(doc) - TOP_KEYS)
     if bad:
         raise fail(f"unknown key {bad[0]!r}; allowed: {', '.join(sorted(TOP_KEYS))}")
@@ -341,8 +341,8 @@ def read_bag_recording(path, map_path, crane: Crane, plan=None) -> Recording:
     check_units(crane, dict(t=t, u=u, q=q, p_a=pa, p_b=pb, notes=notes), src)
     if u is None:
         if plan is None:
-            raise MapError(f"--map {map_path}: no [u] table (valve commands); give the "
-                           "commanded trajectory (--trajectory) to derive them")
+            raise MapError(f"`map` = {map_path}: no [u] table (valve commands); give the "
+                           "commanded trajectory (`plan`) to derive them")
         dt = float(np.median(np.diff(t)))
         ff = commands(crane, plan, 1.0 / dt)
         k = np.clip(np.round((t - ff.t[0]) / dt).astype(int), 0, len(ff.t) - 1)

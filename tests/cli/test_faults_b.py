@@ -223,7 +223,7 @@ def test_simulate_without_rate_keeps_the_files_own_commands(tmp_path, capsys):
         d = read_measured_csv(out, crane.names, uniform=False)
         assert np.allclose(np.diff(d["t"]), 0.02)
     _refused(capsys, "simulate", "s100f", "--trajectory", path, "--out", out, "--rate", "0",
-             words=("--rate 0", "> 0 Hz"))
+             words=("--rate 0", "allowed"))
 
 
 # ------------------------------------------------------------------ 8, 11, 15: library build

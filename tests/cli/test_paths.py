@@ -54,6 +54,7 @@ CASES = {
     "problems show": (["problems", "show", "spec.toml", "--plot", "spec.toml"], "spec.toml"),
     "bound": (["bound", "spec.toml", "--start", S, "--goal", G, "--json", "spec.toml"],
               "spec.toml"),
+    "library show": (["library", "show", "lib.h5", "--json", "lib.h5"], "lib.h5"),
 }
 # sub-commands whose outputs cannot collide with anything: no file input, one output (or
 # output folders)

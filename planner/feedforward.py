@@ -150,7 +150,8 @@ def _runs(mask):
     return list(zip(d[::2], d[1::2]))
 
 
-def commands(crane: Crane, traj: Trajectory, rate: float = 50.0, hold: str = "mean") -> FeedForward:
+def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
+             hold: str = "mean") -> FeedForward:
     """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
 
     The grid is t0 + k/rate, k = 0 … ceil(duration·rate) (the last instant may lie up to one

@@ -6,13 +6,20 @@ Everything inside the package is SI (m, rad, s, Pa, m³/s, J). Human input may w
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from planner.model import Crane
+from typing import Any, Protocol, Sequence
 
 __all__ = ["parse_angle", "parse_point", "check_tip", "check_joint_units", "check_joint_range",
-           "checked_trajectory", "DEG"]
+           "checked_trajectory", "DEG", "CraneLike"]
+
+
+class CraneLike(Protocol):
+    """What the model's building blocks below :class:`planner.model.Crane` read of a machine
+    (units checks, the effects' hooks): its validated spec and its joint names. A ``Crane``
+    is one; they take this protocol because ``Crane`` is built from them."""
+    spec: Any
+
+    @property
+    def names(self) -> Sequence[str]: ...
 
 DEG = math.pi / 180.0
 SLEW_TOL = 1e-9   # [rad] slack on the ±π range of a tip's slew (rounding of "180deg")
@@ -125,7 +132,8 @@ def check_joint_range(joints, names, q, source: str = "trajectory") -> None:
                              f"{tol:.2g}); allowed: a trajectory of this machine")
 
 
-def checked_trajectory(crane: Crane, traj, source: str = "trajectory", crane_id: str | None = None):
+def checked_trajectory(crane: CraneLike, traj, source: str = "trajectory",
+                       crane_id: str | None = None):
     """``traj`` (a :class:`~planner.trajectory.Trajectory` read for ``crane``) checked against
     the machine where a trajectory file is read: the recorded ``crane_id`` (a library entry's)
     is ``crane``'s, the joints are the machine's (names and count), the positions are not in

@@ -94,7 +94,8 @@ class Discrepancy:
     train/held-out blocks; threshold: least held-out score to name an effect (calibrated on
     clean data); grid: scan points per parameter before the local fit."""
 
-    def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0, threshold: float = 30.0,
+    def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0,
+                 threshold: float = 30.0,
                  grid: int = 13, second: bool = True):
         unknown = [c for c in (candidates or []) if c not in CATALOGUE]
         if unknown:

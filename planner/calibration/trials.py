@@ -156,7 +156,8 @@ def excitation(crane: Crane, duration: float = 60.0, rate: float = 50.0, seed: i
     return b.finish(dict(seed=seed, duration=duration))
 
 
-def trackable(crane: Crane, plan: Trajectory, margin: float = 0.8, rate: float = 50.0) -> Trajectory:
+def trackable(crane: Crane, plan: Trajectory, margin: float = 0.8,
+              rate: float = 50.0) -> Trajectory:
     """``plan`` slowed uniformly until its nominal feed-forward asks at most ``margin`` of
     every valve (|u|) and of the pump: a plan the nominal plant can follow open loop (as every
     library entry is), for judging re-planned feed-forward on a calibrated model."""

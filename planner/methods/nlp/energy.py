@@ -52,7 +52,8 @@ def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N
     return out
 
 
-def energy_optimal(crane: Crane, start, goal, T_max: float, *, time_result: PlanResult | None = None,
+def energy_optimal(crane: Crane, start, goal, T_max: float, *,
+                   time_result: PlanResult | None = None,
                    time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None,
                    N: int = 40) -> tuple[PlanResult, dict]:
     """Least pump energy with duration ≤ T_max: the energy NLP warm-started from the

@@ -22,18 +22,14 @@ discrepancy search need no branch on its name:
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.model.effects.hooks import QUASI_STATIC_HOOKS, EffectRefused, hooks_in, overridden
-from planner.units import parse_angle
+from planner.units import CraneLike, parse_angle
 
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",
            "catalogue", "make", "effect_from_dict", "parse_effect", "as_effects",
@@ -145,14 +141,14 @@ class Effect:
                     [p.high for p in self.parameters])
         return type(self)(self.joint, **{p.name: float(x) for p, x in zip(self.parameters, v)})
 
-    def neutral_vector(self, crane: Crane) -> np.ndarray:
+    def neutral_vector(self, crane: CraneLike) -> np.ndarray:
         """Parameter values at which the effect vanishes on this crane (the fit's start)."""
         return np.array([p.neutral for p in self.parameters], float)
 
     def bounds(self):
         return ([p.low for p in self.parameters], [p.high for p in self.parameters])
 
-    def index(self, crane: Crane) -> int:
+    def index(self, crane: CraneLike) -> int:
         """Index of this effect's joint in ``crane`` (ValueError naming the known joints)."""
         try:
             return list(crane.names).index(self.joint)
@@ -160,7 +156,7 @@ class Effect:
             raise ValueError(f"effect {self.name}: unknown joint {self.joint!r}; "
                              f"joints of {crane.spec.id}: {', '.join(crane.names)}") from None
 
-    def on_own_joint(self, crane: Crane, like, column_of) -> np.ndarray:
+    def on_own_joint(self, crane: CraneLike, like, column_of) -> np.ndarray:
         """An (N, n) array shaped like ``like``: zero except this effect's joint column,
         ``column_of(i)`` (for the per-joint force and drift hooks)."""
         i = self.index(crane)
@@ -168,12 +164,12 @@ class Effect:
         out[:, i] = column_of(i)
         return out
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         """A dynamic plant's ``[dynamics]`` data (a
         :class:`~planner.model.dynamics_spec.DynamicsSpec`) with this effect applied."""
         return dyn
 
-    def bodies(self, crane: Crane, spec):
+    def bodies(self, crane: CraneLike, spec):
         """The machine's rigid-body data as a dynamic plant integrates it (a spec with other
         masses) with this effect applied."""
         return spec
@@ -239,51 +235,51 @@ class Effect:
                     stage=cls.stage, acts_on=cls.acts_on)
 
     # ---------------------------------------------------------------- hooks
-    def commands(self, crane: Crane, t_u, u):
+    def commands(self, crane: CraneLike, t_u, u):
         """Commands (M, n) held over [t_u[k], t_u[k+1]) -> what the valves act on (the mean
         over each hold period)."""
         return u
 
-    def start(self, crane: Crane, q0):
+    def start(self, crane: CraneLike, q0):
         """The true initial configuration (n,) given the nominal one."""
         return q0
 
-    def valves(self, crane: Crane, v: ValveSet) -> ValveSet:
+    def valves(self, crane: CraneLike, v: ValveSet) -> ValveSet:
         """The valve and pump data of the replay with this effect's change."""
         return v
 
-    def payload(self, crane: Crane, m: float) -> float:
+    def payload(self, crane: CraneLike, m: float) -> float:
         """The load in the grapple [kg]."""
         return m
 
-    def force(self, crane: Crane, s) -> np.ndarray | None:
+    def force(self, crane: CraneLike, s) -> np.ndarray | None:
         """Extra actuator force (N, n) [N | N·m] at the states ``s``
         (a :class:`planner.simulation.plant.PlantState`)."""
         return None
 
-    def drift(self, crane: Crane, s) -> np.ndarray | None:
+    def drift(self, crane: CraneLike, s) -> np.ndarray | None:
         """Extra stroke rate (N, n) [m/s | rad/s] at the states ``s``."""
         return None
 
-    def sense_q(self, crane: Crane, q):
+    def sense_q(self, crane: CraneLike, q):
         """What the position sensors report for the true positions ``q`` (N, n)."""
         return q
 
-    def sense_p(self, crane: Crane, p_a, p_b):
+    def sense_p(self, crane: CraneLike, p_a, p_b):
         """What the pressure transducers report for the true chamber pressures."""
         return p_a, p_b
 
-    def sense_q_at(self, crane: Crane, t, q):
+    def sense_q_at(self, crane: CraneLike, t, q):
         """:meth:`sense_q` at the sample times ``t`` (N,) [s] (the plant calls this one): a
         sensor effect that changes with time (a drift) overrides it; the default ignores
         ``t``."""
         return self.sense_q(crane, q)
 
-    def sense_p_at(self, crane: Crane, t, p_a, p_b):
+    def sense_p_at(self, crane: CraneLike, t, p_a, p_b):
         """:meth:`sense_p` at the sample times ``t`` (N,) [s] (see :meth:`sense_q_at`)."""
         return self.sense_p(crane, p_a, p_b)
 
-    def plant(self, crane: Crane, plant=()) -> tuple:
+    def plant(self, crane: CraneLike, plant=()) -> tuple:
         """``plant`` (a sequence of effects, or a :class:`planner.simulation.replay.Plant`)
         with this effect added: the effect set that the replay, ``stroke_rates`` and the
         plant's ``respond`` take."""
@@ -291,17 +287,18 @@ class Effect:
 
     # ---------------------------------------------------------------- trials
     @classmethod
-    def observable(cls, crane: Crane, i: int) -> bool:
+    def observable(cls, crane: CraneLike, i: int) -> bool:
         """False when the effect on joint ``i`` leaves no trace in joint positions and
         actuator pressures (no data of that kind can name it; trials do not draw it)."""
         return True
 
     @classmethod
-    def observable_joints(cls, crane: Crane) -> list[str]:
+    def observable_joints(cls, crane: CraneLike) -> list[str]:
         return [j for i, j in enumerate(crane.names) if cls.observable(crane, i)]
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude: float, sign: float, rng, sequence) -> dict:
+    def trial_values(cls, crane: CraneLike, i, magnitude: float, sign: float, rng,
+                     sequence) -> dict:
         """Parameter values of the hidden effect of a trial: ``magnitude`` drawn uniformly in
         ``trial_range``, ``sign`` ±1 (use it where both signs are physical), joint index ``i``
         (None for a machine-wide effect), ``rng`` for any further draw, ``sequence`` the
@@ -310,7 +307,7 @@ class Effect:
                                   f"{cls.trial_range})")
 
     @classmethod
-    def trial(cls, crane: Crane, rng, joint: str | None = None, sequence=None) -> "Effect":
+    def trial(cls, crane: CraneLike, rng, joint: str | None = None, sequence=None) -> "Effect":
         """A hidden effect of realistic magnitude: magnitude, sign, then (per-joint effects
         without ``joint``) an observable joint, each drawn from ``rng`` in that order."""
         if cls.trial_range is None:
@@ -325,7 +322,7 @@ class Effect:
         return cls(joint, **cls.trial_values(crane, i, mag, sign, rng, sequence))
 
 
-def is_slew(crane: Crane, i: int) -> bool:
+def is_slew(crane: CraneLike, i: int) -> bool:
     """True for the slew: the first joint of every crane spec turns the crane about the
     vertical axis of frame 0 (docs/design.md, "CONTRACT: tip coordinates"), so gravity does not
     depend on it."""
@@ -407,7 +404,7 @@ def effect_from_dict(d: dict) -> Effect:
     return make(name, joint, **d)
 
 
-def parse_effect(text: str, crane: Crane=None) -> Effect:
+def parse_effect(text: str, crane: CraneLike | None = None) -> Effect:
     """``NAME:key=value,…`` -> an effect (angles may be written ``1.5deg``). With a crane,
     the joint name is checked against it. At least one parameter value must be given."""
     name, _, rest = text.partition(":")
@@ -468,7 +465,7 @@ def quasi_static(effects) -> tuple:
     return effects
 
 
-def as_effects(crane: Crane, plant) -> tuple:
+def as_effects(crane: CraneLike, plant) -> tuple:
     """The effect set of ``plant``: an :class:`Effect`, a sequence of effects, or anything
     with an ``effects(crane)`` method (a :class:`planner.simulation.replay.Plant`)."""
     if isinstance(plant, Effect):

@@ -14,15 +14,12 @@ A grapple of radius of gyration k on a link of length L swings like a compound p
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from dataclasses import replace
 
 from planner.model.dynamics_spec import GYRATION, GrappleLink
 from planner.model.effects.base import Effect, Parameter
+from planner.units import CraneLike
 
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["BulkModulus", "HoseVolume", "GrappleSwing"]
 
@@ -37,7 +34,7 @@ class BulkModulus(Effect):
                             "factor on the spec's [dynamics] bulk_modulus"),)
     stage, acts_on = "dynamics", "positions and pressures"
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         return replace(dyn, bulk_modulus=dyn.bulk_modulus * self.scale)
 
 
@@ -52,7 +49,7 @@ class HoseVolume(Effect):
     per_joint = True
     stage, acts_on = "dynamics", "positions and pressures"
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         self.index(crane)   # an unknown joint is refused with the known ones named
         j = dyn.joints[self.joint]
         hv = tuple(v * self.scale for v in j.hose_volume)
@@ -74,7 +71,7 @@ class GrappleSwing(Effect):
                             "viscous damping about each of the two pins"))
     stage, acts_on = "dynamics", "pressures"
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         if self.length <= 0:
             return dyn
         k = dyn.grapple.gyration if dyn.grapple is not None else GYRATION

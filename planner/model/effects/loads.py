@@ -3,23 +3,20 @@ viscous_friction, payload_mass, grapple_load, actuator_mass) and what the transd
 (joint_offset, pressure_offset)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
 from dataclasses import replace
 
 import numpy as np
 
 from planner.model.effects.base import Effect, Parameter, is_slew
+from planner.units import CraneLike
 
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["CoulombFriction", "ViscousFriction", "PayloadMass", "GrappleLoad", "ActuatorMass",
            "JointOffset", "PressureOffset", "smooth_sign"]
 
 
-def smooth_sign(crane: Crane, i, xd):
+def smooth_sign(crane: CraneLike, i, xd):
     """sign(ẋ) smoothed over 1 % of the actuator's full-command stroke speed (no chatter at
     rest, the same in the plant and in the fit)."""
     a = crane.spec.joints[i].actuator
@@ -27,7 +24,7 @@ def smooth_sign(crane: Crane, i, xd):
     return np.tanh(xd / v)
 
 
-def _joint_dynamics(effect, crane: Crane, dyn, **change):
+def _joint_dynamics(effect, crane: CraneLike, dyn, **change):
     """``dyn`` with the effect's joint's :class:`JointDynamics` fields changed: each keyword
     maps a field to a function of the old joint data."""
     effect.index(crane)   # an unknown joint is refused with the known ones named
@@ -47,11 +44,11 @@ class CoulombFriction(Effect):
     per_joint, stage, acts_on = True, "forces", "pressures"
     trial_range = (0.3, 1.0)            # × 5 % of the actuator's force at 10 MPa
 
-    def force(self, crane: Crane, s):
+    def force(self, crane: CraneLike, s):
         return self.on_own_joint(crane, s.force_model, lambda i: self.force_value
                                  * smooth_sign(crane, i, s.xd[:, i]))
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         # a dynamic plant: the actuator's own (smoothed) Coulomb friction, raised
         return _joint_dynamics(self, crane, dyn, coulomb=lambda j: j.coulomb
                                + self.force_value)
@@ -62,7 +59,7 @@ class CoulombFriction(Effect):
         return self._values[0]
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         act = crane.spec.joints[i].actuator
         return dict(force=min(magnitude * 0.05 * 10e6 * act.area_a, 3.0e4))
 
@@ -77,14 +74,14 @@ class ViscousFriction(Effect):
     per_joint, stage, acts_on = True, "forces", "pressures"
     trial_range = (0.3, 1.0)            # × the coefficient giving 1 MPa at full speed
 
-    def force(self, crane: Crane, s):
+    def force(self, crane: CraneLike, s):
         return self.on_own_joint(crane, s.force_model, lambda i: self.coefficient * s.xd[:, i])
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         return _joint_dynamics(self, crane, dyn, viscous=lambda j: j.viscous + self.coefficient)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         act = crane.spec.joints[i].actuator
         vmax = act.flow_gain / act.area_a
         return dict(coefficient=min(magnitude * 1e6 * act.area_a / vmax, 5.0e5))
@@ -100,11 +97,11 @@ class PayloadMass(Effect):
     stage, acts_on = "forces", "pressures"
     trial_range = (0.3, 1.0)            # × the spec's payload + tool (lighter: ≤ the load)
 
-    def payload(self, crane: Crane, m):
+    def payload(self, crane: CraneLike, m):
         return max(m + self.mass, 0.0)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         m = magnitude * crane.spec.payload.total
         return dict(mass=m if sign > 0 else -min(m, crane.spec.payload.mass))
 
@@ -118,7 +115,7 @@ class GrappleLoad(Effect):
     parameters = (Parameter("mass", "kg", 0.0, 1.0e5, 0.0, "load in the grapple"),)
     stage, acts_on = "forces", "pressures"
 
-    def payload(self, crane: Crane, m):
+    def payload(self, crane: CraneLike, m):
         return self.mass
 
 
@@ -132,10 +129,10 @@ class ActuatorMass(Effect):
     per_joint, stage, acts_on = True, "forces", "pressures"
     trial_range = (0.1, 0.4)            # × the mass of the link the actuator drives
 
-    def force(self, crane: Crane, s):
+    def force(self, crane: CraneLike, s):
         return self.mass * s.unit_actuator_force(self.index(crane))
 
-    def bodies(self, crane: Crane, spec):
+    def bodies(self, crane: CraneLike, spec):
         # a dynamic plant integrates the heavier actuator itself (lumped as the model lumps it)
         i = self.index(crane)
         j = spec.joints[i]
@@ -143,12 +140,12 @@ class ActuatorMass(Effect):
         return replace(spec, joints=spec.joints[:i] + (j2,) + spec.joints[i + 1:])
 
     @classmethod
-    def observable(cls, crane: Crane, i):
+    def observable(cls, crane: CraneLike, i):
         # the slew drive's own mass, lumped near the axis, adds almost nothing to its inertia
         return not is_slew(crane, i)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(mass=magnitude * crane.spec.joints[i].mass)
 
 
@@ -163,18 +160,18 @@ class JointOffset(Effect):
     per_joint, stage, acts_on = True, "sensors", "positions and pressures"
     trial_range = (math.radians(1.0), math.radians(3.0))   # rad; prismatic: the same in m
 
-    def sense_q(self, crane: Crane, q):
+    def sense_q(self, crane: CraneLike, q):
         q = q.copy()
         q[:, self.index(crane)] += self.offset
         return q
 
     @classmethod
-    def observable(cls, crane: Crane, i):
+    def observable(cls, crane: CraneLike, i):
         # gravity does not depend on the slew angle (seed 001 needed an external calibrator)
         return not is_slew(crane, i)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(offset=sign * magnitude)
 
 
@@ -187,7 +184,7 @@ class PressureOffset(Effect):
     per_joint, stage, acts_on = True, "sensors", "pressures"
     trial_range = (0.3e6, 1.0e6)        # Pa, on one chamber drawn at random
 
-    def sense_p(self, crane: Crane, p_a, p_b):
+    def sense_p(self, crane: CraneLike, p_a, p_b):
         i = self.index(crane)
         p_a, p_b = p_a.copy(), p_b.copy()
         p_a[:, i] += self.offset_a
@@ -195,6 +192,6 @@ class PressureOffset(Effect):
         return p_a, p_b
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return (dict(offset_a=sign * magnitude) if rng.uniform() < 0.5
                 else dict(offset_b=sign * magnitude))

@@ -3,17 +3,14 @@ where the crane starts (start_offset), the valve and pump data (flow_gain, valve
 pump_flow_limit) and pressure-driven extra stroke (leakage)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
 from dataclasses import replace
 
 import numpy as np
 
 from planner.model.effects.base import Effect, Parameter, is_slew
+from planner.units import CraneLike
 
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["TimeDelay", "ValveLag", "StartOffset", "FlowGain", "ValveDeadband", "PumpFlowLimit",
            "Leakage"]
@@ -37,7 +34,7 @@ class TimeDelay(Effect):
     def command_delay(self) -> float:
         return self.delay
 
-    def commands(self, crane: Crane, t_u, u):
+    def commands(self, crane: CraneLike, t_u, u):
         d = self.delay
         if d <= 0:
             return u
@@ -54,7 +51,7 @@ class TimeDelay(Effect):
         return (1.0 - f) * a + f * b
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(delay=magnitude)
 
 
@@ -72,7 +69,7 @@ class ValveLag(Effect):
     def command_delay(self) -> float:
         return self.tau
 
-    def commands(self, crane: Crane, t_u, u):
+    def commands(self, crane: CraneLike, t_u, u):
         tau = self.tau
         if tau <= 0:
             return u
@@ -88,7 +85,7 @@ class ValveLag(Effect):
         return out
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(tau=magnitude)
 
 
@@ -104,7 +101,7 @@ class StartOffset(Effect):
                             "true start − nominal start"),)
     per_joint, stage, acts_on = True, "start", "positions and pressures"
 
-    def start(self, crane: Crane, q0):
+    def start(self, crane: CraneLike, q0):
         q0 = np.array(q0, float)
         q0[self.index(crane)] += self.offset
         return q0
@@ -121,13 +118,13 @@ class FlowGain(Effect):
     per_joint, stage, acts_on = True, "valves", "positions and pressures"
     trial_range = (0.05, 0.20)          # relative gain error
 
-    def valves(self, crane: Crane, v):
+    def valves(self, crane: CraneLike, v):
         g = np.array(v.flow_gain_scale, float)
         g[self.index(crane)] *= self.scale
         return replace(v, flow_gain_scale=g)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(scale=1.0 + sign * magnitude)
 
 
@@ -142,16 +139,16 @@ class ValveDeadband(Effect):
     per_joint, stage, acts_on = True, "valves", "positions and pressures"
     trial_range = (0.08, 0.20)          # widening of the spec's band (absolute)
 
-    def neutral_vector(self, crane: Crane):
+    def neutral_vector(self, crane: CraneLike):
         return np.array([crane.spec.joints[self.index(crane)].actuator.deadband])
 
-    def valves(self, crane: Crane, v):
+    def valves(self, crane: CraneLike, v):
         db = np.array(v.deadband, float)
         db[self.index(crane)] = self.width
         return replace(v, deadband=db)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(width=min(crane.spec.joints[i].actuator.deadband + magnitude, 0.4))
 
 
@@ -165,11 +162,11 @@ class PumpFlowLimit(Effect):
     stage, acts_on = "valves", "positions and pressures"
     trial_range = (0.15, 0.40)          # shortfall relative to the sequence's peak demand
 
-    def valves(self, crane: Crane, v):
+    def valves(self, crane: CraneLike, v):
         return replace(v, pump_flow_scale=v.pump_flow_scale * self.scale)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         # a pump short of what the test sequence asks at its peak (else it never shows)
         peak = 1.0 if sequence is None else sequence.peak_demand
         return dict(scale=max(peak * (1.0 - magnitude), 0.1))
@@ -187,7 +184,7 @@ class Leakage(Effect):
     per_joint, stage, acts_on = True, "strokes", "positions and pressures"
     trial_range = (0.5e-3, 2e-3)        # m/s: drift speed of the held cylinder at 10 MPa
 
-    def drift(self, crane: Crane, s):
+    def drift(self, crane: CraneLike, s):
         pt = crane.spec.pump.tank_pressure
 
         def rate(i):   # out of the loaded chamber: towards the load
@@ -197,7 +194,7 @@ class Leakage(Effect):
                             self.coefficient * (s.p_b[:, i] - pt) / a.area_b)
         return self.on_own_joint(crane, s.xd, rate)
 
-    def dynamics(self, crane: Crane, dyn):
+    def dynamics(self, crane: CraneLike, dyn):
         # a dynamic plant: a flow from the loaded chamber to tank, ∝ its pressure
         self.index(crane)
         j = dyn.joints[self.joint]
@@ -205,12 +202,12 @@ class Leakage(Effect):
         return replace(dyn, joints={**dyn.joints, self.joint: j2})
 
     @classmethod
-    def observable(cls, crane: Crane, i):
+    def observable(cls, crane: CraneLike, i):
         # the slew drive holds no gravity load, so nothing drives a leak
         return not is_slew(crane, i)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         # C = v·A / p: the drift speed at the holding pressure
         return dict(coefficient=magnitude * crane.spec.joints[i].actuator.area_a
                     / _HOLD_PRESSURE)

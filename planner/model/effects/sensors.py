@@ -9,16 +9,13 @@ logger started): reading = true + rate · (t − t₀).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import math
 
 import numpy as np
 
 from planner.model.effects.base import Effect, Parameter, is_slew
+from planner.units import CraneLike
 
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["SensorGain", "SensorDrift", "PressureDrift"]
 
@@ -42,18 +39,18 @@ class SensorGain(Effect):
     per_joint, stage, acts_on = True, "sensors", "positions and pressures"
     trial_range = (0.02, 0.05)          # relative scale error
 
-    def sense_q(self, crane: Crane, q):
+    def sense_q(self, crane: CraneLike, q):
         q = q.copy()
         q[:, self.index(crane)] *= self.scale
         return q
 
     @classmethod
-    def observable(cls, crane: Crane, i):
+    def observable(cls, crane: CraneLike, i):
         # on the slew the pressures do not depend on the angle: only flow_gain-like motion
         return not is_slew(crane, i)
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(scale=1.0 + sign * magnitude)
 
 
@@ -69,13 +66,13 @@ class SensorDrift(Effect):
     per_joint, stage, acts_on = True, "sensors", "positions"
     trial_range = (math.radians(0.03), math.radians(0.1))   # rad/s; prismatic: the same in m/s
 
-    def sense_q_at(self, crane: Crane, t, q):
+    def sense_q_at(self, crane: CraneLike, t, q):
         q = q.copy()
         q[:, self.index(crane)] += self.rate * _elapsed(t, q)[:, 0]
         return q
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return dict(rate=sign * magnitude)
 
 
@@ -89,7 +86,7 @@ class PressureDrift(Effect):
     per_joint, stage, acts_on = True, "sensors", "pressures"
     trial_range = (5.0e3, 2.0e4)        # Pa/s on one chamber drawn at random
 
-    def sense_p_at(self, crane: Crane, t, p_a, p_b):
+    def sense_p_at(self, crane: CraneLike, t, p_a, p_b):
         i = self.index(crane)
         p_a, p_b = p_a.copy(), p_b.copy()
         dt = _elapsed(t, p_a)[:, 0]
@@ -98,6 +95,6 @@ class PressureDrift(Effect):
         return p_a, p_b
 
     @classmethod
-    def trial_values(cls, crane: Crane, i, magnitude, sign, rng, sequence):
+    def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):
         return (dict(rate_a=sign * magnitude) if rng.uniform() < 0.5
                 else dict(rate_b=sign * magnitude))

@@ -180,7 +180,8 @@ def _measures(crane: Crane, t, q, q_at, t_arrive, goal_tip, tol):
                 joint_osc=np.abs(after - rest).max(axis=0).tolist(), **res.as_dict())
 
 
-def replay_move(crane: Crane, pieces, *, settle: float = 3.0, rate: float = 50.0, tol: float = 0.005,
+def replay_move(crane: Crane, pieces, *, settle: float = 3.0, rate: float = 50.0,
+                tol: float = 0.005,
                 plant: ExudynPlant | None = None, t_u=None, u=None, max_wall_s: float = 600.0,
                 retries: int = 2, keep_runs: bool = False):
     """Replay a planned move open loop on the Exudyn plant and on the fast replay plant.

@@ -57,7 +57,8 @@ def simulate_trajectory(crane: Crane, traj: Trajectory, rate: float = 50.0, effe
     return run, t_u, u, src
 
 
-def exudyn_to_csv(crane: Crane, traj: Trajectory, out, rate: float = 50.0, noise=None, seed: int = 0,
+def exudyn_to_csv(crane: Crane, traj: Trajectory, out, rate: float = 50.0, noise=None,
+                  seed: int = 0,
                   effects=(), max_wall_s: float = 600.0) -> dict:
     """What ``crane-planner simulate --plant exudyn`` does
     (:func:`planner.simulation.plants.plant_to_csv` on the Exudyn plant): nothing is written

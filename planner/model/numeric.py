@@ -107,16 +107,8 @@ def jit(f: ca.Function) -> ca.Function:
 def jit_map(f: ca.Function, chunk: int) -> ca.Function:
     """Machine-code copy of ``f.map(chunk)`` (``f`` an SX function; the generated code loops
     over the samples in C), cached like :func:`jit`; the interpreted map without a compiler
-    or with ``CRANE_PLANNER_JIT=0``."""
-    fm = f.map(chunk)
-    if os.environ.get("CRANE_PLANNER_JIT", "1") == "0":
-        return fm
-    try:
-        return _compiled(fm)
-    except Exception as e:  # no compiler: the interpreted map is exact, only slower
-        warnings.warn(f"CasADi JIT unavailable ({type(e).__name__}: {e}); using the "
-                      "interpreter", RuntimeWarning, stacklevel=3)
-        return fm
+    or with ``CRANE_PLANNER_JIT=0`` (:func:`jit_function` of the map)."""
+    return jit_function(f.map(chunk))
 
 
 def jit_function(f: ca.Function) -> ca.Function:

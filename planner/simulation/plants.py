@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from planner.model.effects import as_effects, effect_from_dict, refuse
-from planner.model.effects.hooks import DYNAMIC_HOOKS, QUASI_STATIC_HOOKS
+from planner.model.effects.hooks import DYNAMIC_HOOKS, PENDULUM_HOOKS, QUASI_STATIC_HOOKS
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -175,7 +175,7 @@ PLANTS = {"fast": "planner.simulation.plants:FastPlant",
           "exudyn": "planner.simulation.dynamic.exudyn_plant:ExudynPlant",
           "twin": "planner.simulation.twin_plant:TwinPlant"}
 #: the hooks each plant calls, known without importing it (for messages and listings)
-PLANT_HOOKS = {"fast": (QUASI_STATIC_HOOKS, False), "exudyn": (DYNAMIC_HOOKS, True),
+PLANT_HOOKS = {"fast": (QUASI_STATIC_HOOKS, False), "exudyn": (PENDULUM_HOOKS, True),
                "twin": (DYNAMIC_HOOKS, True)}
 
 

@@ -8,8 +8,9 @@ twin's rigid bodies are rebuilt from that spec), ``payload``, ``valves`` (flow g
 bands, pump limit: inputs of the compiled step), ``commands`` (what the valves see), ``start``,
 ``force`` (an extra actuator force with no physical data, evaluated at the start of every
 0.1 s chunk of steps and held over it) and the sensors on the output. The grapple pendulum
-(``[dynamics.grapple]``, the ``grapple_swing`` effect) is not in the twin: it carries the
-grapple as a point mass at the tip, and refuses a swinging one by name.
+is not in the twin: it carries the grapple as a point mass at the tip, so it does not call
+the ``grapple`` hook (the ``grapple_swing`` effect is refused by name, like every effect a
+plant has no hook for) and refuses a spec with its own ``[dynamics.grapple]``.
 """
 from __future__ import annotations
 
@@ -17,7 +18,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.model.effects import EffectRefused
 from planner.model.effects.hooks import DYNAMIC_HOOKS
 from planner.model.twin import Twin
 from planner.simulation.plants import BasePlant, PlantRecord
@@ -49,13 +49,10 @@ class TwinPlant(BasePlant):
                              "volumes, …; see planner/model/dynamics_spec.py)")
         for e in self.acting("dynamics"):
             dyn = e.dynamics(crane, dyn)
-        if dyn.grapple is not None:
-            who = [e.name for e in self.acting("dynamics") if e.dynamics(crane, spec.dynamics)
-                   .grapple is not None] or ["dynamics.grapple"]
-            raise EffectRefused(who[0], self.name, (
-                f"effect {who[0]}: the twin plant cannot apply it (the twin carries the "
-                "grapple as a point mass at the tip; its pendulum is not modelled); plants "
-                "that apply it: exudyn"))
+        if dyn.grapple is not None:   # the spec's own [dynamics.grapple]
+            raise ValueError(f"crane '{spec.id}': field 'dynamics.grapple': the twin plant "
+                             "carries the grapple as a point mass at the tip (its pendulum is "
+                             "not modelled); simulate a hanging grapple with the exudyn plant")
         payload = spec.payload.total
         for e in self.acting("payload"):
             payload = e.payload(crane, payload)

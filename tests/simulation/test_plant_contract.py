@@ -171,7 +171,6 @@ def check_change(name, e, crane, nom, rec):
 EFFECTS = sorted(CATALOGUE) + ["test_push", "test_creep"]
 #: (plant, effect) refused by name at construction although the two share a hook: the twin
 #: carries the grapple as a point mass at the tip (no pendulum), so a swinging one is refused
-REFUSED_ANYWAY = {("twin", "grapple_swing")}
 
 
 @pytest.mark.parametrize("plant", sorted(PLANTS))
@@ -179,7 +178,7 @@ REFUSED_ANYWAY = {("twin", "grapple_swing")}
 def test_every_effect_is_applied_visibly_or_refused_by_name(plugins, machine, plant, name):
     crane, q0 = machine
     e = instance(name, crane)
-    if plant not in applying(e) or (plant, name) in REFUSED_ANYWAY:
+    if plant not in applying(e):
         with pytest.raises(EffectRefused, match=f"effect {name}: the {plant} plant cannot"):
             make_plant(plant, crane, [e])
         return

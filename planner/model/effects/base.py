@@ -169,6 +169,11 @@ class Effect:
         :class:`~planner.model.dynamics_spec.DynamicsSpec`) with this effect applied."""
         return dyn
 
+    def grapple(self, crane: CraneLike, dyn):
+        """A dynamic plant's ``[dynamics]`` data with this effect's grapple link (its
+        ``grapple``: a :class:`~planner.model.dynamics_spec.GrappleLink` or None)."""
+        return dyn
+
     def bodies(self, crane: CraneLike, spec):
         """The machine's rigid-body data as a dynamic plant integrates it (a spec with other
         masses) with this effect applied."""

@@ -71,7 +71,7 @@ class GrappleSwing(Effect):
                             "viscous damping about each of the two pins"))
     stage, acts_on = "dynamics", "pressures"
 
-    def dynamics(self, crane: CraneLike, dyn):
+    def grapple(self, crane: CraneLike, dyn):
         if self.length <= 0:
             return dyn
         k = dyn.grapple.gyration if dyn.grapple is not None else GYRATION

@@ -20,7 +20,9 @@ force          an extra actuator force at given states — the quasi-static stan
 drift          an extra stroke rate at given states — the quasi-static stand-in of a
                flow [strokes]
 dynamics       the physical data of a dynamic plant (``[dynamics]``: oil, hoses, friction,
-               leakage, the grapple link) [dynamics]
+               leakage) [dynamics]
+grapple        the passive link the grapple hangs on (``[dynamics.grapple]``): only a plant
+               with the pendulum in its bodies applies it [dynamics]
 sense_q_at     what the position sensors report at given times [sensors]
 sense_p_at     what the pressure transducers report at given times [sensors]
 =============  ===================================================================================
@@ -37,20 +39,23 @@ force-driven plant has no way to impose a stroke rate).
 """
 from __future__ import annotations
 
-__all__ = ["HOOKS", "QUASI_STATIC_HOOKS", "DYNAMIC_HOOKS", "STAND_INS", "PHYSICAL",
+__all__ = ["HOOKS", "QUASI_STATIC_HOOKS", "DYNAMIC_HOOKS", "PENDULUM_HOOKS", "STAND_INS",
+           "PHYSICAL",
            "EffectRefused", "overridden", "hooks_in"]
 
 HOOKS = ("commands", "start", "valves", "payload", "bodies", "force", "drift", "dynamics",
-         "sense_q_at", "sense_p_at")
+         "grapple", "sense_q_at", "sense_p_at")
 #: the hooks the quasi-static plant (and the discrepancy model, the same replay) calls
 QUASI_STATIC_HOOKS = ("commands", "start", "valves", "payload", "force", "drift", "sense_q_at",
                       "sense_p_at")
-#: the hooks a dynamic plant (Exudyn, the twin) calls
+#: the hooks a dynamic plant (Exudyn, the twin) calls; one with the grapple pendulum in its
+#: bodies (Exudyn) calls ``grapple`` too
 DYNAMIC_HOOKS = ("commands", "start", "valves", "payload", "bodies", "dynamics", "force",
                  "sense_q_at", "sense_p_at")
+PENDULUM_HOOKS = DYNAMIC_HOOKS + ("grapple",)
 #: quasi-static stand-ins a dynamic plant skips when the effect gives physical data
 STAND_INS = ("force", "drift")
-PHYSICAL = ("dynamics", "bodies")
+PHYSICAL = ("dynamics", "bodies", "grapple")
 # a hook counts as overridden when the class (or a class between it and Effect) defines one of
 # these methods
 _ALIASES = {"sense_q_at": ("sense_q_at", "sense_q"), "sense_p_at": ("sense_p_at", "sense_p")}

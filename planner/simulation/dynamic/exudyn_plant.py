@@ -33,7 +33,7 @@ import numpy as np
 
 from planner.model import Crane
 from planner.model.commands import held_commands
-from planner.model.effects.hooks import DYNAMIC_HOOKS
+from planner.model.effects.hooks import PENDULUM_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import Circuit
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
@@ -104,7 +104,7 @@ class ExudynPlant(BasePlant):
     name = "exudyn"
     description = ("Exudyn multibody + chamber-pressure dynamics, its own circuit code (the "
                    "independent judge)")
-    hooks = DYNAMIC_HOOKS
+    hooks = PENDULUM_HOOKS
     physical_first = True
 
     def __init__(self, crane: Crane, effects=(), dynamics=None, step: float = 2e-3):
@@ -121,8 +121,10 @@ class ExudynPlant(BasePlant):
                              "dynamic plant does not model the hydraulic transformer")
         self.crane, self.step = crane, float(step)
         self._take_effects(crane, effects)
-        for e in self.acting("dynamics"):   # the oil, hoses, friction, leakage, the grapple
+        for e in self.acting("dynamics"):   # the oil, hoses, friction, leakage
             dyn = e.dynamics(crane, dyn)
+        for e in self.acting("grapple"):    # the link the grapple swings on
+            dyn = e.grapple(crane, dyn)
         self.dyn = dyn
         payload = spec.payload.total
         for e in self.acting("payload"):

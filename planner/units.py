@@ -83,6 +83,14 @@ def check_tip(tip, field: str = "tip") -> tuple[float, float, float]:
     return r, z, s
 
 
+def _columns(joints, names, q):
+    """(joint, its column of q, range low, range high) for each joint that has a column."""
+    names = list(names)
+    for j in joints:
+        if j.name in names:
+            yield (j, q[:, names.index(j.name)], *j.limits.q)
+
+
 def check_joint_units(joints, names, q, source: str = "trajectory") -> None:
     """Refuse joint positions that look like the wrong unit. ``joints``: the spec's joints
     (``.name``, ``.type``, ``.limits.q``); ``names``: the joint name of each column of ``q``
@@ -90,12 +98,7 @@ def check_joint_units(joints, names, q, source: str = "trajectory") -> None:
     (at least 1 rad or 1 m) raises ValueError naming the column and ``source``: a revolute
     column in degrees, a prismatic one in millimetres. Values just outside the range (a
     measured overshoot) pass."""
-    names = list(names)
-    for j in joints:
-        if j.name not in names:
-            continue
-        col = q[:, names.index(j.name)]
-        lo, hi = j.limits.q
+    for j, col, lo, hi in _columns(joints, names, q):
         far = (col < lo - max(hi - lo, 1.0)) | (col > hi + max(hi - lo, 1.0))
         if not far.any():
             continue
@@ -116,12 +119,7 @@ def check_joint_range(joints, names, q, source: str = "trajectory") -> None:
     naming the column, the value, the data row and the range. A trajectory planned for another
     machine with the same joint names (s100f's 2.30 m telescope on umea-lab's 1.55 m) is caught
     here rather than replayed."""
-    names = list(names)
-    for j in joints:
-        if j.name not in names:
-            continue
-        col = q[:, names.index(j.name)]
-        lo, hi = j.limits.q
+    for j, col, lo, hi in _columns(joints, names, q):
         tol = max(RANGE_TOL * (hi - lo), 1e-6)
         out = (col < lo - tol) | (col > hi + tol)
         if out.any():

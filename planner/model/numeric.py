@@ -135,6 +135,17 @@ def densified(f: ca.Function) -> ca.Function:
     return ca.Function(f.name(), ins, outs, f.name_in(), f.name_out())
 
 
+def _bound(fm: ca.Function, ins: list, outs: list) -> tuple:
+    """(buffer, its eval, ins, outs): ``fm``'s call buffer bound to the numpy arrays ``ins``
+    and ``outs`` (filled in place, evaluated without copies)."""
+    buf, ev = fm.buffer()
+    for i, a in enumerate(ins):
+        buf.set_arg(i, memoryview(a))
+    for i, a in enumerate(outs):
+        buf.set_res(i, memoryview(a))
+    return buf, ev, ins, outs
+
+
 class Batched:
     """Evaluate ``f`` (column-vector inputs/outputs) on N samples at a time.
 
@@ -154,14 +165,8 @@ class Batched:
         m = self._maps.get(chunk)
         if m is None:
             fm = self.f if chunk == 1 else self.f.map(chunk)
-            buf, ev = fm.buffer()
-            ins = [np.zeros((chunk, s)) for s in self.size_in]
-            outs = [np.zeros((chunk, s)) for s in self.size_out]
-            for i, a in enumerate(ins):
-                buf.set_arg(i, memoryview(a))
-            for i, a in enumerate(outs):
-                buf.set_res(i, memoryview(a))
-            m = self._maps[chunk] = (buf, ev, ins, outs)
+            m = self._maps[chunk] = _bound(fm, [np.zeros((chunk, s)) for s in self.size_in],
+                                           [np.zeros((chunk, s)) for s in self.size_out])
         return m
 
     def __call__(self, *args):
@@ -211,14 +216,9 @@ class Elementwise:
     def _map(self, chunk: int):
         m = self._maps.get(chunk)
         if m is None:
-            buf, ev = jit_map(self.f, chunk).buffer()
-            ins = [np.zeros(chunk) for _ in range(self.f.n_in())]
-            outs = [np.zeros(chunk) for _ in range(self.f.n_out())]
-            for i, a in enumerate(ins):
-                buf.set_arg(i, memoryview(a))
-            for i, a in enumerate(outs):
-                buf.set_res(i, memoryview(a))
-            m = self._maps[chunk] = (buf, ev, ins, outs)
+            m = self._maps[chunk] = _bound(jit_map(self.f, chunk),
+                                           [np.zeros(chunk) for _ in range(self.f.n_in())],
+                                           [np.zeros(chunk) for _ in range(self.f.n_out())])
         return m
 
     def __call__(self, *args):

@@ -26,13 +26,14 @@ import numpy as np
 from planner.model.numeric import jit_function
 from planner.model.twin.ode import state_size
 
-__all__ = ["Stepper", "STATE_SCALE"]
+__all__ = ["Stepper", "STATE_SCALE", "state_scale"]
 
 #: per-state scale of the Newton update check: q, q̇ (1), pressures (1 MPa), spools (1)
 STATE_SCALE = {"q": 1.0, "qd": 1.0, "p": 1e6, "spool": 1.0}
 
 
-def _scale(n):
+def state_scale(n: int) -> np.ndarray:
+    """The per-state scale of :data:`STATE_SCALE` as a vector (5n + 1,)."""
     return np.concatenate([np.full(2 * n, 1.0), np.full(2 * n + 1, 1e6), np.full(n, 1.0)])
 
 
@@ -60,7 +61,7 @@ class Stepper:
         y = 2 * xk - xm
         J = ca.SX.eye(nx) - c * jac(y, u, fx, P)
         b = 4.0 / 3.0 * xk - 1.0 / 3.0 * xm
-        inv_scale = ca.DM(1.0 / _scale(n))
+        inv_scale = ca.DM(1.0 / state_scale(n))
         dy = ca.SX.zeros(nx)
         for _ in range(self.newton):
             G = y - b - c * rhs(y, u, fx, P)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import hashlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -118,6 +119,19 @@ class Twin:
         self.stepper, fs = _stepper(crane, self.bodies, self.step, int(newton), int(chunk))
         self.f_rhs, self.f_outputs = fs["rhs"], fs["outputs"]
         self._rest_model = None
+
+    def provenance(self) -> dict:
+        """Which twin this is: the machine, its spec file, a fingerprint (sha256, 16 hex) of
+        everything that decides a run (the parameter vector, the rigid bodies, the payload,
+        the step and Newton iterations), the step, the bulk modulus and the payload."""
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.P, float).tobytes())
+        h.update(repr(self.bodies.joints).encode())
+        h.update(f"{self.payload!r} {self.step!r} {self.stepper.newton}".encode())
+        spec = self.crane.spec
+        return dict(model="twin", crane_id=spec.id, spec=str(spec.path or ""),
+                    fingerprint=h.hexdigest()[:16], step_s=self.step,
+                    bulk_modulus_Pa=float(self.params.scalar["beta"]), payload_kg=self.payload)
 
     # ------------------------------------------------------------------ states
     def bodies_model(self):

@@ -1,0 +1,279 @@
+"""Feed-forward computed on the dynamic twin: the valve commands that make the twin follow a
+planned trajectory and come to rest at its goal without ringing (issue 27).
+
+The nominal feed-forward (:func:`planner.feedforward.commands`) inverts the quasi-static
+valve model: it is exact for a machine without oil. On a real one the oil in the closed
+chambers is a spring — a gravity-loaded cylinder whose holding pressure changes between start
+and goal loses V·Δp/β of stroke, a motor traps its stopping pressure and rings on it at
+0.7–3 Hz — so the nominal commands arrive off the goal and ring. Here the commands are
+optimised on the twin (:mod:`planner.model.twin`) by single shooting:
+
+* **Unknowns**: the valve commands on the control grid (``rate``, 50 Hz, held), over the move
+  and a ``tail`` after it (the commands may go on acting while the modes settle: the move's
+  end may lengthen by up to ``tail``, and by how much is reported), valves closed after that.
+  Bounds |u| ≤ 1.
+* **Cost**: the tip-weighted joint error ∫ w(t)·Σ_j ℓ_j²·(q_j − q_ref,j)² dt over the move, the
+  tail and ``settle`` s with the valves closed (ℓ_j: the tip's lever of joint j at the goal,
+  m per rad | m, so the sum is close to the tip error squared; w = 1 during the move and
+  ``end_weight`` after it: landing and calm count most), plus ``smooth``·Σ|u_{k+1} − u_k|²
+  (no chatter at the control rate). The reference holds the goal after the plan's end, so
+  any residual motion, offset or ringing is paid for.
+* **Gradient**: exact, by the adjoint of the twin's compiled integrator
+  (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
+  whatever the number of commands.
+* **Solver**: L-BFGS-B (scipy) from the nominal commands, at most ``iterations`` iterations.
+
+The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
+the twin, so the refined commands respect them as the twin sees them. The result carries its
+provenance: the twin's fingerprint (machine, parameters, step), the iterations, the predicted
+tracking, rest offset and ringing on the twin for the nominal and the refined commands (the
+twin run in full, with its convergence substeps), the lengthening and the time spent. Whether
+the refined commands land on a machine is for a plant to judge (:mod:`planner.library.refine`
+and ``benchmarks/bench_refine.py`` replay them on Exudyn).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+    from planner.model.twin import Twin
+
+__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "twin_measures"]
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """How the commands are refined (see the module doc): ``iterations`` of L-BFGS-B at most,
+    the ``tail`` [s] the commands may run past the plan, ``settle`` [s] recorded with the
+    valves closed after that, ``end_weight`` on the error after the plan's end, ``smooth``
+    [1/(command step)²] on the command's steps, the control ``rate`` [Hz], the twin's ``step``
+    [s], ``rest_window`` [s] the end of the record whose mean is the rest point."""
+    iterations: int = 60
+    tail: float = 0.5
+    settle: float = 2.0
+    end_weight: float = 4.0
+    smooth: float = 1e-3
+    rate: float = 50.0
+    step: float = 2e-3
+    rest_window: float = 1.0
+
+    def __post_init__(self):
+        checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
+                  ("settle", self.settle, 0.2, 60.0), ("end_weight", self.end_weight, 0.0, 1e6),
+                  ("smooth", self.smooth, 0.0, 1e6), ("rate", self.rate, 1.0, 1000.0),
+                  ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0))
+        for name, v, lo, hi in checks:
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
+        if self.rest_window > self.settle:
+            raise ValueError(f"refine option 'rest_window' = {self.rest_window!r}; allowed: at "
+                             f"most settle = {self.settle:g} s")
+
+
+class RefineStatus(str, Enum):
+    """How a refinement ended: ``improved`` (the refined commands are better on the twin),
+    ``unchanged`` (no better commands found: the nominal ones are kept), ``failed`` (the twin
+    could not run the move; the reason says why)."""
+    IMPROVED = "improved"
+    UNCHANGED = "unchanged"
+    FAILED = "failed"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass
+class Refinement:
+    """Refined commands ``u`` (M, n) held from ``t_u`` (M,) (valves closed after the last),
+    with ``status``, ``reason``, the L-BFGS-B ``iterations`` and cost ``evaluations``, the
+    ``predicted`` twin measures {"nominal": …, "refined": …} (:func:`twin_measures`),
+    ``lengthened_s`` (how far past the plan's end a command still opens a valve), the twin's
+    ``model`` provenance (:meth:`planner.model.twin.Twin.provenance`), ``options`` and
+    ``wall_s``."""
+    t_u: np.ndarray
+    u: np.ndarray
+    status: RefineStatus
+    reason: str = ""
+    iterations: int = 0
+    evaluations: int = 0
+    predicted: dict = field(default_factory=dict)
+    lengthened_s: float = 0.0
+    model: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
+    wall_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.status != RefineStatus.FAILED
+
+    def info(self) -> dict:
+        """Everything but the arrays, JSON-ready (the provenance stored with the commands)."""
+        return dict(status=str(self.status), reason=self.reason, iterations=self.iterations,
+                    evaluations=self.evaluations, predicted=self.predicted,
+                    lengthened_s=self.lengthened_s, model=self.model, options=self.options,
+                    wall_s=self.wall_s)
+
+
+def _levers(crane: Crane, q) -> np.ndarray:
+    """|∂tip/∂q_j| at ``q`` [m per rad | m] (central differences of the forward kinematics)."""
+    n, eps = crane.n, 1e-6
+    Q = np.repeat(np.asarray(q, float)[None], 2 * n, axis=0)
+    for j in range(n):
+        Q[2 * j, j] += eps
+        Q[2 * j + 1, j] -= eps
+    tip = crane.fk(Q)
+    return np.linalg.norm(tip[0::2] - tip[1::2], axis=1) / (2 * eps)
+
+
+def twin_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 1.0) -> dict:
+    """Tip measures of a run (joints ``q`` (K, n) at ``t`` (K,)) against the plan ``traj``:
+    ``track_m`` the largest tip error during the move, ``rest_offset_m`` the distance from the
+    goal of the rest point (mean tip over the last ``rest_window`` s),
+    ``residual_oscillation_m`` the largest distance from the rest point after the plan's end,
+    ``final_m`` the tip error at the end of the record."""
+    t = np.asarray(t, float)
+    tip = crane.fk(np.asarray(q, float))
+    ref = crane.fk(traj.sample(np.clip(t, traj.t[0], traj.t[-1]))[0])
+    goal = crane.fk(traj.q[-1:])[0]
+    t_end = traj.t[-1]
+    err = np.linalg.norm(tip - ref, axis=1)
+    rest = tip[t >= t[-1] - rest_window].mean(axis=0)
+    after = t >= t_end - 1e-9
+    return dict(track_m=float(err[t <= t_end + 1e-9].max()),
+                rest_offset_m=float(np.linalg.norm(rest - goal)),
+                residual_oscillation_m=float(np.linalg.norm(tip[after] - rest, axis=1).max())
+                if after.any() else float("nan"),
+                final_m=float(err[-1]))
+
+
+class _Cost:
+    """The cost of the module doc and its gradient with respect to the control-grid commands."""
+
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers):
+        self.sh, self.Ku, self.R, self.K = shooting, Ku, R, K
+        n = traj.n
+        h = shooting.h
+        self.tk = traj.t[0] + h * np.arange(K + 1)
+        self.q_ref = traj.sample(np.clip(self.tk, traj.t[0], traj.t[-1]))[0]
+        w_t = np.where(self.tk > traj.t[-1] + 1e-9, opts.end_weight, 1.0)
+        # J in mm²·s (the scale L-BFGS-B's default tolerances suit)
+        self.W = 1e6 * h * w_t[:, None] * (levers ** 2)[None, :]
+        self.smooth = 1e6 * opts.smooth
+        self.x0 = shooting.twin.rest_state(traj.q[0])
+        self.n, self.evaluations = n, 0
+
+    def steps(self, U):
+        us = np.zeros((self.K, self.n))
+        us[:self.Ku * self.R] = np.repeat(U, self.R, axis=0)
+        return us
+
+    def __call__(self, z):
+        U = z.reshape(self.Ku, self.n)
+        us = self.steps(U)
+        run = self.sh.run(self.x0, us)
+        self.evaluations += 1
+        e = run.x[:, :self.n] - self.q_ref
+        if not np.all(np.isfinite(e)):
+            return 1e30, np.zeros_like(z)
+        J = float(np.sum(self.W * e * e))
+        dJdx = np.zeros_like(run.x)
+        dJdx[:, :self.n] = 2.0 * self.W * e
+        g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
+        g = g.reshape(self.Ku, self.R, self.n).sum(axis=1)
+        dU = np.diff(U, axis=0)
+        J += self.smooth * float(np.sum(dU * dU))
+        g[1:] += 2.0 * self.smooth * dU
+        g[:-1] -= 2.0 * self.smooth * dU
+        return J, g.ravel()
+
+
+def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
+                    options: RefineOptions | None = None) -> Refinement:
+    """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
+    ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
+    step) so that the twin follows ``traj`` and comes to rest at its goal (module doc).
+    Never raises for a move the twin cannot run: the status says so."""
+    from scipy.optimize import minimize
+
+    from planner.model.twin import Twin
+    from planner.model.twin.shooting import Shooting
+    opts = options or RefineOptions()
+    wall0 = time.perf_counter()
+    t_u = np.asarray(t_u, float).ravel()
+    u = np.atleast_2d(np.asarray(u, float))
+    n = crane.n
+    if u.shape != (t_u.size, n):
+        raise ValueError(f"refine: commands have shape {u.shape}; expected ({t_u.size}, {n}) "
+                         "(one row per command time, one column per joint)")
+    dt = 1.0 / opts.rate
+    if t_u.size < 2 or abs(t_u[0] - traj.t[0]) > 1e-9 or \
+            np.max(np.abs(np.diff(t_u) - dt)) > 1e-6:
+        raise ValueError(f"refine: commands are not on the {opts.rate:g} Hz grid from the "
+                         f"plan's start t = {traj.t[0]:g} s")
+    twin = twin or Twin(crane, step=opts.step)
+    R = int(round(dt / twin.step))
+    if abs(R * twin.step - dt) > 1e-9 * dt:
+        raise ValueError(f"refine: twin step {twin.step:g} s does not divide the control period "
+                         f"{dt:g} s")
+    sh = Shooting(twin)
+    Ku = t_u.size + int(round(opts.tail * opts.rate))
+    K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
+    levers = _levers(crane, traj.q[-1])
+    cost = _Cost(sh, traj, Ku, R, K, opts, levers)
+    U0 = np.zeros((Ku, n))
+    U0[:t_u.size] = np.clip(u, -1.0, 1.0)
+    t_all = traj.t[0] + dt * np.arange(Ku)
+    base = dict(model=twin.provenance(), options=asdict(opts))
+    nominal = _predict(crane, twin, traj, t_all, U0, K, opts)
+    if nominal is None:
+        return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
+                          wall_s=time.perf_counter() - wall0, **base)
+    J0, _ = cost(U0.ravel())
+    res = minimize(cost, U0.ravel(), jac=True, method="L-BFGS-B",
+                   bounds=[(-1.0, 1.0)] * U0.size,
+                   options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations)))
+    U = np.clip(res.x.reshape(Ku, n), -1.0, 1.0)
+    refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
+    pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
+    if refined is None:
+        why = ("no better commands on the twin" if res.fun >= J0 else
+               "the twin diverged on the optimised commands")
+        return Refinement(t_u, u, RefineStatus.UNCHANGED, why, int(res.nit), cost.evaluations,
+                          dict(pred, refined=nominal), 0.0,
+                          wall_s=time.perf_counter() - wall0, **base)
+    # drop trailing rows that open no valve (inside every dead band)
+    db = np.asarray(twin.params.per["deadband"], float)
+    live = np.flatnonzero(np.any(np.abs(U) > db[None, :], axis=1))
+    last = max(int(live[-1]) + 1 if live.size else 0, t_u.size)
+    U = U[:last]
+    lengthened = max(0.0, (last - t_u.size) * dt)
+    return Refinement(t_all[:last], U, RefineStatus.IMPROVED, str(res.message), int(res.nit),
+                      cost.evaluations, dict(pred, refined=refined), lengthened,
+                      wall_s=time.perf_counter() - wall0, **base)
+
+
+def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
+             opts: RefineOptions):
+    """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
+    in full (the integrator's recovery substeps included) over the cost's horizon; None when
+    the twin diverges."""
+    t_end = traj.t[0] + K * twin.step
+    tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
+    uu = np.vstack([U, np.zeros((1, crane.n))])
+    run = twin.simulate(tu, uu, traj.q[0], t_end=t_end)
+    if not run.ok:
+        return None
+    ts = traj.t[0] + np.arange(int(math.floor((t_end - traj.t[0]) * opts.rate + 1e-9)) + 1) \
+        / opts.rate
+    q = run.sample(ts)[0]
+    return twin_measures(crane, ts, q, traj, opts.rest_window)

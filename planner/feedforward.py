@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
+           "stored_commands", "on_command_grid", "with_settle",
            "ProgressEstimator", "progress_estimator"]
 
 # ----------------------------------------------------------------------------- commands
@@ -190,6 +191,50 @@ def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
                 flow_gain=float(vp.flow_gain[i])))
     return FeedForward(t=t, u=u, saturated=sat, rate=float(rate), joint_names=names, hold=hold,
                        u_raw=u_raw, flow=flow, meta=dict(crane=crane.spec.id))
+
+
+def stored_commands(traj: Trajectory, rate: float = 50.0):
+    """(t_u, u) of a stored entry: its ``u`` at the samples on the ``rate`` grid (a library
+    entry keeps the 50 Hz control grid plus the plan's own knots); None when the trajectory
+    carries no commands or its samples do not cover that grid."""
+    if traj.u is None:
+        return None
+    k = np.round((traj.t - traj.t[0]) * rate)
+    on = np.abs((traj.t - traj.t[0]) * rate - k) < 1e-6
+    kk = k[on].astype(int)
+    if kk.size < 2 or not np.array_equal(kk, np.arange(kk.size)):
+        return None
+    return traj.t[on], np.asarray(traj.u)[on]
+
+
+def on_command_grid(traj: Trajectory, t_u, u) -> Trajectory:
+    """``traj`` resampled on the command times ``t_u`` (M,) carrying the commands ``u`` (M, n):
+    what a replay of other commands for the same plan takes (e.g. the twin-refined commands,
+    which may run past the plan's end: the plan is held at its goal there)."""
+    from dataclasses import replace
+    t_u = np.asarray(t_u, float).ravel()
+    q, qd, qdd, _ = traj.sample(np.clip(t_u, traj.t[0], traj.t[-1]))
+    past = t_u > traj.t[-1]
+    qd[past], qdd[past] = 0.0, 0.0
+    return replace(traj, t=t_u, q=q, qd=qd, qdd=qdd, u=np.asarray(u, float))
+
+
+def with_settle(crane: Crane, traj: Trajectory, settle: float, rate: float = 50.0) -> Trajectory:
+    """The replay of ``traj``'s commands (its own ``u`` on a uniform grid, else the
+    feed-forward at ``rate``) followed by ``settle`` [s] with every valve closed, on one
+    uniform command grid (the plan held at its goal): the arrival and its ringing recorded."""
+    if not (math.isfinite(settle) and 0.0 <= settle <= 600.0):
+        raise ValueError(f"settle = {settle!r} s; allowed: 0 .. 600 s")
+    if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
+        t_u, u = np.asarray(traj.t, float), np.asarray(traj.u, float)
+        dt = float(t_u[1] - t_u[0])
+    else:
+        ff = commands(crane, traj, rate)
+        t_u, u, dt = np.asarray(ff.t, float), np.asarray(ff.u, float), 1.0 / rate
+    k = int(math.ceil(settle / dt - 1e-9))
+    t_all = np.concatenate([t_u, t_u[-1] + dt * np.arange(1, k + 1)])
+    u_all = np.vstack([u, np.zeros((k, u.shape[1]))])
+    return on_command_grid(traj, t_all, u_all)
 
 
 # ----------------------------------------------------------------------------- replay

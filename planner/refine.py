@@ -48,7 +48,9 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.model.twin import Twin
 
-__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "twin_measures"]
+_STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
+
+__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures"]
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ class RefineStatus(str, Enum):
 class Refinement:
     """Refined commands ``u`` (M, n) held from ``t_u`` (M,) (valves closed after the last),
     with ``status``, ``reason``, the L-BFGS-B ``iterations`` and cost ``evaluations``, the
-    ``predicted`` twin measures {"nominal": …, "refined": …} (:func:`twin_measures`),
+    ``predicted`` twin measures {"nominal": …, "refined": …} (:func:`landing_measures`),
     ``lengthened_s`` (how far past the plan's end a command still opens a valve), the twin's
     ``model`` provenance (:meth:`planner.model.twin.Twin.provenance`), ``options`` and
     ``wall_s``."""
@@ -135,8 +137,9 @@ def _levers(crane: Crane, q) -> np.ndarray:
     return np.linalg.norm(tip[0::2] - tip[1::2], axis=1) / (2 * eps)
 
 
-def twin_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 1.0) -> dict:
-    """Tip measures of a run (joints ``q`` (K, n) at ``t`` (K,)) against the plan ``traj``:
+def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 1.0) -> dict:
+    """How a run lands (the twin's prediction here, a plant's replay in ``simulate
+    --settle``): tip measures of the run (joints ``q`` (K, n) at ``t`` (K,)) against the plan ``traj``:
     ``track_m`` the largest tip error during the move, ``rest_offset_m`` the distance from the
     goal of the rest point (mean tip over the last ``rest_window`` s),
     ``residual_oscillation_m`` the largest distance from the rest point after the plan's end,
@@ -171,6 +174,7 @@ class _Cost:
         self.smooth = 1e6 * opts.smooth
         self.x0 = shooting.twin.rest_state(traj.q[0])
         self.n, self.evaluations = n, 0
+        self.fail = 1e30
 
     def steps(self, U):
         us = np.zeros((self.K, self.n))
@@ -183,8 +187,8 @@ class _Cost:
         run = self.sh.run(self.x0, us)
         self.evaluations += 1
         e = run.x[:, :self.n] - self.q_ref
-        if not np.all(np.isfinite(e)):
-            return 1e30, np.zeros_like(z)
+        if not np.all(np.isfinite(e)):   # the twin left its range: a wall, not a slope
+            return self.fail, np.zeros_like(z)
         J = float(np.sum(self.W * e * e))
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
@@ -239,10 +243,15 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
                           wall_s=time.perf_counter() - wall0, **base)
     J0, _ = cost(U0.ravel())
-    res = minimize(cost, U0.ravel(), jac=True, method="L-BFGS-B",
-                   bounds=[(-1.0, 1.0)] * U0.size,
+    cost.fail = 100.0 * J0 + 1.0
+    # scaled unknowns: L-BFGS-B's first step is a unit step along −g, which in command units
+    # can swing a valve across its range (the twin then leaves its range); ``_STEP`` is the
+    # size of that first step in commands, later steps follow the curvature it learns
+    s = _STEP
+    res = minimize(lambda z: _scaled(cost, z, s), U0.ravel() / s, jac=True, method="L-BFGS-B",
+                   bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
                    options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations)))
-    U = np.clip(res.x.reshape(Ku, n), -1.0, 1.0)
+    U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
     refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
     if refined is None:
@@ -262,6 +271,11 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                       wall_s=time.perf_counter() - wall0, **base)
 
 
+def _scaled(cost, z, s):
+    J, g = cost(z * s)
+    return J, g * s
+
+
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
              opts: RefineOptions):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
@@ -276,4 +290,4 @@ def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
     ts = traj.t[0] + np.arange(int(math.floor((t_end - traj.t[0]) * opts.rate + 1e-9)) + 1) \
         / opts.rate
     q = run.sample(ts)[0]
-    return twin_measures(crane, ts, q, traj, opts.rest_window)
+    return landing_measures(crane, ts, q, traj, opts.rest_window)

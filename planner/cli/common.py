@@ -98,7 +98,7 @@ def split_ref(ref: str) -> tuple[str, str]:
 # (how the one-line refusal names them); every command is checked by :func:`check_distinct`
 INPUT_DESTS = dict(crane="CRANE", trajectory="--trajectory", measured="MEASURED.csv",
                    library="LIB.h5", tasks="--tasks", from_result="--from", results="--results",
-                   entry="LIB.h5#ID", map="--map")
+                   entry="LIB.h5#ID", map="--map", model="--model")
 OUTPUT_DESTS = dict(out="--out", json="--json", plot="--plot", save_model="--save-model",
                     report="--report", animate="--animate")
 
@@ -172,3 +172,31 @@ def read_trajectory(crane: Crane, ref: str) -> Trajectory:
         return checked_trajectory(crane, traj, path)
     except OSError as e:
         raise CLIError(f"cannot read trajectory {path}: {e.strerror}") from None
+
+
+def replay_commands(crane: Crane, ref: str, traj: Trajectory, which: str = "auto"):
+    """(trajectory to replay, which commands) for ``ref`` read as ``traj``: a library entry's
+    refined commands (``library refine``) when present and ``which`` is "auto", or as asked
+    ("nominal" | "refined"); the trajectory's own otherwise ("nominal"). One-line CLIError
+    when refined commands are asked of a CSV or of an entry without them."""
+    from planner.library.refined import COMMAND_CHOICES
+    if which not in COMMAND_CHOICES:
+        raise CLIError(f"--commands {which}: allowed {', '.join(COMMAND_CHOICES)}")
+    path, entry = split_ref(ref)
+    if not path.endswith(".h5"):
+        if which == "refined":
+            raise CLIError(f"--commands refined: {path} is a trajectory file; refined commands "
+                           "live in a library entry (FILE.h5#ID after `library refine`)")
+        return traj, "nominal"
+    from planner.feedforward import on_command_grid
+    from planner.library.refined import entry_commands
+    from planner.library.store import LibraryStore, StoreError
+    with LibraryStore.open(path, "r") as db:
+        entry = entry or db.ids()[0]
+        try:
+            t_u, u, used, _ = entry_commands(db, entry, traj, which)
+        except StoreError as e:
+            raise CLIError(str(e)) from None
+    if used == "refined":
+        return on_command_grid(traj, t_u, u), used
+    return traj, used

@@ -1,4 +1,4 @@
-"""``library build | info | show | query | export``: trajectory databases (HDF5).
+"""``library build | refine | info | show | query | export``: trajectory databases (HDF5).
 
 The store and the export need h5py; they are imported inside the commands so that
 ``crane-planner --help`` does not load it."""
@@ -322,6 +322,8 @@ def add_parsers(sub) -> None:
                         "of building their own); see plan --compile")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_build)
+    from planner.cli.refine import add_refine_parser
+    add_refine_parser(lsub)
     p = lsub.add_parser("info", help="entries, failures, time/energy statistics")
     p.add_argument("library", metavar="LIB.h5")
     add_json_arg(p)

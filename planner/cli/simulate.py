@@ -8,7 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from planner.cli.common import CLIError, add_json_arg, emit, output_arg, read_trajectory
+from planner.cli.common import (CLIError, add_json_arg, emit, output_arg, read_trajectory,
+                                replay_commands)
 from planner.model import Crane
 from planner.model.effects import catalogue, parse_effect
 from planner.simulation.plant import simulate_to_csv
@@ -81,25 +82,49 @@ def cmd_simulate(args):
             raise CLIError(f"--effect {e.name}: the {args.plant} plant cannot apply it (it acts "
                            f"through {', '.join(e.own_hooks())}); add "
                            + " or ".join(f"--plant {p}" for p in where))
-    traj = read_trajectory(crane, args.trajectory)
+    plan = read_trajectory(crane, args.trajectory)
+    traj, which = replay_commands(crane, args.trajectory, plan, args.commands)
+    if not (math.isfinite(args.settle) and 0.0 <= args.settle <= 600.0):
+        raise CLIError(f"--settle {args.settle:g}: allowed 0 .. 600 s (recorded with the valves "
+                       "closed after the last command)")
     # bounded output and memory, before the replay (the file's own rate when not given)
-    check_rate(args.rate if args.rate is not None else DEFAULT_RATE, traj.duration)
+    check_rate(args.rate if args.rate is not None else DEFAULT_RATE,
+               traj.duration + args.settle)
     traj, note = commands_at_rate(traj, args.rate)
     if note:
         print(f"crane-planner: note: {note}", file=sys.stderr)
     args.rate = args.rate or DEFAULT_RATE
+    landing = args.settle > 0 or which == "refined"
+    if args.settle > 0:
+        from planner.feedforward import with_settle
+        traj = with_settle(crane, traj, args.settle, args.rate)
+    args.landing = dict(plan=plan if landing else None, commands_used=which,
+                        settle_s=args.settle)
     if args.plant != "fast":
         return _simulate_dynamic(args, crane, traj, effects, note)
     plant = Plant(flow_gain_scale=args.flow_gain, pump_flow_scale=args.pump_flow)
     summary = simulate_to_csv(crane, traj, args.out, plant=plant, rate=args.rate,
-                              noise=noise_levels(args.noise), seed=args.seed, effects=effects)
+                              noise=noise_levels(args.noise), seed=args.seed, effects=effects,
+                              plan=args.landing["plan"])
     if note:
         summary["rate_note"] = note
+    _report(args, summary, "")
+    return 0
+
+
+def _report(args, summary: dict, what: str) -> None:
+    """The summary (JSON) or its line, with which commands ran and, where the landing was
+    recorded, how the tip came to rest."""
+    summary.update(commands_used=args.landing["commands_used"], settle_s=args.landing["settle_s"])
     emit(args, summary)
     if not args.json:
-        print(f"measured data written to {args.out}: {summary['samples']} samples, "
-              f"max tip drift {1e3 * summary['max_tip_error_m']:.1f} mm")
-    return 0
+        line = (f"measured data written to {args.out}{what}: {summary['samples']} samples, "
+                f"max tip drift {1e3 * summary['max_tip_error_m']:.1f} mm")
+        if "rest_offset_m" in summary:
+            line += (f"; {summary['commands_used']} commands: at rest "
+                     f"{1e3 * summary['rest_offset_m']:.1f} mm from the goal, ringing "
+                     f"{1e3 * summary['residual_oscillation_m']:.1f} mm")
+        print(line)
 
 
 def _simulate_dynamic(args, crane: Crane, traj, effects, note=None):
@@ -110,17 +135,15 @@ def _simulate_dynamic(args, crane: Crane, traj, effects, note=None):
                        f"{args.plant} use --effect flow_gain:… or --effect pump_flow_limit:…")
     try:
         summary = plant_to_csv(crane, traj, args.out, args.plant, rate=args.rate,
-                               noise=noise_levels(args.noise), seed=args.seed, effects=effects)
+                               noise=noise_levels(args.noise), seed=args.seed, effects=effects,
+                               plan=args.landing["plan"])
     except PlantDiverged as e:
         emit(args, dict(status=e.status, reason=e.reason, t_fail_s=e.t_fail, plant=args.plant))
         print(f"error: {e}; nothing written", file=sys.stderr)
         return 3
     if note:
         summary["rate_note"] = note
-    emit(args, summary)
-    if not args.json:
-        print(f"measured data written to {args.out} ({args.plant} plant): {summary['samples']} "
-              f"samples, max tip drift {1e3 * summary['max_tip_error_m']:.1f} mm")
+    _report(args, summary, f" ({args.plant} plant)")
     return 0
 
 
@@ -158,6 +181,12 @@ def add_parsers(sub) -> None:
     p.add_argument("--plant", choices=sorted(PLANTS), default="fast",
                    help="fast: the quasi-static replay (default); exudyn: the independent "
                         "dynamic plant (multibody + pressure dynamics, needs [dynamics])")
+    p.add_argument("--commands", choices=("auto", "nominal", "refined"), default="auto",
+                   help="a library entry's commands: refined (`library refine`) when present "
+                        "(auto, default), or nominal / refined")
+    p.add_argument("--settle", type=float, default=0.0, metavar="S",
+                   help="record S more seconds with the valves closed after the last command; "
+                        "the JSON then reports rest_offset_m and residual_oscillation_m")
     p.add_argument("--flow-gain", type=float, default=1.0, help="plant valve gain scale (1.0)")
     p.add_argument("--pump-flow", type=float, default=1.0, help="plant pump flow scale (1.0)")
     add_json_arg(p)

@@ -1,11 +1,21 @@
 """What the library store checks before it writes a field, and its error type: entry ids and
 index strings (UTF-8, at most ``MAX_STR`` bytes), tip points (r, z, slew), and the pick of an
-Evaluation's channels at a trajectory's sample times (:mod:`planner.library.store`)."""
+Evaluation's channels at a trajectory's sample times, the file's format attributes
+(:mod:`planner.library.store`)."""
 from __future__ import annotations
 
 import numpy as np
 
 MAX_STR = 64  # bytes, fixed-length strings of the index table
+
+
+def as_str(v) -> str:
+    """An h5py attribute or fixed-length index field (bytes, str, 0-d array) -> str."""
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace").rstrip("\x00")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        return as_str(v[()])
+    return str(v)
 
 
 class StoreError(ValueError):
@@ -46,3 +56,30 @@ def on_grid(ev_t, t, a):
     if a.ndim == 1:
         return np.interp(t, ev_t, a)
     return np.column_stack([np.interp(t, ev_t, a[:, j]) for j in range(a.shape[1])])
+
+
+def check_format(f, path, FORMAT: str, FORMAT_VERSION: int) -> None:  # noqa: N803
+    """StoreError (one line: file, what is wrong, what was expected) unless the open HDF5 file
+    ``f`` is a library of format ``FORMAT`` at most version ``FORMAT_VERSION``."""
+    fmt = f.attrs.get("format")
+    if fmt is None:
+        raise StoreError(f"{path}: HDF5 file without the root attribute format = '{FORMAT}' "
+                         f"(root attributes: {sorted(f.attrs.keys())}); not a library")
+    if as_str(fmt) != FORMAT:
+        raise StoreError(f"{path}: root attribute format = {as_str(fmt)!r}, "
+                         f"expected '{FORMAT}'")
+    try:
+        ver = int(f.attrs["format_version"])
+    except (KeyError, TypeError, ValueError):
+        raise StoreError(f"{path}: missing or invalid root attribute format_version "
+                         f"({f.attrs.get('format_version')!r})") from None
+    if ver > FORMAT_VERSION:
+        raise StoreError(f"{path}: format_version {ver} is newer than this planner reads "
+                         f"({FORMAT_VERSION}); update crane-planner")
+    missing = [k for k in ("crane_id",) if k not in f.attrs] + \
+              [k for k in ("index", "entries", "spec_toml") if k not in f]
+    if missing:
+        raise StoreError(f"{path}: corrupt library, missing {', '.join(missing)}")
+    if f["index"].dtype.names is None or "id" not in f["index"].dtype.names:
+        raise StoreError(f"{path}: corrupt library, 'index' is not the index table "
+                         f"(dtype {f['index'].dtype})")

@@ -54,7 +54,8 @@ import h5py
 import numpy as np
 
 from planner.io import dumps
-from planner.library.fields import MAX_STR, StoreError, check_id, check_text, on_grid, tip3
+from planner.library.fields import (MAX_STR, StoreError, as_str, check_format, check_id,
+                                    check_text, on_grid, tip3)
 from planner.library.journal import abandon_h5, close_h5, open_h5
 from planner.library.lock import LibraryBusy, busy_message
 from planner.library.query import index_summary, nearest_entry
@@ -82,15 +83,6 @@ def _planner_version() -> str:
 
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-def as_str(v) -> str:
-    """An h5py attribute or fixed-length index field (bytes, str, 0-d array) -> str."""
-    if isinstance(v, bytes):
-        return v.decode("utf-8", "replace").rstrip("\x00")
-    if isinstance(v, np.ndarray) and v.shape == ():
-        return as_str(v[()])
-    return str(v)
 
 
 def _unreadable(path, e) -> str:
@@ -187,7 +179,7 @@ class LibraryStore:
             busy = busy_message(path)
             raise (LibraryBusy(busy) if busy else StoreError(_unreadable(path, e))) from None
         try:
-            cls._check_format(f, path)
+            check_format(f, path, FORMAT, FORMAT_VERSION)
             if spec is not None and as_str(f.attrs["crane_id"]) != spec.id:
                 raise StoreError(f"{path}: library is for crane '{as_str(f.attrs['crane_id'])}', "
                                  f"not '{spec.id}'")
@@ -199,31 +191,6 @@ class LibraryStore:
             return db
         except BaseException as e:
             _abandon(f, jf, e)
-
-    @staticmethod
-    def _check_format(f: h5py.File, path: Path):
-        fmt = f.attrs.get("format")
-        if fmt is None:
-            raise StoreError(f"{path}: HDF5 file without the root attribute format = '{FORMAT}' "
-                             f"(root attributes: {sorted(f.attrs.keys())}); not a library")
-        if as_str(fmt) != FORMAT:
-            raise StoreError(f"{path}: root attribute format = {as_str(fmt)!r}, "
-                             f"expected '{FORMAT}'")
-        try:
-            ver = int(f.attrs["format_version"])
-        except (KeyError, TypeError, ValueError):
-            raise StoreError(f"{path}: missing or invalid root attribute format_version "
-                             f"({f.attrs.get('format_version')!r})") from None
-        if ver > FORMAT_VERSION:
-            raise StoreError(f"{path}: format_version {ver} is newer than this planner reads "
-                             f"({FORMAT_VERSION}); update crane-planner")
-        missing = [k for k in ("crane_id",) if k not in f.attrs] + \
-                  [k for k in ("index", "entries", "spec_toml") if k not in f]
-        if missing:
-            raise StoreError(f"{path}: corrupt library, missing {', '.join(missing)}")
-        if f["index"].dtype.names is None or "id" not in f["index"].dtype.names:
-            raise StoreError(f"{path}: corrupt library, 'index' is not the index table "
-                             f"(dtype {f['index'].dtype})")
 
     def _load_index(self):
         rows = self._f["index"][()]
@@ -458,6 +425,24 @@ class LibraryStore:
         out = {name: g[name][()] for name in g}
         out["attrs"] = self.entry_attrs(entry_id)
         return out
+
+    def group(self, entry_id: str) -> h5py.Group:
+        """The entry's HDF5 group, for data kept beside its trajectory (the refined commands of
+        :mod:`planner.library.refined`); KeyError for an unknown id."""
+        return self._group(entry_id)
+
+    def commit(self) -> None:
+        """Flush, and make the file as it is now the state a failed later write returns to."""
+        if self.mode != "a":
+            raise StoreError(f"{self.path}: opened read-only; open with mode 'a' to write")
+        try:
+            self._f.flush()
+            if self._jf is not None:
+                self._jf.commit()
+        except BaseException as e:
+            if self._jf is not None and self._jf.failed:
+                self._fail(e)
+            raise
 
     def has_trajectory(self, entry_id: str) -> bool:
         """Whether the entry stores sampled arrays (a failed entry has attributes only)."""

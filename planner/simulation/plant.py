@@ -323,12 +323,13 @@ def respond(crane: Crane, t_u, u, q0, effects=(), *, plant=Plant(),
 
 # ----------------------------------------------------------------------------- CLI helper
 def simulate_to_csv(crane: Crane, traj: Trajectory, out, plant=Plant(), rate: float = 50.0,
-                    noise=None, seed: int = 0, effects=()) -> dict:
+                    noise=None, seed: int = 0, effects=(), plan=None) -> dict:
     """What ``crane-planner simulate`` does: replay ``traj``'s valve commands (its own ``u``
     when it carries them on a uniform grid, else :func:`planner.feedforward.commands` at
     ``rate``) on ``plant`` with the hidden ``effects`` (:func:`respond`) and write the
     measured-data CSV to ``out`` (noise as in :func:`planner.simulation.recording.noise_levels`).
-    Nothing is written when anything fails. Returns a JSON-ready summary."""
+    Nothing is written when anything fails. Returns a JSON-ready summary; with ``plan`` it
+    adds how the run lands, as :func:`planner.simulation.plants.plant_to_csv`."""
     if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
         t_u, u, src = traj.t, traj.u, "trajectory"
     else:
@@ -340,8 +341,12 @@ def simulate_to_csv(crane: Crane, traj: Trajectory, out, plant=Plant(), rate: fl
     cols = rec.to_csv(out, crane)
     q_plan = traj.sample(r.t)[0]
     tip_err = np.linalg.norm(crane.fk(r.state.q) - crane.fk(q_plan), axis=1)
+    extra = {}
+    if plan is not None:
+        from planner.refine import landing_measures
+        extra = landing_measures(crane, r.t, r.state.q, plan)
     return dict(status="ok", out=str(out), samples=len(r.t), columns=cols, commands=src,
                 plant=describe_plant(plant)[0], effects=[e.to_dict() for e in r.effects],
                 noise=levels, seed=seed,
                 max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),
-                clipped=r.meta["clipped"], pump=r.meta["pump"])
+                clipped=r.meta["clipped"], pump=r.meta["pump"], **extra)

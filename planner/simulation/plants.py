@@ -205,12 +205,16 @@ def _elsewhere(effect, here: str) -> str:
 
 
 def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
-                 seed: int = 0, effects=(), **run_kw) -> dict:
+                 seed: int = 0, effects=(), plan=None, **run_kw) -> dict:
     """What ``crane-planner simulate --plant NAME`` does for a registered plant: replay
     ``traj``'s commands (its own ``u`` on a uniform grid, else the feed-forward at ``rate``)
     on the plant with the hidden ``effects``, and write the measured-data CSV at ``rate``.
     Nothing is written when the run stops early: :class:`PlantDiverged` is raised. Returns a
-    JSON-ready summary (``effects``: what each effect did, with its hooks)."""
+    JSON-ready summary (``effects``: what each effect did, with its hooks). With ``plan`` (the
+    planned trajectory whose end is the arrival; ``traj`` then carries the commands, e.g.
+    :func:`planner.feedforward.with_settle`) the summary adds how the run lands
+    (:func:`planner.refine.landing_measures`: ``rest_offset_m``, ``residual_oscillation_m``,
+    ``track_m``)."""
     from planner.feedforward import commands
     from planner.simulation.recording import noise_levels
     p = make_plant(plant, crane, effects)
@@ -228,6 +232,9 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     extra = {k: rec.meta[k] for k in ("steps", "wall_s") if k in rec.meta}
     if "step" in rec.meta:
         extra["step_s"] = rec.meta["step"]
+    if plan is not None:
+        from planner.refine import landing_measures
+        extra.update(landing_measures(crane, rec.t, rec.q_true, plan))
     return dict(status="ok", plant=plant, out=str(out), samples=len(rec.t), columns=cols,
                 commands=src, effects=p.report(), noise=noise_levels(noise), seed=seed,
                 max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),

@@ -55,6 +55,8 @@ CASES = {
     "bound": (["bound", "spec.toml", "--start", S, "--goal", G, "--json", "spec.toml"],
               "spec.toml"),
     "library show": (["library", "show", "lib.h5", "--json", "lib.h5"], "lib.h5"),
+    "library refine": (["library", "refine", "lib.h5", "--json", "spec.toml", "--model",
+                        "spec.toml"], "spec.toml"),
 }
 # sub-commands whose outputs cannot collide with anything: no file input, one output (or
 # output folders)

@@ -1,21 +1,25 @@
-"""Single shooting on the twin: a command sequence's cost and its exact gradient (the adjoint).
+"""Single shooting on the twin: a command sequence's cost and its gradient by the adjoint.
 
-The twin's integrator (:mod:`planner.model.twin.integrator`) is a map from the state at a step
-and the one before it, and the step's command, to the next state: BDF2 with a fixed number of
-simplified-Newton iterations, compiled as chunks of steps (``mapaccum``). Its reverse-mode
-derivative — CasADi's ``reverse(1)`` of the same chunk, compiled once per user like the
-chunk itself — carries the adjoint λ backwards through a chunk in one call: given the seed
-∂J/∂x_k of a cost on the chunk's states and λ of the state the chunk hands on, it returns λ
-of the chunk's incoming state pair and ∂J/∂u_k of every step's command. Walking the chunks
-from the last to the first gives the gradient of a cost on the whole trajectory with respect
-to every step's command for the price of about six forward runs, whatever the number of
-commands (a finite-difference or forward-sensitivity gradient would cost one run per command).
+The twin's integrator (:mod:`planner.model.twin.integrator`) solves, every step k,
+G(y) = y − 4/3·x_k + 1/3·x_{k−1} − c·f(y, u_k) = 0 for y = x_{k+1} (BDF2, c = 2h/3). At the
+solution the implicit function theorem gives the step's linearisation,
+A_k·dx_{k+1} = 4/3·dx_k − 1/3·dx_{k−1} + c·∂f/∂u·du_k with A_k = I − c·∂f/∂y, so a cost J on
+the states has the discrete adjoint (backwards from the last step)
 
-It is the derivative of the integrator as it runs (the fixed Newton iterations included),
-so the gradient is exact for the discrete model the optimiser sees; the forward pass here
-does not take the integrator's recovery substeps (a chunk whose Newton iteration did not
-converge is kept as computed and counted in ``unconverged``), so cost and gradient always
-belong to the same map. :func:`planner.refine.refine_commands` uses it to compute
+    ā_{k+1} = ∂J/∂x_{k+1} + 4/3·μ_{k+1} − 1/3·μ_{k+2},   A_kᵀ·μ_k = ā_{k+1},
+    ∂J/∂u_k = c·(∂f/∂u)ᵀ·μ_k.
+
+One adjoint step is an SX function (the twin's right-hand side differentiated once, a sparse
+symbolic solve in scaled states — 1 rad, 1 MPa, … — since the symbolic solve does not pivot and
+the unscaled matrix mixes entries of 1 and 1e10); mapped backwards over a chunk of steps with
+``mapaccum`` and compiled once per user like the forward chunk. A gradient with respect to
+every step's command costs about one forward run, whatever the number of commands (a
+finite-difference or forward-sensitivity gradient costs one run per command).
+
+The gradient is exact where the step's Newton iteration converged (every step of an ordinary
+run: tests/model/test_shooting.py checks it against central differences); where a chunk had
+to be redone in substeps it is that of the coarse step at the substeps' states (counted in
+``ShotRun.unconverged``). :func:`planner.refine.refine_commands` uses it to compute
 feed-forward commands on the twin.
 """
 from __future__ import annotations
@@ -39,11 +43,10 @@ _REVERSE: dict = {}
 
 @dataclass
 class ShotRun:
-    """One forward pass: the states ``x`` (K + 1, nx) on the step grid from x0 on, the chunk
-    records the adjoint needs, and how many chunks ended with an unconverged Newton update
-    (``unconverged``, above the stepper's tolerance)."""
+    """One forward pass: the states ``x`` (K + 1, nx) on the step grid from x0 on, and how
+    many steps ended with a Newton update above the stepper's tolerance (``unconverged``:
+    there the gradient is that of the step as if it had converged)."""
     x: np.ndarray
-    chunks: list
     unconverged: int
 
 
@@ -70,32 +73,23 @@ class Shooting:
 
     def run(self, x0, u_steps) -> ShotRun:
         """Integrate from the state ``x0`` with the commands ``u_steps`` (K, n), one per step
-        (K a multiple of the chunk; see :meth:`steps`)."""
+        (K a multiple of the chunk; see :meth:`steps`), as the twin integrates (a chunk whose
+        Newton iteration does not converge is redone in substeps)."""
         u_steps = np.asarray(u_steps, float)
-        K, C, nx = u_steps.shape[0], self.C, self.nx
-        if K % C:
-            raise ValueError(f"Shooting.run: {K} steps; a multiple of the chunk ({C}) needed")
-        x0 = np.asarray(x0, float)
-        xx = np.concatenate([x0, x0])
-        xs = np.empty((K + 1, nx))
-        xs[0] = x0
-        chunks, bad = [], 0
-        for s in range(0, K, C):
-            uc = np.ascontiguousarray(u_steps[s:s + C].T)
-            X, E = self.stepper._f(xx, uc, self._fx, self._P)
-            X, E = np.asarray(X), np.asarray(E)
-            bad += int(not (np.all(np.isfinite(X)) and E.max() <= self.stepper.tol))
-            chunks.append((xx, uc, X, E))
-            xs[s + 1:s + C + 1] = X[:nx].T
-            xx = X[:, -1]
-        return ShotRun(xs, chunks, bad)
+        K = u_steps.shape[0]
+        if K % self.C:
+            raise ValueError(f"Shooting.run: {K} steps; a multiple of the chunk ({self.C}) "
+                             "needed")
+        xs, err = self.stepper.run(np.asarray(x0, float), u_steps, np.zeros_like(u_steps),
+                                   self.twin.P)
+        return ShotRun(xs, int(np.sum(~(err <= self.stepper.tol))))
 
     def gradient(self, run: ShotRun, u_steps, dJdx) -> np.ndarray:
         """∂J/∂u per step (K, n) of a cost J whose derivative with respect to each state of
         ``run`` is ``dJdx`` (K + 1, nx) (row 0, the fixed start, is ignored); ``u_steps``
         the commands of the run."""
         C, nx = self.C, self.nx
-        K = len(run.chunks) * C
+        K = run.x.shape[0] - 1
         dJdx = np.asarray(dJdx, float)
         u_steps = np.asarray(u_steps, float)
         g = np.empty((K, self.n))

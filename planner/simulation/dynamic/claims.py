@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from planner.feedforward import commands
+from planner.feedforward import commands, stored_commands
 from planner.simulation.dynamic.energy import energy_balance
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant
 from planner.simulation.replay import replay
@@ -90,20 +90,6 @@ def residual_oscillation(t, tip, goal, t_arrive: float, tol: float = 0.005,
         offset_m=float(np.linalg.norm(rest - goal)), peak_to_goal_m=float(d_goal.max()),
         peak_osc_m=float(d_rest.max()), settle_goal_s=settling_time(ta, d_goal, tol),
         settle_rest_s=settling_time(ta, d_rest, tol), tol_m=float(tol))
-
-
-def stored_commands(traj: Trajectory, rate: float = 50.0):
-    """(t_u, u) of a stored entry: its ``u`` at the samples on the ``rate`` grid (a library
-    entry keeps the 50 Hz control grid plus the plan's own knots); None when the trajectory
-    carries no commands or its samples do not cover that grid."""
-    if traj.u is None:
-        return None
-    k = np.round((traj.t - traj.t[0]) * rate)
-    on = np.abs((traj.t - traj.t[0]) * rate - k) < 1e-6
-    kk = k[on].astype(int)
-    if kk.size < 2 or not np.array_equal(kk, np.arange(kk.size)):
-        return None
-    return traj.t[on], np.asarray(traj.u)[on]
 
 
 def pieces_commands(crane: Crane, pieces, rate: float = 50.0):

@@ -1,0 +1,79 @@
+"""``library refine LIB.h5``: the library's feed-forward re-computed on the dynamic twin
+(:mod:`planner.library.refine`), stored beside the nominal commands of every entry."""
+from __future__ import annotations
+
+import shlex
+import sys
+
+from planner.cli.common import CLIError, add_json_arg, emit
+
+
+def cmd_library_refine(args):
+    from planner.library.refine import refine_library
+    from planner.library.workers import Interrupted
+    from planner.refine import RefineOptions
+    if args.workers < 1:
+        raise CLIError(f"--workers {args.workers}: allowed >= 1")
+    if args.limit is not None and args.limit < 1:
+        raise CLIError(f"--limit {args.limit}: allowed >= 1 (the first N ok entries)")
+    try:
+        opts = RefineOptions(iterations=args.iterations, tail=args.tail)
+    except ValueError as e:
+        raise CLIError(str(e).replace("refine option 'iterations'", "--iterations")
+                       .replace("refine option 'tail'", "--tail")) from None
+    try:
+        s = refine_library(args.library, model=args.model, workers=args.workers,
+                           scheduler=args.scheduler, limit=args.limit, options=opts,
+                           force=args.force, show_progress=not (args.json == "-"))
+    except Interrupted as e:
+        s = getattr(e, "summary", None)
+        if s:
+            emit(args, s)
+            print(f"crane-planner: interrupted ({s['signal']}): {s['refined']} entries refined "
+                  f"in {s['library']}; rerun `{_rerun(args)}` to resume", file=sys.stderr)
+        else:
+            print(f"crane-planner: interrupted ({e}) before the refine started", file=sys.stderr)
+        return e.exit_code
+    except FileNotFoundError as e:
+        raise CLIError(str(e)) from None
+    emit(args, s)
+    if not args.json:
+        c = s["cpu_per_entry_s"]
+        cost = (f", {c['median']:.1f} s CPU per entry (median; p90 {c['p90']:.1f} s)"
+                if c["median"] is not None else "")
+        print(f"{s['library']}: {s['refined']} entries refined on the twin of {s['model']} "
+              f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}), "
+              f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
+        for f in s["failed"]:
+            print(f"  warning: entry {f['id']}: {f['reason']}", file=sys.stderr)
+    return 0
+
+
+def _rerun(args) -> str:
+    words = ["crane-planner", "library", "refine", args.library, "--workers", str(args.workers),
+             "--iterations", str(args.iterations), "--tail", str(args.tail)]
+    words += ["--model", args.model] if args.model else []
+    words += ["--limit", str(args.limit)] if args.limit is not None else []
+    words += ["--scheduler", args.scheduler] if args.scheduler else []
+    return shlex.join(words)
+
+
+def add_refine_parser(lsub) -> None:
+    p = lsub.add_parser("refine", help="re-compute every entry's feed-forward on the dynamic "
+                                       "twin (stored beside the nominal commands)")
+    p.add_argument("library", metavar="LIB.h5")
+    p.add_argument("--model", metavar="SPEC.toml",
+                   help="the twin's machine (default: the spec stored in the library), e.g. a "
+                        "calibrated spec of the same machine")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (1)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
+    p.add_argument("--limit", type=int, help="only the first N ok entries")
+    p.add_argument("--iterations", type=int, default=60,
+                   help="L-BFGS-B iterations per entry at most (60)")
+    p.add_argument("--tail", type=float, default=0.5,
+                   help="seconds the commands may act past the plan's end (0.5)")
+    p.add_argument("--force", action="store_true",
+                   help="refine entries already refined by the same twin again")
+    add_json_arg(p)
+    p.set_defaults(func=cmd_library_refine)

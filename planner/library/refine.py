@@ -1,0 +1,186 @@
+"""``library refine``: every ok entry's feed-forward re-computed on the dynamic twin and stored
+beside the nominal commands (issue 27; :mod:`planner.refine`, :mod:`planner.library.refined`).
+
+The twin is the library's own machine (the spec stored in the file) or ``model`` — another
+spec of the same machine, e.g. one written by ``calibrate`` with fitted ``[dynamics]``. The
+driver holds the file (the single writer; another build or refine on it is refused), reads the
+entries and sends each entry's trajectory and nominal commands to the workers (local
+processes or a Dask cluster, as the build); each worker builds the twin once and refines;
+the driver writes each result as it arrives, through the journal.
+
+Resume: an entry whose stored refinement was made by the same twin (its fingerprint: machine,
+parameters, step) with the same options is skipped, so a killed refine, rerun, does only
+the rest and gives the same file as an uninterrupted run (each entry's refinement depends
+on that entry and the twin only). ``force`` redoes every entry.
+"""
+from __future__ import annotations
+
+import signal
+import time as _time
+from contextlib import nullcontext
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from planner.io import progress
+from planner.library.journal import WriteFailed
+from planner.library.lock import BuildLock
+from planner.library.workers import Interrupted, SignalGuard, WorkerPool
+
+__all__ = ["refine_library", "refine_task", "model_crane"]
+
+_TWINS: dict = {}   # per process: (spec text, options) -> (crane, twin)
+
+
+def model_crane(spec_text: str, where: str):
+    """The crane of a spec TOML text (a library's stored spec, or a ``--model`` file)."""
+    import tomllib
+
+    from planner.model import Crane
+    from planner.model.spec import parse_spec
+    return Crane(parse_spec(tomllib.loads(spec_text), where, spec_text))
+
+
+def _twin(spec_text: str, where: str, step: float):
+    from planner.model.twin import Twin
+    key = (spec_text, step)
+    if key not in _TWINS:
+        crane = model_crane(spec_text, where)
+        _TWINS[key] = (crane, Twin(crane, step=step))
+    return _TWINS[key]
+
+
+def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str, arrays: dict,
+                options: dict) -> dict:
+    """One entry refined (runs in a worker): ``arrays`` holds the trajectory (t, q, qd, qdd,
+    joint_names) and the nominal commands (t_u, u). Never raises: a failure comes back as a
+    status "failed" with its reason."""
+    from planner.refine import RefineOptions, refine_commands
+    from planner.trajectory import Trajectory
+    c0 = _time.process_time()
+    try:
+        opts = RefineOptions(**options)
+        crane, _ = _twin(lib_spec, "<library spec>", opts.step)
+        _, twin = _twin(model_spec, model_where, opts.step) if model_spec != lib_spec \
+            else _twin(lib_spec, "<library spec>", opts.step)
+        traj = Trajectory(t=arrays["t"], q=arrays["q"], qd=arrays["qd"], qdd=arrays["qdd"],
+                          joint_names=tuple(arrays["joint_names"]))
+        r = refine_commands(crane, traj, arrays["t_u"], arrays["u"], twin=twin, options=opts)
+        info = dict(r.info(), cpu_s=_time.process_time() - c0)
+        return dict(id=entry_id, t_u=r.t_u, u=r.u, info=info)
+    except Exception as e:   # one entry must not stop the others
+        return dict(id=entry_id, t_u=None, u=None,
+                    info=dict(status="failed", reason=f"{type(e).__name__}: {e}",
+                              cpu_s=_time.process_time() - c0))
+
+
+def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None = None,
+                   limit: int | None = None, options=None, force: bool = False,
+                   show_progress: bool = True) -> dict:
+    """Refine the ok entries of the library ``path`` (the first ``limit``) on the twin of
+    ``model`` (a spec file; default the library's spec) with
+    :class:`~planner.refine.RefineOptions` ``options``. Returns a summary dict; SIGINT /
+    SIGTERM stop it promptly (the entry being written completed) and raise
+    :class:`~planner.library.workers.Interrupted` with the summary so far."""
+    from planner.feedforward import stored_commands
+    from planner.library.refined import refined_info, write_refined
+    from planner.library.store import LibraryStore
+    from planner.refine import RefineOptions
+    opts = options or RefineOptions()
+    path = Path(path)
+    if workers < 1:
+        raise ValueError(f"workers = {workers}; allowed: >= 1")
+    t0 = _time.perf_counter()
+    with LibraryStore.open(path, "r") as db:
+        lib_spec = db.spec_toml
+        ids = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
+    if model is not None:
+        model_where = str(model)
+        model_spec = Path(model).read_text(encoding="utf-8")
+    else:
+        model_where, model_spec = "<library spec>", lib_spec
+    crane, _ = _twin(lib_spec, "<library spec>", opts.step)
+    m_crane, twin = _twin(model_spec, model_where, opts.step)
+    if tuple(m_crane.names) != tuple(crane.names):
+        raise ValueError(f"model {model}: joints {list(m_crane.names)}; the library's "
+                         f"machine has {list(crane.names)} (a model of the same machine is "
+                         "needed)")
+    fingerprint = twin.provenance()["fingerprint"]
+    ids = ids[:limit] if limit is not None else ids
+    state = dict(written=0, skipped=0, counts={}, failed=[], cpu=[])
+    with SignalGuard() as guard:
+        pool = None
+        if scheduler:
+            from planner.library.cluster import DaskPool
+            pool = DaskPool(scheduler)
+        elif workers > 1:
+            pool = WorkerPool(workers)
+        try:
+            with (pool or nullcontext()):
+                with BuildLock(path):
+                    with LibraryStore.open(path, "a") as db:
+                        tasks = []
+                        for i in ids:
+                            info = refined_info(db, i)
+                            if (not force and info is not None
+                                    and info.get("model", {}).get("fingerprint") == fingerprint
+                                    and info.get("options") == asdict(opts)):
+                                state["skipped"] += 1
+                                continue
+                            tr = db.trajectory(i)
+                            cmd = stored_commands(tr, opts.rate)
+                            if cmd is None:
+                                from planner.feedforward import commands
+                                ff = commands(crane, tr, opts.rate)
+                                cmd = (ff.t, ff.u)
+                            arrays = dict(t=tr.t, q=tr.q, qd=tr.qd, qdd=tr.qdd,
+                                          joint_names=list(tr.joint_names),
+                                          t_u=cmd[0], u=cmd[1])
+                            tasks.append((lib_spec, model_spec, model_where, i, arrays,
+                                          asdict(opts)))
+                        state["todo"] = len(tasks)
+                        bar = progress(len(tasks), f"refine {path.name}", "entry",
+                                       enabled=show_progress)
+                        results = (pool.imap_unordered(refine_task, tasks) if pool is not None
+                                   else (refine_task(*a) for a in tasks))
+                        try:
+                            for r in results:
+                                with guard.critical():
+                                    _write(db, r, state, write_refined)
+                                bar.update(1)
+                        finally:
+                            bar.close()
+        except Interrupted as e:
+            e.summary = _summary(path, model_where, fingerprint, ids, state, t0,
+                                 status="interrupted", signal=signal.Signals(e.signum).name)
+            raise
+        except WriteFailed as e:
+            raise WriteFailed(path, OSError(e.errno, f"{e.why}; the refinements finished "
+                                                     f"before it are kept ({state['written']}"
+                                                     "): make room and rerun to resume")) \
+                from None
+    return _summary(path, model_where, fingerprint, ids, state, t0, status="ok")
+
+
+def _write(db, r: dict, state: dict, write_refined) -> None:
+    info = r["info"]
+    st = info.get("status", "failed")
+    state["counts"][st] = state["counts"].get(st, 0) + 1
+    state["cpu"].append(info.get("cpu_s", float("nan")))
+    if st == "failed" or r["u"] is None:
+        state["failed"].append(dict(id=r["id"], reason=info.get("reason", "")))
+        return
+    write_refined(db, r["id"], r["t_u"], r["u"], info)
+    state["written"] += 1
+
+
+def _summary(path, model_where, fingerprint, ids, state, t0, **kw) -> dict:
+    cpu = np.asarray(state["cpu"], float)
+    cpu = cpu[np.isfinite(cpu)]
+    return dict(library=str(path), model=model_where, twin_fingerprint=fingerprint,
+                entries=len(ids), refined=state["written"], skipped_existing=state["skipped"],
+                statuses=state["counts"], failed=state["failed"],
+                cpu_per_entry_s=dict(median=float(np.median(cpu)) if cpu.size else None,
+                                     p90=float(np.percentile(cpu, 90)) if cpu.size else None),
+                seconds=_time.perf_counter() - t0, **kw)

@@ -21,35 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.bounds.profiles import rest_to_rest_time
 from planner.model import Crane, UnreachableError
 from planner.model.flows import swept_volume
-
-
-def rest_to_rest_time(d, v, a, j=np.inf):
-    """Minimum time [s] to move a distance d ≥ 0 from rest to rest under |v|, |a|, |j| limits.
-
-    Vectorised over all arguments. With j = inf this is the bang-bang (trapezoid) profile."""
-    d, v, a, j = np.broadcast_arrays(*(np.asarray(x, float) for x in (d, v, a, j)))
-    d = np.abs(d)
-    inv_j = np.where(np.isfinite(j), 1.0 / j, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # accelerating from 0 to speed w: time and distance (symmetric S-curve or trapezoid)
-        def acc_phase(w):
-            reach_a = w >= a * a * inv_j   # the profile reaches full acceleration
-            t_full = w / a + a * inv_j
-            t_tri = 2.0 * np.sqrt(w * inv_j)
-            t = np.where(reach_a, t_full, t_tri)
-            return t, 0.5 * w * t
-        t_v, d_v = acc_phase(v)
-        cruise = d >= 2 * d_v
-        T_cruise = 2 * t_v + (d - 2 * d_v) / v
-        # peak speed w < v: solve d = 2·d_acc(w)
-        w1 = 0.5 * a * (-a * inv_j + np.sqrt((a * inv_j) ** 2 + 4 * d / a))   # w ≥ a²/j case
-        w2 = np.where(inv_j > 0, (d / (2.0 * np.sqrt(inv_j))) ** (2.0 / 3.0), np.inf)  # w < a²/j
-        w = np.where(w1 >= a * a * inv_j, w1, w2)
-        t_w, _ = acc_phase(w)
-        T = np.where(cruise, T_cruise, 2 * t_w)
-    return np.where(d == 0, 0.0, T)
 
 
 @dataclass

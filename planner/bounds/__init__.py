@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.bounds.profiles import rest_to_rest_time
+from planner.bounds.ramps import ramp_bound
 from planner.model import Crane, UnreachableError
 from planner.model.flows import swept_volume
 
@@ -31,7 +32,10 @@ class LowerBound:
     """Lower bounds [s] (and [J]) for a move, each minimised over the redundancy at both ends.
 
     ``combined_s`` = min over end configurations of max(rest-to-rest, pump) — tighter than the
-    max of the separate minima. ``tele_start`` / ``tele_goal`` are the telescope values [m] at
+    max of the separate minima. ``ramps_s`` (with ``ramps=True``): the pump-aware bound of
+    :mod:`planner.bounds.ramps` (flow sharing under the ramp limits; never below max(rest-to-
+    rest, pump) of any end pair), ``ramps_binding`` what binds there; None when not computed
+    or not applicable (an enabled hydraulic transformer). ``tele_start`` / ``tele_goal`` are the telescope values [m] at
     which ``combined_s`` is attained (None when the ends were joint configurations)."""
     velocity_s: float
     rest_to_rest_s: float
@@ -40,6 +44,14 @@ class LowerBound:
     energy_J: float
     tele_start: float | None
     tele_goal: float | None
+    ramps_s: float | None = None
+    ramps_binding: str | None = None
+
+    @property
+    def certified_s(self) -> float:
+        """The tightest time bound with acceleration limits: the ramp bound when it was
+        computed (``ramps=True``), else the combined one."""
+        return self.combined_s if self.ramps_s is None else self.ramps_s
 
     def as_dict(self):
         return dict(self.__dict__)
@@ -139,7 +151,8 @@ def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
                 n_grid: int = 121, refine: int = 3, starts: int = 8,
-                jerk: bool = True, combined_only: bool = False) -> LowerBound:
+                jerk: bool = True, combined_only: bool = False,
+                ramps: bool = False) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
     configurations ``q_start``/``q_goal``.
 
@@ -151,7 +164,9 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
     the bound of a method that does not plan with jerk limits (TOPP-RA, the DP, the laws),
     which may legitimately be faster than the jerk-limited bound. ``combined_only`` refines
     only the combined bound (and its telescopes; the other fields keep their ``n_grid``
-    values, which a refinement could only lower): what a guess taken at the bound needs."""
+    values, which a refinement could only lower): what a guess taken at the bound needs.
+    ``ramps`` adds the pump-aware bound (:func:`planner.bounds.ramps.ramp_bound`, seeded also
+    at the combined bound's telescopes): the certificate of a minimum-time plan."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
@@ -202,7 +217,15 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
 
     def none_if_nan(v):
         return None if (not tr or np.isnan(v)) else float(v)
-    return LowerBound(velocity_s=float(best["vel"]), rest_to_rest_s=float(best["r2r"]),
-                      pump_s=float(best["pump"]), combined_s=float(best["comb"]),
-                      energy_J=float(best["E"]), tele_start=none_if_nan(arg[0]),
-                      tele_goal=none_if_nan(arg[1]))
+    out = LowerBound(velocity_s=float(best["vel"]), rest_to_rest_s=float(best["r2r"]),
+                     pump_s=float(best["pump"]), combined_s=float(best["comb"]),
+                     energy_J=float(best["E"]), tele_start=none_if_nan(arg[0]),
+                     tele_goal=none_if_nan(arg[1]))
+    if ramps:
+        seed = [(np.nan if out.tele_start is None else out.tele_start,
+                 np.nan if out.tele_goal is None else out.tele_goal)] if tr else []
+        rb = ramp_bound(crane, start, goal, q_start=q_start, q_goal=q_goal, jerk=jerk,
+                        extra=seed)
+        if rb is not None:
+            out.ramps_s, out.ramps_binding = rb.bound_s, rb.binding
+    return out

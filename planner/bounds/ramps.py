@@ -65,6 +65,8 @@ __all__ = ["RampBound", "ramp_bound", "StrokeSlopes", "stroke_slopes"]
 
 TAU_POINTS = 48     # τ′ grid (quadratic spacing: dense where the ramps start)
 FAMILY = 16         # steps of the nested (τ′, τ″) family
+LOCAL = 9           # points per end of a refinement's local grid (± 2 steps)
+SHRINK = 2          # each refinement halves the step (a faster zoom stalls in narrow valleys)
 SLOPE_GRID = 2001   # points of the stroke-slope table per joint
 
 
@@ -230,11 +232,13 @@ class _Search:
         self.st, self.best, self.arg = st, np.inf, (np.nan, np.nan, -1)
 
     def run(self, Es, Eg, ip, ig, ts, tg, first: int = 16):
-        """Bounds of the pairs (``ip``, ``ig``) whose cheap value is below the best so far
-        (+inf for the others); ``ts``/``tg`` their telescope values. Updates the best."""
+        """(bounds of the pairs (``ip``, ``ig``) whose cheap value is below the best so far,
+        +inf for the others; the cheap values); ``ts``/``tg`` their telescope values. Updates
+        the best."""
         st = self.st
         r2r, V, code = st.comb(Es, Eg, ip, ig)
         cheap = np.maximum(r2r, V.sum(-1) / st.Q)
+        cheap[np.isnan(cheap)] = np.inf      # an unreachable end
         out = np.full(len(ip), np.inf)
         order = np.argsort(cheap)
         for chunk in (order[:first], order[first:]):
@@ -249,7 +253,21 @@ class _Search:
                 self.best = float(val[k])
                 self.arg = (ts[chunk[k]], tg[chunk[k]],
                             int(which[k]) if pump[k] > r2r[chunk[k]] else -1)
-        return out
+        return out, cheap
+
+
+def _seeds(W, starts: int):
+    """Flat indices of the ``starts`` smallest local minima of the grid ``W`` (a value no
+    larger than its eight neighbours): one seed per basin, best first."""
+    P = np.pad(W, 1, constant_values=np.inf)
+    rows, cols = W.shape
+    low = np.ones(W.shape, bool)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                low &= W <= P[1 + di:1 + di + rows, 1 + dj:1 + dj + cols]
+    flat = np.flatnonzero(low & np.isfinite(W))
+    return flat[np.argsort(W.ravel()[flat])][:starts]
 
 
 def _ends(crane: Crane, tip, q, tele):
@@ -267,13 +285,44 @@ def _ends(crane: Crane, tip, q, tele):
     return qq
 
 
+class _Reach:
+    """The reachable telescope values of a tip: intervals [``lo``, ``hi``] (edges located by two
+    rounds of 64 points inside each grid cell where reachability changes) and ``grid``, the
+    reachable grid points and the edges."""
+
+    def __init__(self, crane: Crane, tip, grid):
+        ok = ~np.isnan(_ends(crane, tip, None, grid)).any(axis=1)
+        lo, hi = [], []
+        for i in np.flatnonzero(ok[:-1] != ok[1:]):
+            a, b = grid[i], grid[i + 1]            # a reachable side and an unreachable side
+            if not ok[i]:
+                a, b = b, a
+            for _ in range(2):
+                t = np.linspace(a, b, 65)
+                good = ~np.isnan(_ends(crane, tip, None, t)).any(axis=1)
+                k = int(np.argmin(good)) if not good.all() else 64   # first unreachable
+                a, b = t[max(k - 1, 0)], t[min(k, 64)]
+            (hi if ok[i] else lo).append(a)
+        starts = [grid[0]] if ok[0] else []
+        ends = hi + ([grid[-1]] if ok[-1] else [])
+        self.lo, self.hi = np.sort(np.array(starts + lo)), np.sort(np.array(ends))
+        self.grid = np.unique(np.concatenate([grid[ok], self.lo, self.hi]))
+
+    def snap(self, t):
+        """``t`` moved into the nearest reachable interval (unchanged inside one)."""
+        d = np.maximum(np.maximum(self.lo - t[..., None], 0.0), t[..., None] - self.hi)
+        k = np.argmin(d, axis=-1)
+        return np.clip(t, self.lo[k], self.hi[k])
+
+
 def ramp_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
-               jerk: bool = True, n_grid: int = 41, refine: int = 4,
-               starts: int = 4) -> RampBound | None:
+               jerk: bool = True, n_grid: int = 61, refine: int = 8, starts: int = 4,
+               extra=()) -> RampBound | None:
     """The ramp-limited flow-sharing lower bound (module docstring) of the move between tips
     ``start``/``goal`` (r, z, slew) or joint configurations ``q_start``/``q_goal``, minimised
     over free telescopes (``n_grid`` points per end, then ``refine`` zoomed 11 × 11 searches
-    around the ``starts`` best pairs). ``jerk=False``: without the jerk limits (for methods that
+    around the ``starts`` best local minima of the grid and the telescope pairs ``extra``, e.g.
+    where the analytic bound is least). ``jerk=False``: without the jerk limits (for methods that
     do not plan with them). None when a hydraulic transformer couples two joints' flows, when
     the pump has no finite limit or when no pair of end configurations is reachable (the
     analytic bounds report those)."""
@@ -300,30 +349,38 @@ def ramp_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None
         tvals_g = gg.reshape(b, -1)[:, :ng] if ng > 1 else np.full((b, 1), np.nan)
         ts = np.broadcast_to(tvals_s[:, :, None], (b, ns, ng)).ravel()
         tg = np.broadcast_to(tvals_g[:, None, :], (b, ns, ng)).ravel()
-        return search.run(Es, Eg, ip, ig, ts, tg).reshape(b, ns, ng), tvals_s, tvals_g
+        val, cheap = search.run(Es, Eg, ip, ig, ts, tg)
+        return val.reshape(b, ns, ng), cheap.reshape(b, ns, ng), tvals_s, tvals_g
     if tr is None:
         level(np.zeros((1, 1)), np.zeros((1, 1)))
     else:
-        grid = np.linspace(*tr, n_grid)[None]
-        T, vs, vg = level(grid, grid)
+        grid = np.linspace(*tr, n_grid)
+        # the reachable telescope intervals of each free end, their edges found to ~1e-5 m
+        # (a least bound often lies on an edge: a joint at its position limit), kept in the
+        # grids and the refinements' local grids
+        reach = [None if q is not None else _Reach(crane, tip, grid)
+                 for tip, q in ((start, q_start), (goal, q_goal))]
+        if any(r is not None and not len(r.lo) for r in reach):
+            return None
+        T, cheap, vs, vg = level(*(grid[None] if r is None else r.grid[None] for r in reach))
         step = (tr[1] - tr[0]) / (n_grid - 1)
-        order = [f for f in np.argsort(T[0], axis=None)[:starts] if np.isfinite(T[0].flat[f])]
+        # one seed per basin of the grid (the pruned pairs at their cheap value, a bound of
+        # theirs), and the pairs given
+        seeds = _seeds(np.where(np.isfinite(T[0]), T[0], cheap[0]), starts)
         centres = np.array([(vs[0, i], vg[0, k]) for i, k in
-                            (np.unravel_index(f, T.shape[1:]) for f in order)]).reshape(-1, 2)
+                            (np.unravel_index(f, T.shape[1:]) for f in seeds)]
+                           + [tuple(p) for p in extra]).reshape(-1, 2)
         for _ in range(refine if len(centres) else 0):
-            gs, gg = (np.clip(np.linspace(c - 2 * step, c + 2 * step, 11, axis=1), *tr)
-                      for c in centres.T)   # a fixed end (NaN centre) ignores its grid
-            T, vs, vg = level(gs, gg)
-            keep = []
+            gs, gg = (np.linspace(c - 2 * step, c + 2 * step, LOCAL, axis=1) if r is None
+                      else r.snap(np.linspace(c - 2 * step, c + 2 * step, LOCAL, axis=1))
+                      for c, r in zip(centres.T, reach))   # a fixed end ignores its grid
+            T, cheap, vs, vg = level(gs, gg)
+            W = np.where(np.isfinite(T), T, cheap)   # pruned pairs: at their cheap value
             for s in range(len(centres)):
-                if np.isfinite(T[s]).any():   # else nothing there is below the best: dropped
-                    a, b = np.unravel_index(np.argmin(T[s]), T.shape[1:])
+                if np.isfinite(W[s]).any():
+                    a, b = np.unravel_index(np.argmin(W[s]), W.shape[1:])
                     centres[s] = (vs[s, a], vg[s, b])
-                    keep.append(s)
-            centres = centres[keep]
-            if not len(centres):
-                break
-            step /= 5
+            step /= SHRINK
     if not np.isfinite(search.best):
         return None
     ts, tg, w = search.arg

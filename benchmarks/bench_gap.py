@@ -50,6 +50,15 @@ from planner.model.flows import actuator_table  # noqa: E402
 from planner.trajectory import evaluate  # noqa: E402
 
 MACHINES = ("cat215b", "cranab850", "s100f", "umea-lab")
+# the reference on N = 400 equal intervals cannot put the jerk switches exactly: where the plan
+# is the exact (Ruckig) move at the bound it can end a little above the plan
+REF_TOL = 5e-4
+
+
+def ordered(r) -> bool:
+    """bound ≤ reference (exactly, up to rounding) and reference ≤ plan (up to REF_TOL)."""
+    return (r["bound_s"] <= r["reference_s"] * (1 + 1e-9)
+            and r["reference_s"] <= r["plan_s"] * (1 + REF_TOL))
 
 
 class Reference:
@@ -203,9 +212,7 @@ def run(cid, n_moves, n_ref, starts, seed):
                 lower_bound_ms_median=1e3 * statistics.median(lt),
                 lower_bound_ms_p90=1e3 * pct(lt, 90),
                 reference_moves=len(ref_rows), reference_time_s=t_ref,
-                reference_ordered=sum(r["bound_s"] <= r["reference_s"] * (1 + 1e-6)
-                                      and r["reference_s"] <= r["plan_s"] * (1 + 1e-6)
-                                      for r in ref_rows))
+                reference_ordered=sum(ordered(r) for r in ref_rows))
     return summ, rows, ref_rows
 
 
@@ -237,17 +244,17 @@ def markdown(report) -> list:
     if refs:
         md += ["", "## Against an independent fine-grid reference", "",
                "A plain Opti at N = 400 (this file's `Reference`), several starts, the best "
-               "kept; bound ≤ reference ≤ plan must hold.", "",
+               "kept; bound ≤ reference ≤ plan must hold (the reference up to "
+               f"{100 * REF_TOL:.2f} % above the plan where the plan is the exact Ruckig move "
+               "at the bound: equal intervals cannot place its jerk switches).", "",
                "| machine | move | bound s | reference s | plan s | plan / ref − 1 % | "
                "ref / bound − 1 % | ordered |", "|---" * 8 + "|"]
         for r in refs:
-            ordered = (r["bound_s"] <= r["reference_s"] * (1 + 1e-6)
-                       and r["reference_s"] <= r["plan_s"] * (1 + 1e-6))
             md.append(f"| {r['machine']} | {r['i']} | {r['bound_s']:.4f} | "
                       f"{r['reference_s']:.4f} | {r['plan_s']:.4f} | "
                       f"{100 * (r['plan_s'] / r['reference_s'] - 1):.3f} | "
                       f"{100 * (r['reference_s'] / r['bound_s'] - 1):.3f} | "
-                      f"{'yes' if ordered else 'NO'} |")
+                      f"{'yes' if ordered(r) else 'NO'} |")
         md += ["", "Reference run time per machine: " + ", ".join(
             f"{s['machine']} {s['reference_time_s']:.0f} s ({s['reference_moves']} moves)"
             for s in report["summary"] if s["reference_moves"]) + "."]
@@ -261,7 +268,12 @@ def main():
     ap.add_argument("--starts", type=int, default=3, help="reference starts per move")
     ap.add_argument("--machines", nargs="*", default=list(MACHINES))
     ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--render", metavar="JSON", help="only rewrite the markdown of a JSON report")
     args = ap.parse_args()
+    if args.render:
+        report = json.loads(Path(args.render).read_text())
+        atomic_write_text(Path(args.out) / "optimality_gap.md", "\n".join(markdown(report)) + "\n")
+        return
     import datetime
     import platform
     report = dict(date=datetime.date.today().isoformat(), cpu=platform.processor() or

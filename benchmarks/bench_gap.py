@@ -225,6 +225,7 @@ def markdown(report) -> list:
           f"(free path, N = 40) judged by `evaluate()`, the bound `lower_bound(..., ramps=True)` "
           f"(the pump-aware ramp bound, `planner/bounds/ramps.py`). \"old\": the same plans "
           f"against the combined bound (rest-to-rest + volume / Q_max) reported before.", "",
+          ] + ([f"Note: {report['note']}.", ""] if report.get("note") else []) + [
           "| machine | moves | gap p50 % | gap p90 % | gap max % | negative | old p50 % | "
           "old p90 % | old max % | pump binds | bound ms (median / p90) | lower_bound ms "
           "(median / p90) |", "|---" * 12 + "|"]

@@ -6,8 +6,9 @@ trajectory pieces → ``evaluate()`` of every piece on the limit kinds the metho
 position, velocity and pump flow (what the laws claim) → one row per (suite, move, method):
 ``duration_s`` [s] (a cycle's clock for timed cycles), ``energy_J`` (pump energy, summed over
 pieces), ``peak_pump_flow_m3s``, ``max_limit_violation`` (largest relative excess of a judged
-kind), ``gap_pct`` to the analytic lower bound (:func:`planner.bounds.lower_bound`: rest-to-rest
-+ pump when the method claims acceleration limits, else velocity + pump), ``solve_time_s``
+kind), ``gap_pct`` to the lower bound (:func:`planner.bounds.lower_bound`: the pump-aware ramp bound
+when the method claims acceleration and pump limits, rest-to-rest + pump with acceleration
+limits alone, else velocity + pump), ``solve_time_s``
 (median, min, max over the repeats; a method is repeated only while one solve takes less than
 :data:`REPEAT_BELOW_S`, slower ones run once; NLP construction is excluded and reported under
 ``build_s``), and ``success``: status ok, ``max_limit_violation`` ≤ 0.1 %, clear of the suite's
@@ -119,13 +120,15 @@ def _bound(ctx, move, checked, cache):
     if move.closed:
         return None, "n/a (closed path: start = goal)"
     jerk = "jerk" in checked
-    key = (move.id, jerk)
+    ramps = "acceleration" in checked and "pump_flow" in checked
+    key = (move.id, jerk, ramps)
     if key not in cache:
         crane = ctx.crane if jerk else ctx.variant(1.0, float("inf"))
-        cache[key] = lower_bound(crane, move.start, move.goal)
+        cache[key] = lower_bound(crane, move.start, move.goal, ramps=ramps)
     lb = cache[key]
     if "acceleration" in checked:
-        return lb.combined_s, "rest-to-rest + pump" + ("" if jerk else " (no jerk limit)")
+        kind = "pump ramps" if lb.ramps_s is not None else "rest-to-rest + pump"
+        return lb.certified_s, kind + ("" if jerk else " (no jerk limit)")
     return max(lb.velocity_s, lb.pump_s), "velocity + pump"
 
 

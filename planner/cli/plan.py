@@ -5,9 +5,11 @@ Limits in the result: ``max_limit_violation`` is the largest relative excess ove
 kinds the method plans with, listed in ``checked_limits`` (e.g. the DP: position, velocity,
 pump_flow); ``violations`` has every kind evaluate() measures (pressure, acceleration, jerk, …)
 and ``max_violation_all_kinds`` the largest of them, so a clean plan of a velocity-only method
-can still show a pressure excess there. ``lower_bound_s`` is the analytic bound for the same
-limit kinds (with acceleration limits when the method plans with them, with jerk limits only
-when it plans with those too)."""
+can still show a pressure excess there. ``lower_bound_s`` is the bound for the same limit kinds
+(with acceleration limits when the method plans with them — then the pump-aware ramp bound of
+:mod:`planner.bounds.ramps` — with jerk limits only when it plans with those too), and
+``optimality_gap`` = duration / ``lower_bound_s`` − 1 of a minimum-time plan: how far from the
+optimum the plan can at most be."""
 from __future__ import annotations
 
 import argparse
@@ -69,10 +71,11 @@ def cmd_plan(args):
     ev = evaluate(crane, res.trajectory)
     checked = set(ev.checked)
     try:   # the bound of the limit kinds the method plans with
-        lb = lower_bound(crane, args.start, args.goal, jerk="jerk" in checked)
+        lb = lower_bound(crane, args.start, args.goal, jerk="jerk" in checked,
+                         ramps="acceleration" in checked and "pump_flow" in checked)
     except UnreachableError as e:
         raise CLIError(str(e)) from None
-    bound = (lb.combined_s if "acceleration" in checked else
+    bound = (lb.certified_s if "acceleration" in checked else
              max(lb.velocity_s, lb.pump_s if "pump_flow" in checked else 0.0))
     warnings = [cli_text(w, "plan") for w in res.warnings]
     if ev.duration < bound * (1 - 1e-6):   # possible only by exceeding a limit (tolerances)
@@ -87,7 +90,9 @@ def cmd_plan(args):
                peak_pump_flow_m3s=ev.peak_pump_flow, max_limit_violation=ev.max_limit_violation,
                violations=ev.violations, checked_limits=sorted(checked),
                max_violation_all_kinds=max(ev.violations.values(), default=0.0),
-               lower_bound_s=bound, lower_bounds=lb.as_dict())
+               lower_bound_s=bound, lower_bounds=lb.as_dict(),
+               optimality_gap=ev.duration / bound - 1.0 if args.objective == "time" and bound > 0
+               else None)
     write_outputs(args, crane, res, ev, walls, out)
     emit(args, out)
     if not args.json:

@@ -334,8 +334,12 @@ def test_topp_is_never_below_the_bound_it_prints(capsys):
                         "--method", "topp", "--json", "-")
     d = json.loads(out)
     assert rc == 0 and "jerk" not in d["checked_limits"]
-    assert d["lower_bound_s"] == pytest.approx(free.combined_s, rel=1e-12)
+    # TOPP plans with acceleration and pump limits: its bound is the jerk-free ramp bound
+    ramps = lower_bound(crane, s, g, jerk=False, ramps=True)
+    assert d["lower_bound_s"] == pytest.approx(ramps.ramps_s, rel=1e-12)
+    assert d["lower_bounds"]["ramps_s"] == d["lower_bound_s"] >= free.combined_s * (1 - 1e-3)
     assert d["duration_s"] >= d["lower_bound_s"]
+    assert d["optimality_gap"] == pytest.approx(d["duration_s"] / d["lower_bound_s"] - 1)
     assert jerk.combined_s > d["duration_s"]        # the old comparison was the wrong one
 
 

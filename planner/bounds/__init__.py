@@ -21,35 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.bounds.profiles import rest_to_rest_time
+from planner.bounds.ramps import ramp_bound
 from planner.model import Crane, UnreachableError
 from planner.model.flows import swept_volume
-
-
-def rest_to_rest_time(d, v, a, j=np.inf):
-    """Minimum time [s] to move a distance d ≥ 0 from rest to rest under |v|, |a|, |j| limits.
-
-    Vectorised over all arguments. With j = inf this is the bang-bang (trapezoid) profile."""
-    d, v, a, j = np.broadcast_arrays(*(np.asarray(x, float) for x in (d, v, a, j)))
-    d = np.abs(d)
-    inv_j = np.where(np.isfinite(j), 1.0 / j, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # accelerating from 0 to speed w: time and distance (symmetric S-curve or trapezoid)
-        def acc_phase(w):
-            reach_a = w >= a * a * inv_j   # the profile reaches full acceleration
-            t_full = w / a + a * inv_j
-            t_tri = 2.0 * np.sqrt(w * inv_j)
-            t = np.where(reach_a, t_full, t_tri)
-            return t, 0.5 * w * t
-        t_v, d_v = acc_phase(v)
-        cruise = d >= 2 * d_v
-        T_cruise = 2 * t_v + (d - 2 * d_v) / v
-        # peak speed w < v: solve d = 2·d_acc(w)
-        w1 = 0.5 * a * (-a * inv_j + np.sqrt((a * inv_j) ** 2 + 4 * d / a))   # w ≥ a²/j case
-        w2 = np.where(inv_j > 0, (d / (2.0 * np.sqrt(inv_j))) ** (2.0 / 3.0), np.inf)  # w < a²/j
-        w = np.where(w1 >= a * a * inv_j, w1, w2)
-        t_w, _ = acc_phase(w)
-        T = np.where(cruise, T_cruise, 2 * t_w)
-    return np.where(d == 0, 0.0, T)
 
 
 @dataclass
@@ -57,7 +32,10 @@ class LowerBound:
     """Lower bounds [s] (and [J]) for a move, each minimised over the redundancy at both ends.
 
     ``combined_s`` = min over end configurations of max(rest-to-rest, pump) — tighter than the
-    max of the separate minima. ``tele_start`` / ``tele_goal`` are the telescope values [m] at
+    max of the separate minima. ``ramps_s`` (with ``ramps=True``): the pump-aware bound of
+    :mod:`planner.bounds.ramps` (flow sharing under the ramp limits; never below max(rest-to-
+    rest, pump) of any end pair), ``ramps_binding`` what binds there; None when not computed
+    or not applicable (an enabled hydraulic transformer). ``tele_start`` / ``tele_goal`` are the telescope values [m] at
     which ``combined_s`` is attained (None when the ends were joint configurations)."""
     velocity_s: float
     rest_to_rest_s: float
@@ -66,6 +44,14 @@ class LowerBound:
     energy_J: float
     tele_start: float | None
     tele_goal: float | None
+    ramps_s: float | None = None
+    ramps_binding: str | None = None
+
+    @property
+    def certified_s(self) -> float:
+        """The tightest time bound with acceleration limits: the ramp bound when it was
+        computed (``ramps=True``), else the combined one."""
+        return self.combined_s if self.ramps_s is None else self.ramps_s
 
     def as_dict(self):
         return dict(self.__dict__)
@@ -165,7 +151,8 @@ def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
                 n_grid: int = 121, refine: int = 3, starts: int = 8,
-                jerk: bool = True, combined_only: bool = False) -> LowerBound:
+                jerk: bool = True, combined_only: bool = False,
+                ramps: bool = False) -> LowerBound:
     """Lower bounds for a move between tips ``start``/``goal`` (r, z, slew) — or fixed joint
     configurations ``q_start``/``q_goal``.
 
@@ -177,7 +164,9 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
     the bound of a method that does not plan with jerk limits (TOPP-RA, the DP, the laws),
     which may legitimately be faster than the jerk-limited bound. ``combined_only`` refines
     only the combined bound (and its telescopes; the other fields keep their ``n_grid``
-    values, which a refinement could only lower): what a guess taken at the bound needs."""
+    values, which a refinement could only lower): what a guess taken at the bound needs.
+    ``ramps`` adds the pump-aware bound (:func:`planner.bounds.ramps.ramp_bound`, seeded also
+    at the combined bound's telescopes): the certificate of a minimum-time plan."""
     if (start is None) == (q_start is None) or (goal is None) == (q_goal is None):
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
@@ -228,7 +217,15 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
 
     def none_if_nan(v):
         return None if (not tr or np.isnan(v)) else float(v)
-    return LowerBound(velocity_s=float(best["vel"]), rest_to_rest_s=float(best["r2r"]),
-                      pump_s=float(best["pump"]), combined_s=float(best["comb"]),
-                      energy_J=float(best["E"]), tele_start=none_if_nan(arg[0]),
-                      tele_goal=none_if_nan(arg[1]))
+    out = LowerBound(velocity_s=float(best["vel"]), rest_to_rest_s=float(best["r2r"]),
+                     pump_s=float(best["pump"]), combined_s=float(best["comb"]),
+                     energy_J=float(best["E"]), tele_start=none_if_nan(arg[0]),
+                     tele_goal=none_if_nan(arg[1]))
+    if ramps:
+        seed = [(np.nan if out.tele_start is None else out.tele_start,
+                 np.nan if out.tele_goal is None else out.tele_goal)] if tr else []
+        rb = ramp_bound(crane, start, goal, q_start=q_start, q_goal=q_goal, jerk=jerk,
+                        extra=seed)
+        if rb is not None:
+            out.ramps_s, out.ramps_binding = rb.bound_s, rb.binding
+    return out

@@ -17,11 +17,16 @@ Per actuator i with stroke rate ẋ and required force F = τ / (dx/dq) (virtual
   the piston side of the target: the target moves by pump flow plus ratio·A_b,s·ẋ_s, so the pump
   supplies Q_t = A_a,t·(ẋ_t − k·ẋ_s)⁺ with k = ratio·A_b,s/A_a,t; the source's rod side then
   needs no pump flow; ideal units give p_b,s = ratio·p_a,t.
+* pricing (:mod:`planner.model.pricing`): the above is the seed pricing; the machine pricing
+  adds the actuators' friction to the force and, while an actuator moves, the load-holding
+  valve's counter-pressure on its outlet (an overrunning load held by the outlet, the inlet
+  at tank) — so lowering and braking cost pump work as on the machine.
 """
 from __future__ import annotations
 
 import casadi as ca
 
+from planner.model.pricing import Pricing, friction, moving_pressures, pricing_of
 from planner.model.spec import CraneSpec
 from planner.model.valve_physics import metered_flow
 
@@ -31,10 +36,13 @@ OUTPUTS = ("x", "xd", "force", "p_a", "p_b", "p_load", "q_act", "p_pump", "q_pum
            "throttle_loss")
 
 
-def hydraulics(spec: CraneSpec, x, xd, force):
+def hydraulics(spec: CraneSpec, x, xd, force, pricing: Pricing | None = None):
     """Symbolic hydraulic quantities. x, xd, force: n-vectors (stroke [m|rad], rate, force
-    [N|N·m]). Returns a dict with the names of :data:`OUTPUTS` (vectors per actuator, scalars for
-    the pump)."""
+    [N|N·m], the force the motion requires: friction is the pricing's). ``pricing``: a
+    :class:`~planner.model.pricing.Pricing` (default: the spec's, :func:`pricing_of`).
+    Returns a dict with the names of :data:`OUTPUTS` (vectors per actuator, scalars for the
+    pump)."""
+    pr = pricing_of(spec) if pricing is None else pricing
     pump = spec.pump
     pt = pump.tank_pressure
     eps = ACTIVE_FLOW * pump.max_flow
@@ -49,12 +57,17 @@ def hydraulics(spec: CraneSpec, x, xd, force):
         F = force[i]
         v = xd[i]
         single = act.acting == "single"
+        coupled = i in (hs, htg)
+        if pr.machine and (single or coupled):
+            F = F + friction(pr, i, v)
         if single:
             pa = pt + ca.fmax(F, 0) / Aa
             pb = ca.DM(pt)
         else:
             pa = ca.if_else(F >= 0, (F + Ab * pt) / Aa, pt)
             pb = ca.if_else(F >= 0, pt, (Aa * pt - F) / Ab)
+            if pr.machine and not coupled:
+                pa, pb = moving_pressures(pr, Aa, Ab, pt, i, F, v, pa, pb)
         if i == htg:
             k = ht.ratio * spec.joints[hs].actuator.area_b / Aa
             Q = metered_flow(v - k * xd[hs], Aa, 0.0)
@@ -72,7 +85,7 @@ def hydraulics(spec: CraneSpec, x, xd, force):
         pbs = ht.ratio * p_a[htg]
         Aa, Ab = spec.joints[hs].actuator.area_a, spec.joints[hs].actuator.area_b
         p_b[hs] = pbs
-        p_a[hs] = ca.fmax((force[hs] + Ab * pbs) / Aa, pt)
+        p_a[hs] = ca.fmax((force[hs] + friction(pr, hs, xd[hs]) + Ab * pbs) / Aa, pt)
         p_load[hs] = ca.if_else(q_act[hs] > eps, p_a[hs], 0)
     Qp = sum(q_act[1:], q_act[0])
     if pump.kind == "load_sensing":

@@ -196,17 +196,18 @@ def moving_pressures(spec, pr: Pricing, force, xd, p_a, p_b):
     return np.where(keep, p_a, pa), np.where(keep, p_b, pb)
 
 
-def load_pressures(spec, p_a, p_b, xd, q_act) -> np.ndarray:
+def load_pressures(spec, p_a, p_b, xd, q_act, active=None) -> np.ndarray:
     """Load pressure each actuator shows the LS line (..., n) [Pa]: the meter-in chamber's
-    (p_a extending, p_b retracting) while it draws more than ``active_flow``, else 0 (the
-    transformer's source: its piston side)."""
+    (p_a extending, p_b retracting) while it draws more than ``active`` (the pricing's
+    threshold, default ``active_flow``), else 0 (the transformer's source: its piston side)."""
     T = actuator_table(spec)
+    active = T.active_flow if active is None else active
     xd = np.asarray(xd, float)
     pL = np.where(xd > 0, p_a, np.where(xd < 0, p_b, 0.0))
     if T.transformer:
         pL = np.array(pL, float)
         pL[..., T.ht_source] = np.asarray(p_a)[..., T.ht_source]
-    return np.where(np.asarray(q_act) > T.active_flow, pL, 0.0)
+    return np.where(np.asarray(q_act) > active, pL, 0.0)
 
 
 def _total(a) -> np.ndarray:
@@ -218,16 +219,17 @@ def _total(a) -> np.ndarray:
     return s
 
 
-def pump_pressure(spec, p_load, q_pump) -> np.ndarray:
+def pump_pressure(spec, p_load, q_pump, drawing=None) -> np.ndarray:
     """Pump pressure [Pa] (shaped like ``q_pump``): load sensing max(standby, max p_load +
-    margin while the pump delivers more than ``active_flow``); constant pressure: the set
-    pressure."""
+    margin while a function draws: ``drawing`` (...) bool, default the pump delivering more
+    than ``active_flow``); constant pressure: the set pressure."""
     T = actuator_table(spec)
     pump = T.pump
     q_pump = np.asarray(q_pump, float)
     if pump.kind == "load_sensing":
         pmax = np.max(p_load, axis=-1)
-        return np.maximum(pump.standby, np.where(q_pump > T.active_flow, pmax + pump.margin, 0.0))
+        drawing = q_pump > T.active_flow if drawing is None else drawing
+        return np.maximum(pump.standby, np.where(drawing, pmax + pump.margin, 0.0))
     return np.full(q_pump.shape, float(pump.pressure))
 
 
@@ -258,9 +260,10 @@ def hydraulics(spec, x, xd, force, mode: str | None = None) -> dict:
         p_a, p_b = moving_pressures(spec, pr, force_f, xd, p_a, p_b)
     else:
         p_a, p_b = chamber_pressures(spec, force)
-    p_load = load_pressures(spec, p_a, p_b, xd, q_act)
+    p_load = load_pressures(spec, p_a, p_b, xd, q_act, pr.active)
     q_pump = _total(q_act)
-    p_pump = pump_pressure(spec, p_load, q_pump)
+    p_pump = pump_pressure(spec, p_load, q_pump,
+                           np.any(q_act > pr.active, axis=-1) if pr.machine else None)
     values = dict(x=x, xd=xd, force=force, p_a=p_a, p_b=p_b, p_load=p_load, q_act=q_act,
                   p_pump=p_pump, q_pump=q_pump, power=pump_power(spec, p_pump, q_pump),
                   throttle_loss=throttle_loss(p_pump, p_load, q_act))

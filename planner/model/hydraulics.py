@@ -10,7 +10,8 @@ Per actuator i with stroke rate ẋ and required force F = τ / (dx/dq) (virtual
 * load pressure seen by the LS line: the meter-in chamber's pressure (p_a extending, p_b
   retracting), only while the actuator draws flow — more than ACTIVE_FLOW·Q_max (10⁻⁴ of the
   pump's maximum: a valve in its dead band passes nothing, and numerical crumbs of motion must
-  not switch the pump to another function's load pressure);
+  not switch the pump to another function's load pressure) — the seed pricing; the machine
+  pricing's threshold is the valve's own, OPEN_EPS·G (see :mod:`planner.model.pricing`);
 * pump: load sensing p_pump = max(standby, max_active p_load + margin); constant pressure
   p_pump = set pressure; pump power = p_pump·ΣQ / η (seed 002), energy = ∫ power dt.
 * hydraulic transformer (seed 002, optional): the rod side of the source cylinder is coupled to
@@ -26,11 +27,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from planner.model.pricing import Pricing, friction, moving_pressures, pricing_of
+from planner.model.pricing import ACTIVE_FLOW, Pricing, friction, moving_pressures, pricing_of
 from planner.model.spec import CraneSpec
 from planner.model.valve_physics import metered_flow
-
-ACTIVE_FLOW = 1e-4  # fraction of the pump's max flow below which a function counts as idle
 
 OUTPUTS = ("x", "xd", "force", "p_a", "p_b", "p_load", "q_act", "p_pump", "q_pump", "power",
            "throttle_loss")
@@ -78,7 +77,7 @@ def hydraulics(spec: CraneSpec, x, xd, force, pricing: Pricing | None = None):
         pL = ca.if_else(v > 0, pa, ca.if_else(v < 0, pb, 0))
         p_a.append(pa)
         p_b.append(pb)
-        p_load.append(ca.if_else(Q > eps, pL, 0))
+        p_load.append(ca.if_else(Q > pr.active[i], pL, 0))
         q_act.append(Q)
     if ht is not None:
         # coupled units: the source's rod side sits at ratio·(target piston pressure)
@@ -86,13 +85,19 @@ def hydraulics(spec: CraneSpec, x, xd, force, pricing: Pricing | None = None):
         Aa, Ab = spec.joints[hs].actuator.area_a, spec.joints[hs].actuator.area_b
         p_b[hs] = pbs
         p_a[hs] = ca.fmax((force[hs] + friction(pr, hs, xd[hs]) + Ab * pbs) / Aa, pt)
-        p_load[hs] = ca.if_else(q_act[hs] > eps, p_a[hs], 0)
+        p_load[hs] = ca.if_else(q_act[hs] > pr.active[hs], p_a[hs], 0)
     Qp = sum(q_act[1:], q_act[0])
     if pump.kind == "load_sensing":
         pmax = p_load[0]
         for pl in p_load[1:]:
             pmax = ca.fmax(pmax, pl)
-        p_pump = ca.fmax(pump.standby, ca.if_else(Qp > eps, pmax + pump.margin, 0))
+        if pr.machine:   # the pump answers any drawing function (machine: any open valve)
+            drawing = q_act[0] > pr.active[0]
+            for i in range(1, n):
+                drawing = ca.logic_or(drawing, q_act[i] > pr.active[i])
+        else:
+            drawing = Qp > eps
+        p_pump = ca.fmax(pump.standby, ca.if_else(drawing, pmax + pump.margin, 0))
     else:
         p_pump = ca.DM(pump.pressure) + 0 * Qp
     power = p_pump * Qp / pump.efficiency

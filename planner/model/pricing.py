@@ -30,7 +30,11 @@ section, ``"seed"`` otherwise):
     what lowering and braking cost it; the energy the load gives back is burnt at the outlet,
     not returned.
   - the LS pump as before (:mod:`planner.model.hydraulics`): max(standby, highest meter-in
-    pressure of the drawing functions + margin). No standby *flow*: the judge's pump delivers
+    pressure of the drawing functions + margin) — but a function *draws* (shows the LS line its
+    pressure) as soon as its valve opens, Q > ``OPEN_EPS``·G (:mod:`planner.model.
+    valve_physics`: the judge's rule), not only above the seed pricing's 10⁻⁴ of Q_max: a
+    function crept along at a few 10⁻⁵ of its flow (a plan's "idle" joint) raises the pump to
+    its holding pressure on the machine, and so it does here. No standby *flow*: the judge's pump delivers
     what the valves draw and nothing else (a bleed would price idle time, which the plant
     does not).
 
@@ -52,11 +56,12 @@ import casadi as ca
 import numpy as np
 
 from planner.model.spec import CraneSpec
-from planner.model.valve_physics import back_pressure
+from planner.model.valve_physics import OPEN_EPS, back_pressure
 
-__all__ = ["PRICINGS", "SMOOTH_SPEED", "Pricing", "pricing_of", "friction",
+__all__ = ["ACTIVE_FLOW", "PRICINGS", "SMOOTH_SPEED", "Pricing", "pricing_of", "friction",
            "meter_in_pressures", "moving_pressures"]
 
+ACTIVE_FLOW = 1e-4  # seed pricing: fraction of the pump's max flow below which a function idles
 PRICINGS = ("seed", "machine")
 #: assumed: the Coulomb friction is rounded off over this fraction of the full-command stroke
 #: speed G/min(A_a, A_b) (as the Exudyn plant rounds it: a seal's stick-slip band is far below
@@ -69,12 +74,14 @@ class Pricing:
     """Constants of one pricing of one spec, arrays (n,) in joint order: ``back`` [Pa] the
     load-holding valve's counter-pressure above tank on a metering outlet (0: seed pricing, or
     a single-acting cylinder, or a transformer joint), ``coulomb`` [N | N·m], ``viscous``
-    [N·s/m | N·m·s/rad], ``v_smooth`` [m/s | rad/s] (see the module doc)."""
+    [N·s/m | N·m·s/rad], ``v_smooth`` [m/s | rad/s] (see the module doc), ``active`` [m³/s]
+    the flow above which a function draws (shows the LS line its pressure)."""
     mode: str
     back: np.ndarray
     coulomb: np.ndarray
     viscous: np.ndarray
     v_smooth: np.ndarray
+    active: np.ndarray
 
     @property
     def machine(self) -> bool:
@@ -92,7 +99,8 @@ def pricing_of(spec: CraneSpec, mode: str | None = None) -> Pricing:
     n = spec.n
     zero = np.zeros(n)
     if mode == "seed":
-        return Pricing(mode, zero, zero, zero, zero + 1.0)
+        return Pricing(mode, zero, zero, zero, zero + 1.0,
+                       zero + ACTIVE_FLOW * spec.pump.max_flow)
     dyn = spec.dynamics
     if dyn is None:
         raise ValueError(f"pricing: 'machine' needs the [dynamics] section of crane "
@@ -106,11 +114,15 @@ def pricing_of(spec: CraneSpec, mode: str | None = None) -> Pricing:
         coupled[[spec.joint_index(ht.source_joint), spec.joint_index(ht.target_joint)]] = True
     dp_b = float(back_pressure(dyn.meter_out_dp, dyn.meter_out_margin))
     back = np.where(single | coupled, 0.0, dp_b)
-    full = np.array([a.flow_gain / min(a.area_a, a.area_b) for a in acts])
-    v_s = np.where(np.isfinite(full) & (full > 0), SMOOTH_SPEED * full, 1.0)
+    G = np.array([a.flow_gain for a in acts], float)
+    valve = np.isfinite(G) & (G > 0)
+    full = np.where(valve, G, 0.0) / np.array([min(a.area_a, a.area_b) for a in acts])
+    v_s = np.where(valve, SMOOTH_SPEED * full, 1.0)
+    active = np.where(valve, OPEN_EPS * np.where(valve, G, 0.0),
+                      ACTIVE_FLOW * spec.pump.max_flow)
     out = Pricing(mode, back, np.array([d.coulomb for d in jd], float),
-                  np.array([d.viscous for d in jd], float), v_s)
-    for a in (out.back, out.coulomb, out.viscous, out.v_smooth):
+                  np.array([d.viscous for d in jd], float), v_s, active)
+    for a in (out.back, out.coulomb, out.viscous, out.v_smooth, out.active):
         a.setflags(write=False)
     return out
 

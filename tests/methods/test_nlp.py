@@ -260,10 +260,13 @@ def test_energy_rounds_started_warm_reach_the_cold_answer(monkeypatch):
     assert got["1"] == pytest.approx(got["0"], rel=5e-3)
 
 
-def test_activity_round_ends_when_the_new_functions_already_hold(s100f):
+def test_activity_round_ends_when_the_new_functions_already_hold():
     """An activity round is skipped when the functions it would switch on already meet their
     pressure rows at the solution: re-solving with them on returns the same optimum (the
-    oracle: the re-solve itself); a function whose row is broken needs the round."""
+    oracle: the re-solve itself); a function whose row is broken needs the round. (Seed
+    pricing: under the machine's, whose LS threshold is the valve's opening, this move's
+    first mask already holds every row — no broken function to show.)"""
+    s100f = Crane.from_id("s100f", pricing="seed")
     from planner.geometry.paths import tip_to_xyz as xyz
     a, b = (6.0, -1.0, 0.0), (3.0, 2.5, 1.5)
     T = 1.2 * MoveNLP(s100f, "time", "free", N=12).solve(a, b).duration_s

@@ -24,7 +24,7 @@ from planner.model.spec import CraneSpec, Pump
 
 __all__ = ["ActuatorTable", "actuator_table", "pump_draw", "swept_volume", "chamber_pressures",
            "load_pressures", "pump_pressure", "pump_power", "throttle_loss", "hydraulics",
-           "pricing", "friction", "moving_pressures"]
+           "pricing", "friction", "moving_pressures", "priced_pressures"]
 
 
 @dataclass(frozen=True)
@@ -196,6 +196,19 @@ def moving_pressures(spec, pr: Pricing, force, xd, p_a, p_b):
     return np.where(keep, p_a, pa), np.where(keep, p_b, pb)
 
 
+def priced_pressures(spec, force, xd, pr: Pricing | None = None):
+    """Chamber pressures (p_a, p_b) for required forces ``force`` at stroke rates ``xd``
+    (each (..., n)) under the pricing ``pr`` (default :func:`pricing`): the load-holding
+    :func:`chamber_pressures` (seed), or with friction and the moving pressures (machine)."""
+    pr = pricing(spec) if pr is None else pr
+    if not pr.machine:
+        return chamber_pressures(spec, force)
+    xd = np.asarray(xd, float)
+    force_f = np.asarray(force, float) + friction(pr, xd)
+    p_a, p_b = chamber_pressures(spec, force_f)
+    return moving_pressures(spec, pr, force_f, xd, p_a, p_b)
+
+
 def load_pressures(spec, p_a, p_b, xd, q_act, active=None) -> np.ndarray:
     """Load pressure each actuator shows the LS line (..., n) [Pa]: the meter-in chamber's
     (p_a extending, p_b retracting) while it draws more than ``active`` (the pricing's
@@ -254,12 +267,7 @@ def hydraulics(spec, x, xd, force, mode: str | None = None) -> dict:
     xd = _last(xd, T.n, "hydraulics: xd")
     force = _last(force, T.n, "hydraulics: force")
     q_act = pump_draw(spec, xd)
-    if pr.machine:
-        force_f = force + friction(pr, xd)
-        p_a, p_b = chamber_pressures(spec, force_f)
-        p_a, p_b = moving_pressures(spec, pr, force_f, xd, p_a, p_b)
-    else:
-        p_a, p_b = chamber_pressures(spec, force)
+    p_a, p_b = priced_pressures(spec, force, xd, pr)
     p_load = load_pressures(spec, p_a, p_b, xd, q_act, pr.active)
     q_pump = _total(q_act)
     p_pump = pump_pressure(spec, p_load, q_pump,

@@ -21,6 +21,11 @@ then exactly
     + (oil compression, make-up, leakage, end stops, pump line)
     + (ΔE Exudyn − ΔE plan: the open-loop replay ends elsewhere) + (the balance's residual).
 
+The quasi-static figure is priced as the crane prices it by default — the machine pricing of
+issue 30 (:mod:`planner.model.pricing`); each row also carries the seed pricing's figure
+(``w_qs_seed_J``), and the report gives the ratio Exudyn / evaluate() under both (median,
+p90, range; the target of issue 30: within 5 %).
+
 Writes <out>/exudyn_energy_gap.md and .json.
 """
 from __future__ import annotations
@@ -60,8 +65,9 @@ def _integral(t, y):
     return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)))
 
 
-def entry_gap(crane, plant, traj):
-    """The gap of one plan (module doc), in J."""
+def entry_gap(crane, plant, traj, seed=None):
+    """The gap of one plan (module doc), in J (``seed``: the crane under the seed pricing,
+    whose figure is added as ``w_qs_seed_J``)."""
     ev = evaluate(crane, traj)
     h = ev.hyd
     w_qs = _integral(ev.t, h["p_pump"] * h["q_pump"])
@@ -85,6 +91,9 @@ def entry_gap(crane, plant, traj):
                meter_out_diff_J=b["meter_out_J"] - given_away,
                meter_in_diff_J=b["meter_in_J"] - throttle_qs,
                mechanical_diff_J=mech - d_plan, residual_J=b["residual_J"])
+    if seed is not None:
+        es = evaluate(seed, traj)
+        row["w_qs_seed_J"] = _integral(es.t, es.hyd["p_pump"] * es.hyd["q_pump"])
     row["gap_J"] = row["w_exudyn_J"] - w_qs
     row["closure_J"] = row["gap_J"] - sum(row[k] for k in COLUMNS)   # 0 by construction
     return row
@@ -103,6 +112,7 @@ def main(argv=None):
     args.work.mkdir(parents=True, exist_ok=True)
     lib = args.library or build_library(args.work, subset_suite(
         args.work / "forwarder-cycle-claims.toml"))[0]
+    seed = Crane.from_id("s100f", pricing="seed")
     plant = ExudynPlant(crane)
     rows = []
     with LibraryStore.open(lib) as store:
@@ -110,12 +120,13 @@ def main(argv=None):
         ids = ids[:args.limit] if args.limit else ids
         for k, eid in enumerate(ids):
             r = dict(id=eid, objective=store.entry_attrs(eid).get("objective"),
-                     **entry_gap(crane, plant, store.trajectory(eid)))
+                     **entry_gap(crane, plant, store.trajectory(eid), seed))
             rows.append(r)
             if r["status"] == "ok":
                 print(f"{k + 1}/{len(ids)} {eid}: quasi-static {r['w_qs_J'] / 1e3:.1f} kJ, "
                       f"Exudyn {r['w_exudyn_J'] / 1e3:.1f} kJ", file=sys.stderr, flush=True)
     res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+               pricing=crane.pricing,
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                             load=list(os.getloadavg())),
                library=str(lib), rows=rows, wall_s=time.perf_counter() - t_start)
@@ -146,6 +157,7 @@ def markdown(res) -> list:
                   other_dynamic_J="make-up, leakage, end stops, pump line",
                   mechanical_diff_J="ΔE mechanical, Exudyn − plan (ends elsewhere)",
                   residual_J="energy balance residual (Exudyn)")
+    L += ratio_table(ok, res.get("pricing", "seed"))
     for obj in ("time", "energy", None):
         rs = [r for r in ok if obj is None or r["objective"] == obj]
         if not rs:
@@ -177,6 +189,27 @@ def markdown(res) -> list:
                   f"(Exudyn meter-out throttling "
                   f"{sum(r['meter_out_exudyn_J'] for r in rs) / 1e3:.1f} kJ).", ""]
     return L
+
+
+def ratio_table(ok, pricing) -> list:
+    """Exudyn / evaluate() pump work per entry, under the crane's pricing and the seed's."""
+    L = ["## Exudyn / evaluate() pump work per entry (issue 30: within 5 %)", "",
+         "| entries | pricing | median | p90 | range | sum ratio |",
+         "| --- | --- | ---: | ---: | --- | ---: |"]
+    for obj in ("time", "energy", None):
+        rs = [r for r in ok if obj is None or r["objective"] == obj]
+        if not rs:
+            continue
+        ex = np.array([r["w_exudyn_J"] for r in rs])
+        for name, key in ((pricing, "w_qs_J"), ("seed", "w_qs_seed_J")):
+            if key != "w_qs_J" and (pricing == "seed" or key not in rs[0]):
+                continue
+            qs = np.array([r[key] for r in rs])
+            ratio = ex / qs
+            L.append(f"| {'all' if obj is None else obj} ({len(rs)}) | {name} | "
+                     f"{np.median(ratio):.3f} | {np.percentile(ratio, 90):.3f} | "
+                     f"{ratio.min():.3f}–{ratio.max():.3f} | {ex.sum() / qs.sum():.3f} |")
+    return L + [""]
 
 
 if __name__ == "__main__":

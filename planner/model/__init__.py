@@ -4,6 +4,7 @@
 >>> crane.tip([0, 0.5, -1.2, 0.3])          # (r, z, slew)
 >>> q = crane.ik((3.0, 2.5, 0.0), tele=0.5)  # joint configuration
 >>> crane.f_hyd                              # casadi.Function, callable on SX/MX for the NLP
+>>> Crane.from_id("s100f", pricing="seed")   # the seeds' pump pricing (planner.model.pricing)
 
 Numeric methods accept one configuration (shape (n,)) or a batch (shape (N, n)) and return
 arrays with the same leading shape; batches are evaluated by CasADi in one call (no Python loop).
@@ -20,6 +21,7 @@ from planner.model.spec import CraneSpec, SpecError, load_spec
 from planner.model.actuators import lever_pin, stroke_expr, stroke_range
 from planner.model.dynamics import lumped_links, potential_energy, rnea
 from planner.model.hydraulics import OUTPUTS, hydraulics
+from planner.model.pricing import meter_in_pressures, pricing_of
 from planner.model.numeric import Batched
 from planner.model.kinematics import (UnreachableError, cylindrical, ik_planar, joint_transforms,
                          planar_chain, tip_position)
@@ -42,11 +44,15 @@ class Crane:
 
     ``f_fk``, ``f_kin``, ``f_stroke``, ``f_id``, ``f_hyd`` are the symbolic CasADi functions
     (call them on SX/MX in an NLP); the numeric methods use compiled copies of the same
-    functions (see :mod:`planner.model.numeric`).
+    functions (see :mod:`planner.model.numeric`). ``pricing`` ("seed" | "machine"; default:
+    machine where the spec has ``[dynamics]``) is how the pump work is priced
+    (:mod:`planner.model.pricing`); ``f_pin`` gives the energy NLP the meter-in pressures.
     """
 
-    def __init__(self, spec: CraneSpec):
+    def __init__(self, spec: CraneSpec, pricing: str | None = None):
         self.spec = spec
+        self.prices = pr = pricing_of(spec, pricing)
+        self.pricing = pr.mode
         self.n = n = spec.n
         self.names = spec.joint_names
         self.chain = planar_chain(spec)
@@ -79,9 +85,17 @@ class Crane:
                                 ["q", "qd", "qdd", "payload"], ["tau"])
         xd = dxdq * qd
         force = tau / dxdq
-        hy = hydraulics(spec, x, xd, force)
+        hy = hydraulics(spec, x, xd, force, pr)
         self.f_hyd = ca.Function("hydraulics", [q, qd, qdd, m], [hy[k] for k in OUTPUTS],
                                  ["q", "qd", "qdd", "payload"], list(OUTPUTS))
+        Fs, vs = ca.SX.sym("force", n), ca.SX.sym("xd", n)
+        pins = [meter_in_pressures(pr, j.actuator.area_a, j.actuator.area_b,
+                                   spec.pump.tank_pressure, i, Fs[i], vs[i])
+                for i, j in enumerate(spec.joints)]
+        self.f_pin = ca.Function("meter_in_pressure", [Fs, vs],
+                                 [ca.vertcat(*[p[0] for p in pins]),
+                                  ca.vertcat(*[p[1] for p in pins])],
+                                 ["force", "xd"], ["p_extend", "p_retract"])
         self._batched: dict[str, Batched] = {}
         self._check_actuators()
         self._stroke_tables = self._make_stroke_tables()
@@ -100,13 +114,14 @@ class Crane:
 
     # ------------------------------------------------------------------ construction helpers
     @classmethod
-    def from_id(cls, crane_id: str) -> "Crane":
-        """Model of a shipped machine (see ``crane-planner problems list``) or a TOML path."""
-        return _cached_crane(_resolve(crane_id))
+    def from_id(cls, crane_id: str, pricing: str | None = None) -> "Crane":
+        """Model of a shipped machine (see ``crane-planner problems list``) or a TOML path,
+        with the pump ``pricing`` ("seed" | "machine"; default: the spec's)."""
+        return _cached_crane(_resolve(crane_id), pricing)
 
     @classmethod
-    def from_file(cls, path) -> "Crane":
-        return cls(load_spec(path))
+    def from_file(cls, path, pricing: str | None = None) -> "Crane":
+        return cls(load_spec(path), pricing)
 
     def _check_actuators(self):
         """Cylinder strokes must cover the joint range; linkages must close; no dead point."""
@@ -294,7 +309,7 @@ class Crane:
         return dict(cached)
 
     def __repr__(self):
-        return f"Crane({self.spec.id!r}, joints={self.names})"
+        return f"Crane({self.spec.id!r}, joints={self.names}, pricing={self.pricing!r})"
 
 
 def load_crane(crane_id: str) -> CraneSpec:
@@ -309,5 +324,7 @@ def _resolve(crane_id: str) -> str:
 
 
 @lru_cache(maxsize=16)
-def _cached_crane(path: str) -> Crane:
-    return Crane(load_spec(path))
+def _cached_crane(path: str, pricing: str | None = None) -> Crane:
+    if pricing is not None and pricing == _cached_crane(path, None).pricing:
+        return _cached_crane(path, None)  # one object whether or not the pricing was named
+    return Crane(load_spec(path), pricing)

@@ -7,7 +7,9 @@ Use it where a CasADi call does not fit: on stroke changes instead of rates (low
 edges), on huge edge arrays, or on forces that come from somewhere else (a plant with effects).
 Every function is batched over leading axes; the last axis is the actuators (joints), in spec
 order. ``spec`` may be a :class:`~planner.model.spec.CraneSpec` or anything with a ``.spec``
-(a :class:`~planner.model.Crane`).
+(a :class:`~planner.model.Crane`). :func:`hydraulics` prices like the CasADi definition: the
+crane's pricing, or the spec's default (:mod:`planner.model.pricing`; the numpy copy of its
+friction and moving pressures is :func:`friction` and :func:`moving_pressures` here).
 """
 from __future__ import annotations
 
@@ -17,10 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.model.hydraulics import ACTIVE_FLOW, OUTPUTS
+from planner.model.pricing import Pricing, pricing_of
 from planner.model.spec import CraneSpec, Pump
 
 __all__ = ["ActuatorTable", "actuator_table", "pump_draw", "swept_volume", "chamber_pressures",
-           "load_pressures", "pump_pressure", "pump_power", "throttle_loss", "hydraulics"]
+           "load_pressures", "pump_pressure", "pump_power", "throttle_loss", "hydraulics",
+           "pricing", "friction", "moving_pressures", "priced_pressures"]
 
 
 @dataclass(frozen=True)
@@ -157,17 +161,66 @@ def chamber_pressures(spec, force):
     return p_a, p_b
 
 
-def load_pressures(spec, p_a, p_b, xd, q_act) -> np.ndarray:
-    """Load pressure each actuator shows the LS line (..., n) [Pa]: the meter-in chamber's
-    (p_a extending, p_b retracting) while it draws more than ``active_flow``, else 0 (the
-    transformer's source: its piston side)."""
+def pricing(spec_or_crane, mode: str | None = None) -> Pricing:
+    """The :class:`~planner.model.pricing.Pricing` in force: ``mode``'s, else a crane's own
+    (``.prices``), else the spec's default."""
+    if mode is None and getattr(spec_or_crane, "prices", None) is not None:
+        return spec_or_crane.prices
+    return pricing_of(spec_of(spec_or_crane), mode)
+
+
+def friction(pr: Pricing, xd) -> np.ndarray:
+    """Friction force (..., n) [N | N·m] opposing the stroke rates ``xd`` (0: seed pricing)."""
+    xd = np.asarray(xd, float)
+    if not pr.machine:
+        return np.zeros_like(xd)
+    return pr.coulomb * np.tanh(xd / pr.v_smooth) + pr.viscous * xd
+
+
+def moving_pressures(spec, pr: Pricing, force, xd, p_a, p_b):
+    """Machine pricing: chamber pressures (p_a, p_b) of the double-acting, uncoupled actuators
+    while they move (the passive load against the outlet's counter-pressure, the inlet floored
+    at tank, the outlet balancing ``force`` + friction); others and rest keep ``p_a``,
+    ``p_b``. ``force`` already carries the friction."""
     T = actuator_table(spec)
+    pt = T.tank_pressure
+    Aa, Ab = T.area_a, T.area_b
+    p_out = pt + pr.back
+    pa_ext = np.maximum((force + Ab * p_out) / Aa, pt)
+    pb_ret = np.maximum((Aa * p_out - force) / Ab, pt)
+    pa = np.where(xd > 0, pa_ext, np.where(xd < 0, (force + Ab * pb_ret) / Aa, p_a))
+    pb = np.where(xd > 0, (Aa * pa_ext - force) / Ab, np.where(xd < 0, pb_ret, p_b))
+    keep = T.single.copy()
+    if T.transformer:
+        keep[[T.ht_source, T.ht_target]] = True
+    return np.where(keep, p_a, pa), np.where(keep, p_b, pb)
+
+
+def priced_pressures(spec, force, xd, pr: Pricing | None = None):
+    """Chamber pressures (p_a, p_b) for required forces ``force`` at stroke rates ``xd``
+    (each (..., n)) under the pricing ``pr`` (default :func:`pricing`): the load-holding
+    :func:`chamber_pressures` (seed), or with friction and the moving pressures (machine)."""
+    pr = pricing(spec) if pr is None else pr
+    if not pr.machine:
+        return chamber_pressures(spec, force)
+    xd = np.asarray(xd, float)
+    force_f = np.asarray(force, float) + friction(pr, xd)
+    p_a, p_b = chamber_pressures(spec, force_f)
+    return moving_pressures(spec, pr, force_f, xd, p_a, p_b)
+
+
+def load_pressures(spec, p_a, p_b, xd, q_act, active=None) -> np.ndarray:
+    """Load pressure each actuator shows the LS line (..., n) [Pa]: the meter-in chamber's
+    (p_a extending, p_b retracting) while it draws more than ``active`` (the pricing's
+    threshold, default ``active_flow``), else 0 (the transformer's source: its piston side)."""
+    T = actuator_table(spec)
+    active = T.active_flow if active is None else active
     xd = np.asarray(xd, float)
     pL = np.where(xd > 0, p_a, np.where(xd < 0, p_b, 0.0))
     if T.transformer:
         pL = np.array(pL, float)
         pL[..., T.ht_source] = np.asarray(p_a)[..., T.ht_source]
-    return np.where(np.asarray(q_act) > T.active_flow, pL, 0.0)
+    return np.where(np.asarray(q_act) > active, pL, 0.0)
 
 
 def _total(a) -> np.ndarray:
@@ -179,16 +232,17 @@ def _total(a) -> np.ndarray:
     return s
 
 
-def pump_pressure(spec, p_load, q_pump) -> np.ndarray:
+def pump_pressure(spec, p_load, q_pump, drawing=None) -> np.ndarray:
     """Pump pressure [Pa] (shaped like ``q_pump``): load sensing max(standby, max p_load +
-    margin while the pump delivers more than ``active_flow``); constant pressure: the set
-    pressure."""
+    margin while a function draws: ``drawing`` (...) bool, default the pump delivering more
+    than ``active_flow``); constant pressure: the set pressure."""
     T = actuator_table(spec)
     pump = T.pump
     q_pump = np.asarray(q_pump, float)
     if pump.kind == "load_sensing":
         pmax = np.max(p_load, axis=-1)
-        return np.maximum(pump.standby, np.where(q_pump > T.active_flow, pmax + pump.margin, 0.0))
+        drawing = q_pump > T.active_flow if drawing is None else drawing
+        return np.maximum(pump.standby, np.where(drawing, pmax + pump.margin, 0.0))
     return np.full(q_pump.shape, float(pump.pressure))
 
 
@@ -202,19 +256,22 @@ def throttle_loss(p_pump, p_load, q_act) -> np.ndarray:
     return _total((np.asarray(p_pump)[..., None] - p_load) * q_act)
 
 
-def hydraulics(spec, x, xd, force) -> dict:
+def hydraulics(spec, x, xd, force, mode: str | None = None) -> dict:
     """Every quantity of :data:`planner.model.hydraulics.OUTPUTS` from strokes ``x``, stroke
     rates ``xd`` and actuator forces ``force`` (each (..., n)): per-actuator arrays (..., n)
-    and pump scalars (...); numerically the CasADi :func:`planner.model.hydraulics.hydraulics`."""
+    and pump scalars (...); numerically the CasADi :func:`planner.model.hydraulics.hydraulics`
+    priced by :func:`pricing` (``mode``, else a crane's own, else the spec's)."""
     T = actuator_table(spec)
+    pr = pricing(spec, mode)
     x = _last(x, T.n, "hydraulics: x")
     xd = _last(xd, T.n, "hydraulics: xd")
     force = _last(force, T.n, "hydraulics: force")
     q_act = pump_draw(spec, xd)
-    p_a, p_b = chamber_pressures(spec, force)
-    p_load = load_pressures(spec, p_a, p_b, xd, q_act)
+    p_a, p_b = priced_pressures(spec, force, xd, pr)
+    p_load = load_pressures(spec, p_a, p_b, xd, q_act, pr.active)
     q_pump = _total(q_act)
-    p_pump = pump_pressure(spec, p_load, q_pump)
+    p_pump = pump_pressure(spec, p_load, q_pump,
+                           np.any(q_act > pr.active, axis=-1) if pr.machine else None)
     values = dict(x=x, xd=xd, force=force, p_a=p_a, p_b=p_b, p_load=p_load, q_act=q_act,
                   p_pump=p_pump, q_pump=q_pump, power=pump_power(spec, p_pump, q_pump),
                   throttle_loss=throttle_loss(p_pump, p_load, q_act))

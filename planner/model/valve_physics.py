@@ -32,6 +32,11 @@ Per valve, pressures in Pa, flows in m³/s, p_t the tank pressure:
 * **single-acting cylinder** (no rod-side connection): raising meters in from the pump;
   lowering meters the oil *leaving the piston side* to tank through the compensated edge,
   Q = G·|o|·c(p_a − p_t) (gravity driven, no pump flow); the rod side is vented.
+* **counter-pressure of a metering outlet** (the load-holding valve carrying a passive load
+  at the commanded speed): the outflow is the matched one, 1/(1 + m) of the return cap, so the
+  outlet sits Δp_b above tank with r(Δp_b) = r(Δp_o)/(1 + m) — solved exactly,
+  Δp_b² = (y⁴ + √(y⁸ + 4·y⁴·Δp_r²))/2, y = r(Δp_o)/(1 + m) (≈ Δp_o/(1 + m)² for Δp_o ≫
+  Δp_r). What the machine pricing (:mod:`planner.model.pricing`) makes the pump push against.
 * **anti-cavitation make-up** from tank into a chamber below tank: Q = G/Δp_f·δ²/(δ + Δp_r),
   δ = max(p_t − p, 0), Δp_f = 10 bar (about the full valve flow at 10 bar under tank; zero at
   and above tank with a continuous slope).
@@ -61,8 +66,8 @@ from functools import lru_cache
 import casadi as ca
 
 __all__ = ["DP_REG", "REST_TOL", "MAKEUP_DP", "OPEN_EPS", "root", "opening", "spool",
-           "compensator", "meter_in", "meter_out", "return_gain", "makeup", "leakage",
-           "metered_flow", "draws_pump", "edge_flows", "steady_state", "command",
+           "compensator", "meter_in", "meter_out", "return_gain", "back_pressure", "makeup",
+           "leakage", "metered_flow", "draws_pump", "edge_flows", "steady_state", "command",
            "FUNCTIONS", "function"]
 
 DP_REG = 2.0e4      # [Pa] laminar region of the regularised orifice root
@@ -108,6 +113,13 @@ def meter_out(o, dp, k_out, dp_out):
 def return_gain(gain, margin, area_out, area_in):
     """Return cap k = (1 + m)·G·A_out/A_in of the meter-out edge."""
     return (1.0 + margin) * gain * (area_out / area_in)
+
+
+def back_pressure(dp_out, margin):
+    """Drop Δp_b ≥ 0 [Pa] across the meter-out edge at which it passes the matched outflow,
+    1/(1 + ``margin``) of its cap (reached at ``dp_out``): the exact inverse of :func:`root`."""
+    y4 = (root(dp_out) / (1.0 + margin)) ** 4
+    return ca.sqrt((y4 + ca.sqrt(y4 * y4 + 4.0 * y4 * DP_REG ** 2)) / 2.0)
 
 
 def makeup(p, p_tank, gain):
@@ -189,6 +201,7 @@ FUNCTIONS = {
     "valve_opening": (opening, ("spool", "deadband"), ("opening",)),
     "valve_meter_in": (meter_in, ("opening", "dp", "gain", "dp_c"), ("q_in",)),
     "valve_meter_out": (meter_out, ("opening", "dp", "k_out", "dp_out"), ("q_out",)),
+    "valve_back_pressure": (back_pressure, ("dp_out", "margin"), ("dp_back",)),
     "valve_makeup": (makeup, ("p", "p_tank", "gain"), ("q_makeup",)),
     "valve_leakage": (leakage, ("p_a", "p_b", "area_a", "area_b", "leak", "p_tank", "single"),
                       ("l_a", "l_b")),

@@ -105,16 +105,20 @@ def stroke_map(crane: Crane) -> StrokeMap:
     return hit[1]
 
 
-def chamber_pressures(crane: Crane, force):
+def chamber_pressures(crane: Crane, force, xd=None):
     """Chamber pressures p_a, p_b (N, n) [Pa] from actuator forces (N, n), load-holding model
     (:func:`planner.model.flows.chamber_pressures`: F ≥ 0 the piston side carries it, the rod
-    side at tank; F < 0 the other way round; single-acting: piston side only). The plant does
-    not model the hydraulic transformer (its replay does not): refused here."""
+    side at tank; F < 0 the other way round; single-acting: piston side only); with stroke
+    rates ``xd`` priced as the crane prices them (:func:`planner.model.flows.
+    priced_pressures`: the machine pricing adds friction and the outlets' counter-pressure).
+    The plant does not model the hydraulic transformer (its replay does not): refused here."""
     spec = crane.spec
     if spec.transformer is not None and spec.transformer.enabled:
         raise ValueError(f"crane '{spec.id}': the plant with effects does not model the "
                          "hydraulic transformer; disable it in the spec ([transformer] "
                          "enabled = false)")
+    if xd is not None:
+        return flows.priced_pressures(crane, np.atleast_2d(force), np.atleast_2d(xd))
     return flows.chamber_pressures(spec, np.atleast_2d(force))
 
 
@@ -231,7 +235,7 @@ def _forces(crane: Crane, effects, t, q, dt, x, payload):
         if dF is not None:
             F = F + dF
     s.force = F
-    s.p_a, s.p_b = chamber_pressures(crane, F)
+    s.p_a, s.p_b = chamber_pressures(crane, F, xd)
     return s
 
 

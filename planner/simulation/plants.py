@@ -116,6 +116,12 @@ class BasePlant(ABC):
             rate: float | None = None) -> PlantRecord:
         """Commands ``u`` (M, n) held from ``t_u`` (M,), from rest at ``q0`` (n,)."""
 
+    def pump_energy(self, rec: PlantRecord) -> float | None:
+        """The pump's energy at the shaft [J] over the run ``rec`` (hydraulic work / η, what
+        :func:`planner.trajectory.evaluate` reports as ``energy_J``), where this plant
+        accounts for it; None here (a plant without its own pump model)."""
+        return None
+
     def report(self) -> list[dict]:
         """What each effect did here: its catalogue form and the hooks it acted through."""
         return [dict(e.to_dict(), plant=self.name, hooks=list(self.applied[e]))
@@ -210,8 +216,10 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     ``traj``'s commands (its own ``u`` on a uniform grid, else the feed-forward at ``rate``)
     on the plant with the hidden ``effects``, and write the measured-data CSV at ``rate``.
     Nothing is written when the run stops early: :class:`PlantDiverged` is raised. Returns a
-    JSON-ready summary (``effects``: what each effect did, with its hooks). With ``plan`` (the
-    planned trajectory whose end is the arrival; ``traj`` then carries the commands, e.g.
+    JSON-ready summary (``effects``: what each effect did, with its hooks; where the plant
+    accounts for its pump, ``pump_energy_J`` beside ``evaluate_energy_J``, the quasi-static
+    model's figure for the plan under the crane's ``pricing``). With ``plan`` (the planned
+    trajectory whose end is the arrival; ``traj`` then carries the commands, e.g.
     :func:`planner.feedforward.with_settle`) the summary adds how the run lands
     (:func:`planner.refine.landing_measures`: ``rest_offset_m``, ``residual_oscillation_m``,
     ``track_m``)."""
@@ -235,6 +243,13 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     if plan is not None:
         from planner.refine import landing_measures
         extra.update(landing_measures(crane, rec.t, rec.q_true, plan))
+    pump_J = p.pump_energy(rec)
+    if pump_J is not None:   # the plant's own pump work beside the quasi-static model's
+        from planner.trajectory import evaluate
+        extra.update(pump_energy_J=float(pump_J),
+                     evaluate_energy_J=float(evaluate(crane, traj if plan is None else plan)
+                                             .energy_J),
+                     pricing=crane.pricing)
     return dict(status="ok", plant=plant, out=str(out), samples=len(rec.t), columns=cols,
                 commands=src, effects=p.report(), noise=noise_levels(noise), seed=seed,
                 max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),

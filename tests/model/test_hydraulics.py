@@ -69,8 +69,12 @@ def test_direction_dependent_areas():
     assert out["q_pump"] == pytest.approx(out["q_act"].sum())
 
 
-def test_chamber_pressures_balance_force():
-    crane = Crane.from_id("cat215b")
+@pytest.mark.parametrize("pricing", ["seed", "machine"])
+def test_chamber_pressures_balance_force(pricing):
+    """Seed pricing: the chambers carry the required force; machine pricing: that force plus
+    the spec's friction, F_c·tanh(ẋ/v_s) + d·ẋ, written out here from the [dynamics] table."""
+    crane = Crane.from_id("cat215b", pricing=pricing)
+    dyn = crane.spec.dynamics.joints
     rng = np.random.default_rng(0)
     L = crane.limit_arrays()
     for _ in range(20):
@@ -80,7 +84,14 @@ def test_chamber_pressures_balance_force():
         h = crane.hydraulics(q, qd, qdd)
         Aa = np.array([j.actuator.area_a for j in crane.spec.joints])
         Ab = np.array([j.actuator.area_b for j in crane.spec.joints])
-        np.testing.assert_allclose(Aa * h["p_a"] - Ab * h["p_b"], h["force"], rtol=1e-9, atol=1e-6)
+        fric = 0.0 * qd
+        if pricing == "machine":
+            G = np.array([j.actuator.flow_gain for j in crane.spec.joints])
+            v_s = 0.01 * G / np.minimum(Aa, Ab)
+            fric = np.array([dyn[j].coulomb * np.tanh(v / s) + dyn[j].viscous * v
+                             for j, v, s in zip(crane.names, h["xd"], v_s)])
+        np.testing.assert_allclose(Aa * h["p_a"] - Ab * h["p_b"], h["force"] + fric, rtol=1e-9,
+                                   atol=1e-6)
         # virtual work: force · stroke rate = joint torque · joint rate
         tau = crane.inverse_dynamics(q, qd, qdd)
         np.testing.assert_allclose(h["force"] * h["xd"], tau * qd, rtol=1e-9, atol=1e-6)

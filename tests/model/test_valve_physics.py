@@ -226,7 +226,7 @@ def test_named_functions_are_symbolic_building_blocks():
     assert f.name() == "valve_flows" and f.name_out()[0] == "q_a"
     assert set(vph.FUNCTIONS) == {f"valve_{k}" for k in (
         "opening", "meter_in", "meter_out", "makeup", "leakage", "flows", "steady_state",
-        "command", "metered_flow", "draws_pump")}
+        "command", "metered_flow", "draws_pump", "back_pressure")}
     crane = Crane.from_id("s100f")
     vc = valves.valve_circuit(crane)
     args = [ca.MX.sym(k) for k in f.name_in()]

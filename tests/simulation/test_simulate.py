@@ -72,7 +72,10 @@ def test_nominal_replay_reproduces_the_plan(cid):
     assert 0 < err_plan[100.0] < err_plan[50.0] / 3 and err_plan[50.0] < 1e-3
 
 
-def test_differences_and_pressures_converge_to_the_plan(s100f):
+def test_differences_and_pressures_converge_to_the_plan():
+    # seed pricing: the machine pricing's pressures switch with the sign of ẋ (the outlet's
+    # counter-pressure), so at a reversal the max-norm error shrinks only ~2× per 4× rate
+    s100f = Crane.from_id("s100f", pricing="seed")
     traj = _move(s100f, scale=0.5)
     err = {}
     for rate in (50.0, 200.0):

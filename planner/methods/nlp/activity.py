@@ -15,8 +15,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.model.hydraulics import ACTIVE_FLOW
-
 if TYPE_CHECKING:
     from planner.model import Crane
 
@@ -41,14 +39,15 @@ class Activity:
 
     def mask(self, w) -> np.ndarray:
         """Which functions draw pump flow at each node (per direction) in the primal ``w``:
-        the load-sensing activity mask (threshold as in the evaluator: 1e-4 of Q_max)."""
+        the load-sensing activity mask (threshold as in the evaluator: the crane's pricing,
+        :mod:`planner.model.pricing` — 1e-4 of Q_max (seed), the valve's opening (machine))."""
         crane, n = self.crane, self.crane.n
         X = self.layout.unpack(w, "X")
         _, dxdq = crane.stroke(X[:n].T)
         xd = dxdq * X[n:2 * n].T
-        eps = ACTIVE_FLOW * crane.spec.pump.max_flow
+        eps = crane.prices.active
         pos = (self.Aa * xd > eps).astype(float)
-        neg = (-self.Ab[self.dbl] * xd[:, self.dbl] > eps).astype(float)
+        neg = (-self.Ab[self.dbl] * xd[:, self.dbl] > eps[self.dbl]).astype(float)
         return np.hstack([pos, neg]).ravel()
 
     def still_optimal(self, sol, mask, new) -> bool:

@@ -58,7 +58,8 @@ _SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "methods/nlp/
             "methods/nlp/activity.py",
             "model/__init__.py",
             "model/kinematics.py", "model/actuators.py", "model/dynamics.py",
-            "model/hydraulics.py", "model/spec.py", "geometry/obstacles.py")
+            "model/hydraulics.py", "model/pricing.py", "model/valve_physics.py",
+            "model/spec.py", "geometry/obstacles.py")
 
 
 def mode_from_env(default: str = "use") -> str:
@@ -180,7 +181,7 @@ def build_or_load(nlp, mode: str | None, formulation: dict, build) -> str:
     if mode == "off":
         build()
         return "off"
-    key, desc = entry_key(nlp.crane.spec, **formulation)
+    key, desc = entry_key(nlp.crane.spec, pricing=nlp.crane.pricing, **formulation)
     got = load_entry(key, formulation["ipopt"])
     if got is not None:
         nlp.solver, nlp.energy_fn, s = got

@@ -1,5 +1,6 @@
 """The pump rows of the move NLP: the pump-flow limit at every check point and, for the energy
-objectives, the load-sensing pump pressure per node and the pump energy (trapezoid rule)."""
+objectives, the load-sensing pump pressure per node and the pump energy (trapezoid rule), priced
+as the crane prices it (:mod:`planner.model.pricing`: seed or machine)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -90,14 +91,21 @@ class PumpRows:
                     # flow. Which ones do is the activity mask (a parameter, updated from the
                     # solution and re-solved: see solve); inactive ones are relaxed by a big M,
                     # so every constraint is smooth
+                    # (machine pricing: the meter-in pressure against the outlet's
+                    # counter-pressure, friction included — the model's one definition,
+                    # crane.f_pin; the seed pricing keeps its own F/A_a, −F/A_b bit for bit)
                     base = idx * (n + n_dbl)
                     m_pos = act_mask[base:base + n]
-                    lay.add_con("pressure", p - mg - F / Aa / 1e6 + 1e3 * (1 - m_pos), 0.0,
+                    if crane.pricing == "seed":
+                        p_ext, p_ret = F / Aa, -F / Ab
+                    else:
+                        p_ext, p_ret = crane.f_pin(F, xd)
+                    lay.add_con("pressure", p - mg - p_ext / 1e6 + 1e3 * (1 - m_pos), 0.0,
                                 ca.inf)
                     if dbl.any():
                         k = np.flatnonzero(dbl)
                         m_neg = act_mask[base + n:base + n + n_dbl]
-                        lay.add_con("pressure", p - mg + F[k] / Ab[k] / 1e6 + 1e3 * (1 - m_neg),
+                        lay.add_con("pressure", p - mg - p_ret[k] / 1e6 + 1e3 * (1 - m_neg),
                                     0.0, ca.inf)
                 else:
                     p = lay.add_var(f"p{idx}", 1, spec.pump.pressure / 1e6,

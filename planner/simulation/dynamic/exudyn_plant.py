@@ -418,6 +418,12 @@ class ExudynPlant(BasePlant):
                            status=run.status, reason=run.reason, t_fail=run.t_fail,
                            meta=dict(run.meta, run=run, wall_s=run.wall_s))
 
+    def pump_energy(self, rec: PlantRecord) -> float:
+        """The pump's energy at the shaft [J] of a :meth:`run` (its energy balance's
+        ``pump_shaft_J``: ∫ p_s·ΣQ_in dt plus the pump line's stored energy, over η)."""
+        from planner.simulation.dynamic.energy import energy_balance
+        return energy_balance(self, rec.meta["run"])["pump_shaft_J"]
+
     def sense(self, q, p_a, p_b, t=None):
         """What the transducers report at the sample times ``t`` (N,) [s] (the sensor
         effects: offsets, gains, drifts counted from the first sample). Without ``t`` a

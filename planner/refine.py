@@ -60,10 +60,10 @@ class RefineOptions:
     valves closed after that, ``end_weight`` on the error after the plan's end, ``smooth``
     [1/(command step)²] on the command's steps, the control ``rate`` [Hz], the twin's ``step``
     [s], ``rest_window`` [s] the end of the record whose mean is the rest point."""
-    iterations: int = 60
+    iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
-    end_weight: float = 4.0
+    end_weight: float = 30.0
     smooth: float = 1e-3
     rate: float = 50.0
     step: float = 2e-3

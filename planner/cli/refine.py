@@ -69,8 +69,8 @@ def add_refine_parser(lsub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
     p.add_argument("--limit", type=int, help="only the first N ok entries")
-    p.add_argument("--iterations", type=int, default=60,
-                   help="L-BFGS-B iterations per entry at most (60)")
+    p.add_argument("--iterations", type=int, default=150,
+                   help="L-BFGS-B iterations per entry at most (150)")
     p.add_argument("--tail", type=float, default=0.5,
                    help="seconds the commands may act past the plan's end (0.5)")
     p.add_argument("--force", action="store_true",

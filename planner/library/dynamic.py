@@ -36,11 +36,15 @@ def _crane_of(path: str, store):
     return _CRANES[key]
 
 
-def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.005) -> dict:
+def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.005,
+                 commands: str = "nominal") -> dict:
     """One entry of the library ``path`` replayed on the Exudyn and the fast plant (runs in a
-    worker). Never raises for a failed run: the status and reason come back."""
+    worker) with its ``commands`` ("nominal", "refined" or "auto": :func:`planner.library.
+    refined.entry_commands`). Never raises for a failed run: the status and reason come
+    back."""
+    from planner.library.refined import entry_commands
     from planner.library.store import LibraryStore
-    from planner.simulation.dynamic.claims import replay_move, stored_commands
+    from planner.simulation.dynamic.claims import replay_move
     t0, c0 = _time.perf_counter(), _time.process_time()
     out = dict(id=entry_id)
     try:
@@ -48,13 +52,16 @@ def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.0
             crane = _crane_of(path, store)
             traj = store.trajectory(entry_id)
             objective = store.entry_attrs(entry_id).get("objective")
-        cmd = stored_commands(traj)
-        if cmd is None:
+            t_u, u, used, info = entry_commands(store, entry_id, traj, commands)
+        if t_u is None:
             return dict(out, status="no-commands", reason="the entry stores no 50 Hz commands",
                         seconds=_time.perf_counter() - t0)
-        m = replay_move(crane, traj, t_u=cmd[0], u=cmd[1], settle=settle, tol=tol)
-        return dict(out, objective=objective, duration_s=float(traj.duration), **m.as_dict(),
-                    seconds=_time.perf_counter() - t0, cpu_s=_time.process_time() - c0)
+        m = replay_move(crane, traj, t_u=t_u, u=u, settle=settle, tol=tol)
+        extra = {} if info is None else dict(lengthened_s=info.get("lengthened_s"),
+                                             predicted=info.get("predicted", {}).get("refined"))
+        return dict(out, objective=objective, duration_s=float(traj.duration), commands=used,
+                    **extra, **m.as_dict(), seconds=_time.perf_counter() - t0,
+                    cpu_s=_time.process_time() - c0)
     except Exception as e:   # one bad entry must not stop the replay of the others
         return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
                     seconds=_time.perf_counter() - t0)
@@ -62,19 +69,20 @@ def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.0
 
 def replay_library(path, *, workers: int = 1, scheduler: str | None = None,
                    limit: int | None = None, settle: float = 3.0, tol: float = 0.005,
-                   on_result=None) -> dict:
+                   on_result=None, commands: str = "nominal", ids=None) -> dict:
     """Replay the ok entries of the library ``path`` (the first ``limit``, in the file's
-    order) on ``workers`` local processes or the Dask ``scheduler`` (``local:N`` or an
-    address). ``on_result(row)`` is called as each entry completes. Returns dict(rows in
+    order, or the entries ``ids``) with their ``commands`` on ``workers`` local processes or
+    the Dask ``scheduler`` (``local:N`` or an address). ``on_result(row)`` is called as each entry completes. Returns dict(rows in
     completion order, seconds, entries, executor)."""
     from planner.library.store import LibraryStore
     path = str(path)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     with LibraryStore.open(path, "r") as store:
-        ids = [r["id"] for r in store.index_rows() if r["status"] == "ok"]
+        ok = [r["id"] for r in store.index_rows() if r["status"] == "ok"]
+    ids = ok if ids is None else [i for i in ids if i in set(ok)]
     ids = ids[:limit] if limit is not None else ids
-    args = [(path, i, settle, tol) for i in ids]
+    args = [(path, i, settle, tol, commands) for i in ids]
     t0 = _time.perf_counter()
     rows = []
     if scheduler:

@@ -287,7 +287,7 @@ def cmd_library_export(args):
         files = export_rosbag2(args.library, args.out, rate=args.out_rate)
     else:
         files = export(args.library, args.out, args.format, rate=args.out_rate,
-                       units_row=args.units_row)
+                       units_row=args.units_row, commands=args.commands)
     note_created(created)
     emit(args, dict(status="ok", files=[str(f) for f in files]))
     if not args.json:
@@ -363,6 +363,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--rate", "--out-rate", dest="out_rate", type=float, metavar="HZ",
                    help="csv, ros, rosbag2: resample every entry at a fixed control rate, with the valve "
                         "commands u_* at that rate")
+    p.add_argument("--commands", choices=("auto", "nominal", "refined"), default="auto",
+                   help="csv / ros: each entry's valve commands — refined (`library refine`) "
+                        "where present (auto, default), or nominal / refined")
     p.add_argument("--units-row", action="store_true",
                    help="csv: a second line '# s,rad,...' with every column's unit")
     p.add_argument("--out", required=True, metavar="DIR")

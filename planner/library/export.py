@@ -291,8 +291,19 @@ def index_csv_text(rows, files, reasons) -> str:
     return buf.getvalue()
 
 
-def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row) -> list[Path]:
-    """csv / ros: one file per entry with a trajectory, and index.csv."""
+def _replayed(db, eid, traj, which):
+    """The entry's trajectory carrying the commands a controller replays (``which``: auto |
+    nominal | refined; :func:`planner.library.refined.entry_commands`) and which they are."""
+    from planner.feedforward import on_command_grid
+    from planner.library.refined import entry_commands
+    t_u, u, used, _ = entry_commands(db, eid, traj, which)
+    return (on_command_grid(traj, t_u, u) if used == "refined" else traj), used
+
+
+def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row,
+                      which="auto") -> list[Path]:
+    """csv / ros: one file per entry with a trajectory (its refined commands on their 50 Hz
+    grid when ``which`` takes them), and index.csv."""
     spec = parse_spec(tomllib.loads(db.spec_toml), "<library spec>") if db.spec_toml else None
     crane = None
     if rate is not None:
@@ -312,7 +323,17 @@ def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row) -> list[
         p = out_dir / name
         traj = db.trajectory(eid)
         hyd = None
-        if crane is not None:
+        traj, which_used = _replayed(db, eid, traj, which)
+        if which_used == "refined":
+            if rate is not None and abs(rate - 1.0 / (traj.t[1] - traj.t[0])) > 1e-6 * rate:
+                raise StoreError(f"{db.path}: entry '{eid}': refined commands are on their "
+                                 f"{1.0 / (traj.t[1] - traj.t[0]):g} Hz grid, not {rate:g} Hz; "
+                                 "export them at that rate, or the nominal commands")
+            if fmt == "csv":
+                from planner.model import Crane
+                crane_r = crane or Crane(spec)
+                hyd = crane_r.hydraulics(traj.q, traj.qd, traj.qdd)
+        elif crane is not None:
             traj, hyd = fixed_rate(crane, traj, rate)
         elif fmt == "csv":
             hyd = _entry_hyd(db, eid)
@@ -330,7 +351,7 @@ def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row) -> list[
 
 
 def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
-           units_row: bool = False) -> list[Path]:
+           units_row: bool = False, commands: str = "auto") -> list[Path]:
     """Export a library: fmt "csv" (one trajectory CSV per entry with a trajectory, per the
     trajectory-CSV contract plus the stored hydraulic channels, and index.csv), "mat"
     (library.mat: struct ``entries`` with one field per entry, struct ``index``, ``crane_id``,
@@ -338,6 +359,9 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
     (one JointTrajectory-shaped JSON / YAML file per entry, and index.csv). ``rate`` [Hz]
     (csv, ros): resample on a fixed grid with the valve commands at that rate
     (:func:`fixed_rate`); ``units_row`` (csv): a units comment line under the header.
+    ``commands`` (csv, ros): which valve commands an entry's file carries — "auto" (the
+    refined ones of ``library refine`` where present), "nominal", "refined"; mat and json
+    carry both (``t_u_refined``, ``u_refined`` beside ``u``).
     Every file is written atomically. Returns the paths."""
     if fmt not in EXPORT_FORMATS:
         raise StoreError(f"export format must be one of {', '.join(EXPORT_FORMATS)}, "
@@ -355,13 +379,14 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
         rows = db.index_rows()
         reasons = {r["id"]: db.entry_attrs(r["id"]).get("reason", "") for r in rows}
         if fmt in ("csv", "ros", "ros-yaml"):
-            return _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row)
+            return _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row,
+                                     commands)
         if fmt == "mat":
             from scipy.io import savemat
             used = set()
             entries, names = {}, []
             for r in rows:
-                e = db.entry(r["id"])
+                e = _with_refined(db, r["id"], db.entry(r["id"]))
                 a = e.pop("attrs")
                 name = matlab_name(r["id"], used)
                 names.append(name)
@@ -370,6 +395,7 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
                          objective=r["objective"], reason=str(a.get("reason", "")),
                          joint_names=np.array(list(a.get("joint_names", [])), dtype=object),
                          solver_stats=json.dumps(a.get("solver_stats", {}), default=str),
+                         refined=json.dumps(a.get("refined", {}), default=str),
                          provenance=json.dumps(a.get("provenance", {})))
                 entries[name] = s
             n = len(rows)
@@ -394,7 +420,7 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
         else:
             entries = []
             for r in rows:
-                e = db.entry(r["id"])
+                e = _with_refined(db, r["id"], db.entry(r["id"]))
                 a = e.pop("attrs")
                 d = dict(id=r["id"], **{k: v for k, v in a.items()})
                 if "solve_s" in d:  # the unified name beside the stored one (docs/json-keys.md)
@@ -411,3 +437,14 @@ def export(db_path, out_dir, fmt: str, *, rate: float | None = None,
                                             separators=(",", ":")) + "\n")
             written.append(p)
     return written
+
+
+def _with_refined(db, eid, e: dict) -> dict:
+    """An entry's arrays plus its refined commands (``t_u_refined``, ``u_refined``) and their
+    provenance (attrs ``refined``), when it has them."""
+    from planner.library.refined import read_refined
+    r = read_refined(db, eid) if "t" in e else None
+    if r is not None:
+        e["t_u_refined"], e["u_refined"] = r[0], r[1]
+        e["attrs"] = dict(e["attrs"], refined=r[2])
+    return e

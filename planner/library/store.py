@@ -422,7 +422,7 @@ class LibraryStore:
     def entry(self, entry_id: str) -> dict:
         """All datasets (arrays) and attributes of an entry: {'attrs': {...}, 't': ..., ...}."""
         g = self._group(entry_id)
-        out = {name: g[name][()] for name in g}
+        out = {name: g[name][()] for name in g if isinstance(g[name], h5py.Dataset)}
         out["attrs"] = self.entry_attrs(entry_id)
         return out
 

@@ -182,3 +182,33 @@ def test_simulate_takes_the_refined_commands_and_reports_the_landing(lib, tmp_pa
     r = _cli("simulate", MACHINE, "--trajectory", f"{path}#m0:time", "--out",
              str(tmp_path / "b.csv"), "--settle", "-1")
     assert r.returncode == 2 and "--settle" in r.stderr
+
+
+def test_export_carries_the_refined_commands(lib, tmp_path, crane):
+    import shutil
+
+    from planner.library.export import export
+    from planner.trajectory import Trajectory
+    path = tmp_path / "lib.h5"
+    shutil.copy(lib, path)
+    refine_library(path, options=RefineOptions(iterations=3, settle=1.0), limit=1,
+                   show_progress=False)
+    with LibraryStore.open(path) as db:
+        t_r, u_r, _ = read_refined(db, "m0:time")
+        u_nom = stored_commands(db.trajectory("m0:time"))[1]
+    got = {}
+    for which in ("auto", "nominal"):
+        export(path, tmp_path / which, "csv", commands=which)
+        got[which] = Trajectory.from_csv(next((tmp_path / which).glob("m0*.csv")),
+                                         joint_names=crane.names)
+    np.testing.assert_allclose(got["auto"].t, t_r, atol=1e-9)
+    np.testing.assert_allclose(got["auto"].u, u_r, atol=1e-9)
+    np.testing.assert_allclose(stored_commands(got["nominal"])[1], u_nom, atol=1e-9)
+    export(path, tmp_path / "j", "json")
+    doc = json.loads((tmp_path / "j" / "library.json").read_text())
+    e = {x["id"]: x for x in doc["entries"]}
+    np.testing.assert_allclose(e["m0:time"]["u_refined"], u_r, atol=1e-12)
+    assert e["m0:time"]["refined"]["model"]["model"] == "twin"
+    assert "u_refined" not in e["m1:time"]
+    with pytest.raises(ValueError, match="no refined commands"):
+        export(path, tmp_path / "r", "csv", commands="refined")

@@ -24,7 +24,7 @@ import sys
 
 from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
                          studies)
-from planner.cli.common import CLIError, check_distinct, package_version
+from planner.cli.common import CLIError, VersionAction, check_distinct
 from planner.cli.wording import cli_text
 
 __all__ = ["CLIError", "build_parser", "join_negative_values", "main"]
@@ -38,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crane-planner",
                                  description="Trajectory planning for hydraulic knuckle-boom "
                                              "cranes (SI units; angles may be written 30deg).")
-    ap.add_argument("--version", action="version", version=f"crane-planner {package_version()}")
+    ap.add_argument("--version", action=VersionAction)
     sub = ap.add_subparsers(dest="command", required=True)
     for group in COMMAND_GROUPS:
         group.add_parsers(sub)

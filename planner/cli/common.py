@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 import argparse
 import os
 import sys
-from importlib.metadata import PackageNotFoundError, version
 
 from planner.version import __version__
 from planner.units import checked_trajectory, parse_point
@@ -35,11 +34,14 @@ def point_arg(text: str) -> tuple[float, float, float]:
 
 
 def method_arg(text: str) -> str:
-    """argparse type of ``--method``: a name of the method registry."""
-    from planner.methods import available   # loads the methods: only when one is named
-    names = available()
-    if text in names:
+    """argparse type of ``--method``: a name of the method registry (looking it up imports
+    that method's module; every method's only when the name is unknown, to list them)."""
+    from planner.methods import available, get
+    try:
+        get(text)
         return text
+    except KeyError:
+        names = available()
     raise argparse.ArgumentTypeError(f"unknown method {text!r}; available: {', '.join(names)}")
 
 
@@ -71,10 +73,25 @@ class LazyChoices:
 def package_version() -> str:
     """The installed distribution's version (package metadata); the source tree's
     ``planner.__version__`` when the package is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
     try:
         return version("crane-planner")
     except PackageNotFoundError:
         return __version__
+
+
+class VersionAction(argparse.Action):
+    """``--version``: print ``crane-planner VERSION`` (:func:`package_version`, read from the
+    package metadata when asked, not when the parser is built) and exit 0."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show program's version number and exit"):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0,
+                         help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        sys.stdout.write(f"crane-planner {package_version()}\n")
+        parser.exit()
 
 
 def output_arg(text: str) -> str:

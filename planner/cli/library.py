@@ -13,7 +13,6 @@ import sys
 
 from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
                                 output_arg, point_arg)
-from planner.library.workers import Interrupted, WorkerLost
 from planner.units import parse_angle
 
 if TYPE_CHECKING:
@@ -73,6 +72,7 @@ def capped_workers(workers: int, moves: int) -> int:
 
 def cmd_library_build(args):
     from planner.io import missing_dirs
+    from planner.library.workers import Interrupted, WorkerLost
     objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
     moves = checked_suite(args)
     if args.scheduler is None:

@@ -4,6 +4,9 @@
 methods up here. The built-in methods register themselves when their module is imported; the
 registry imports those modules (and any ``crane_planner.methods`` entry point of an installed
 plug-in package) the first time a name is looked up, so importing the registry stays cheap.
+Looking up one built-in name (:func:`get`) imports its own module only (``BUILTIN_HOMES``: an
+NLP plan loads no toppra, and through it no matplotlib); :func:`available` and any other name
+import them all. A plug-in's registration wins over a built-in's of the same name either way.
 
 Adding a method is one module: subclass :class:`~planner.methods.base.Planner` and call
 :func:`register` on an instance at import time (or decorate the class with it).
@@ -25,10 +28,16 @@ __all__ = ["register", "unregister", "get", "available", "plan", "BUILTIN_MODULE
 
 BUILTIN_MODULES = ("planner.methods.laws", "planner.methods.laws_energy", "planner.methods.dp",
                    "planner.methods.topp", "planner.methods.ruckig", "planner.methods.nlp")
+#: the module that registers a built-in name ("law:" for every name of the family); only a
+#: shortcut: a name not registered where it is said to be loads every module
+BUILTIN_HOMES = {"nlp": ("planner.methods.nlp",), "dp": ("planner.methods.dp",),
+                 "topp": ("planner.methods.topp",), "ruckig": ("planner.methods.ruckig",),
+                 "law:": ("planner.methods.laws", "planner.methods.laws_energy")}
 ENTRY_POINT_GROUP = "crane_planner.methods"
 
 _REGISTRY: dict[str, Planner] = {}
 _loaded = False
+_plugins: dict[str, Planner] | None = None   # what the entry points registered (loaded once)
 
 
 def register(planner):
@@ -49,6 +58,18 @@ def unregister(name: str) -> None:
     _REGISTRY.pop(name, None)
 
 
+def _load_plugins() -> None:
+    """Load the plug-ins' entry points once; (re)apply what they registered, so that a plug-in
+    replaces a built-in of the same name whichever module was imported first."""
+    global _plugins
+    if _plugins is None:
+        before = dict(_REGISTRY)
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            ep.load()
+        _plugins = {k: v for k, v in _REGISTRY.items() if before.get(k) is not v}
+    _REGISTRY.update(_plugins)
+
+
 def _load() -> None:
     global _loaded
     if _loaded:
@@ -56,8 +77,22 @@ def _load() -> None:
     _loaded = True
     for mod in BUILTIN_MODULES:
         importlib.import_module(mod)
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        ep.load()
+    _load_plugins()
+
+
+def _load_for(name: str) -> None:
+    """Import what registers ``name``: its built-in module(s) and the plug-ins, or everything
+    when the name has no home in ``BUILTIN_HOMES`` or is not registered there."""
+    if _loaded:
+        return
+    homes = [mods for key, mods in BUILTIN_HOMES.items()
+             if name == key or (key.endswith(":") and name.startswith(key))]
+    for mod in (m for mods in homes for m in mods):
+        importlib.import_module(mod)
+    if homes:
+        _load_plugins()
+    if name not in _REGISTRY or not homes:
+        _load()
 
 
 def available() -> list[str]:
@@ -69,7 +104,7 @@ def available() -> list[str]:
 
 def get(name: str) -> Planner:
     """The planner registered as ``name``; KeyError naming the known methods otherwise."""
-    _load()
+    _load_for(name)
     try:
         return _REGISTRY[name]
     except KeyError:

@@ -122,3 +122,47 @@ def test_naming_one_method_loads_only_its_module():
     assert all(m in unknown for m in ("dp", "nlp", "topp", "ruckig", "law:jla",
                                       "law:least_norm"))
     assert toppra == "True"
+
+
+PLUGIN = '''from planner.methods import Planner, register
+from planner.methods.ruckig import RuckigPlanner
+
+
+class Mine(RuckigPlanner):
+    name = "test:plugged"
+
+
+class Impostor(RuckigPlanner):
+    name = "nlp"
+
+
+register(Mine())
+register(Impostor())
+'''
+
+
+def test_a_plugin_is_found_by_name_and_cannot_take_a_builtin_name(tmp_path):
+    """An installed plug-in (a distribution with a ``crane_planner.methods`` entry point, made
+    here on sys.path) is found by its own name and listed; one that registers a built-in's name
+    is ignored with a warning, whether the built-in was looked up before or after. (A name
+    outside the built-ins loads the plug-ins: test_naming_one_method_loads_only_its_module.)"""
+    (tmp_path / "plug_mod.py").write_text(PLUGIN, encoding="utf-8")
+    info = tmp_path / "crane_plug-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: crane-plug\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[crane_planner.methods]\nplug = plug_mod\n")
+    head = f"import sys, warnings\nsys.path.insert(0, {str(tmp_path)!r})\n" \
+           "from planner.methods import available, get\n"
+    # a built-in name first (its module alone), then the whole list (the plug-in too)
+    r = _run("-c", head + "print(type(get('nlp')).__module__)\n"
+                          "with warnings.catch_warnings(record=True) as w:\n"
+                          "    warnings.simplefilter('always')\n"
+                          "    names = available()\n"
+                          "print('test:plugged' in names, type(get('nlp')).__module__, "
+                          "type(get('test:plugged')).__name__)\n"
+                          "print(' | '.join(str(x.message) for x in w))")
+    assert r.returncode == 0, r.stderr[-2000:]
+    first, listed, warned = r.stdout.splitlines()
+    assert first == "planner.methods.nlp"
+    assert listed == "True planner.methods.nlp Mine"
+    assert "'nlp'" in warned and "plug-in ignored" in warned

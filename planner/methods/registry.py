@@ -5,8 +5,10 @@ methods up here. The built-in methods register themselves when their module is i
 registry imports those modules (and any ``crane_planner.methods`` entry point of an installed
 plug-in package) the first time a name is looked up, so importing the registry stays cheap.
 Looking up one built-in name (:func:`get`) imports its own module only (``BUILTIN_HOMES``: an
-NLP plan loads no toppra, and through it no matplotlib); :func:`available` and any other name
-import them all. A plug-in's registration wins over a built-in's of the same name either way.
+NLP plan loads no toppra, and through it no matplotlib, and no package metadata is scanned);
+:func:`available` and any other name import them all, the plug-ins included. The names the
+built-in modules register belong to them: a plug-in that registers one of them is ignored with
+a warning (so a name means the same method however it was looked up).
 
 Adding a method is one module: subclass :class:`~planner.methods.base.Planner` and call
 :func:`register` on an instance at import time (or decorate the class with it).
@@ -17,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import importlib
 import time
-from importlib.metadata import entry_points
+import warnings
 
 from planner.methods.base import Planner, PlanRequest, PlanResult
 
@@ -37,7 +39,6 @@ ENTRY_POINT_GROUP = "crane_planner.methods"
 
 _REGISTRY: dict[str, Planner] = {}
 _loaded = False
-_plugins: dict[str, Planner] | None = None   # what the entry points registered (loaded once)
 
 
 def register(planner):
@@ -58,40 +59,35 @@ def unregister(name: str) -> None:
     _REGISTRY.pop(name, None)
 
 
-def _load_plugins() -> None:
-    """Load the plug-ins' entry points once; (re)apply what they registered, so that a plug-in
-    replaces a built-in of the same name whichever module was imported first."""
-    global _plugins
-    if _plugins is None:
-        before = dict(_REGISTRY)
-        for ep in entry_points(group=ENTRY_POINT_GROUP):
-            ep.load()
-        _plugins = {k: v for k, v in _REGISTRY.items() if before.get(k) is not v}
-    _REGISTRY.update(_plugins)
-
-
 def _load() -> None:
+    """Import every built-in module, then the plug-ins' entry points (once)."""
     global _loaded
     if _loaded:
         return
     _loaded = True
     for mod in BUILTIN_MODULES:
         importlib.import_module(mod)
-    _load_plugins()
+    builtin = dict(_REGISTRY)
+    from importlib.metadata import entry_points   # the package metadata: only here
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        ep.load()
+    for name, p in builtin.items():
+        if _REGISTRY.get(name) is not p:
+            warnings.warn(f"method {name!r} of a plug-in ignored: the name is taken by "
+                          f"{type(p).__module__}", stacklevel=3)
+            _REGISTRY[name] = p
 
 
 def _load_for(name: str) -> None:
-    """Import what registers ``name``: its built-in module(s) and the plug-ins, or everything
-    when the name has no home in ``BUILTIN_HOMES`` or is not registered there."""
+    """Import what registers ``name``: its built-in module(s) when ``BUILTIN_HOMES`` names
+    them, everything when it does not or the name is not registered there."""
     if _loaded:
         return
-    homes = [mods for key, mods in BUILTIN_HOMES.items()
-             if name == key or (key.endswith(":") and name.startswith(key))]
-    for mod in (m for mods in homes for m in mods):
+    homes = [m for key, mods in BUILTIN_HOMES.items()
+             if name == key or (key.endswith(":") and name.startswith(key)) for m in mods]
+    for mod in homes:
         importlib.import_module(mod)
-    if homes:
-        _load_plugins()
-    if name not in _REGISTRY or not homes:
+    if name not in _REGISTRY:
         _load()
 
 

@@ -243,7 +243,6 @@ def cmd_library_show(args):
 
     from planner.cli.plan import check_animation
     from planner.io import missing_dirs
-    from planner.library.query import library_crane
     from planner.library.store import LibraryStore
     check_animation(args)
     path, _, eid = args.entry.partition("#")
@@ -261,6 +260,7 @@ def cmd_library_show(args):
         spec_toml = db.spec_toml
     if args.animate:
         from planner.animate import animate  # matplotlib: only to draw
+        from planner.library.query import library_crane
         created = missing_dirs(args.animate)
         summary["animation"] = animate(
             library_crane(spec_toml), traj, args.animate,

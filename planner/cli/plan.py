@@ -10,9 +10,9 @@ limit kinds (with acceleration limits when the method plans with them, with jerk
 when it plans with those too).
 
 The command imports what a plan needs when it runs: the model, the one method named (the
-registry loads only its module: no toppra or Ruckig for an NLP plan), the evaluator and the
-bounds; the figures (matplotlib), the animation and the database writer (h5py) only when asked
-for."""
+registry loads only its module: an NLP plan loads no toppra, and through it no matplotlib),
+the evaluator and the bounds; the figures (matplotlib), the animation and the database writer
+(h5py) only when asked for."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING

@@ -31,6 +31,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import shlex
 import statistics
 import subprocess
@@ -63,14 +64,22 @@ print(json.dumps(dict(T=T, iterations=it, build_solve_s=time.perf_counter() - t1
 '''
 
 
-def timed(cmd, env) -> tuple[float, str]:
-    """(wall [s] of the whole process, its stdout); a failing process stops the benchmark."""
-    t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT)
-    wall = time.perf_counter() - t0
+def cpu_children() -> float:
+    """CPU seconds (user + system) of the finished child processes so far."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def timed(cmd, env) -> tuple[float, str, float]:
+    """(wall [s] of the whole process, its stdout, its CPU seconds: less sensitive than the
+    wall clock to other work on a shared machine); a failing process stops the benchmark.
+    It runs in the checkout its PYTHONPATH names (``-m planner`` puts the folder first)."""
+    c0, t0 = cpu_children(), time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=env["PYTHONPATH"])
+    wall, cpu = time.perf_counter() - t0, cpu_children() - c0
     if r.returncode != 0:
         raise RuntimeError(f"{shlex.join(cmd)}: {r.stderr[-800:]}")
-    return wall, r.stdout
+    return wall, r.stdout, cpu
 
 
 def move_numbers(N: int) -> dict:
@@ -109,67 +118,111 @@ def main(argv=None) -> int:
     ap.add_argument("--help-runs", type=int, default=15)
     ap.add_argument("--N", type=int, default=40)
     ap.add_argument("--out", default=str(RESULTS))
+    ap.add_argument("--help-only", action="store_true", help="only the --help section")
+    ap.add_argument("--before", metavar="DIR",
+                    help="another checkout of the project (e.g. the commit before a change): "
+                         "its --help and plan timed in the same interleaved rounds")
     ap.add_argument("--no-bytecode", action="store_true",
                     help="no compiled bytecode of the project (every process compiles it)")
     args = ap.parse_args(argv)
+    command = shlex.join(["python", "benchmarks/bench_startup.py",
+                          *(sys.argv[1:] if argv is None else argv)])
     py = sys.executable
     cache = Path(tempfile.mkdtemp(prefix="crane-startup-cache-"))
     env = dict(os.environ, PYTHONPATH=str(ROOT), CRANE_PLANNER_CACHE=str(cache),
                CRANE_PLANNER_NLP_CACHE="use")
     if not args.no_bytecode:
         env["PYTHONPYCACHEPREFIX"] = tempfile.mkdtemp(prefix="crane-startup-pyc-")
-        subprocess.run([py, "-m", "compileall", "-q", str(ROOT / "planner"), str(HERE)],
+        subprocess.run([py, "-m", "compileall", "-q", str(ROOT / "planner"), str(HERE)]
+                       + ([str(Path(args.before) / "planner")] if args.before else []),
                        env=env, check=True, capture_output=True)
+    env_before = dict(env, PYTHONPATH=str(Path(args.before).resolve())) if args.before else None
     load_before = os.getloadavg()
     t_start = datetime.now(timezone.utc).isoformat()
 
-    helps, bare = [], []
-    for _ in range(args.help_runs):   # interleaved with the bare interpreter
-        helps.append(timed([py, "-m", "planner", "--help"], env)[0])
+    helps, bare, helps_cpu, before = [], [], [], []
+    for _ in range(args.help_runs):   # interleaved with the bare interpreter (and --before)
+        w, _, c = timed([py, "-m", "planner", "--help"], env)
+        helps.append(w)
+        helps_cpu.append(c)
         bare.append(timed([py, "-c", "pass"], env)[0])
+        if env_before:
+            before.append(timed([py, "-m", "planner", "--help"], env_before)[0])
+    help_res = dict(wall_s=helps, median_s=statistics.median(helps), min_s=min(helps),
+                    cpu_s=helps_cpu, cpu_median_s=statistics.median(helps_cpu),
+                    bare_python_s=bare, bare_median_s=statistics.median(bare),
+                    imports=import_profile([py, "-m", "planner", "--help"], env))
+    if before:
+        help_res.update(before=args.before, before_wall_s=before,
+                        before_median_s=statistics.median(before))
+    if args.help_only:
+        res = dict(command=command, bytecode=not args.no_bytecode,
+                   machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
+                                date=t_start, python=platform.python_version(),
+                                load_before=load_before, load_after=os.getloadavg()),
+                   help=help_res)
+        text = report(res)
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "startup_help.json").write_text(json.dumps(res, indent=1))
+        (Path(args.out) / "startup_help.md").write_text(text + "\n")
+        print(text)
+        return 0
 
     compiled = json.loads(timed(plan_cmd(args.N, "--compile", "--json", "-"), env)[1])
     numbers = json.dumps(move_numbers(args.N))
-    plan, opti, opti_pl = [], [], []
+    plan, opti, opti_pl, plan_before = [], [], [], []
     for _ in range(args.pairs):       # interleaved: plan, opti, opti+planner, plan, ...
-        w, out = timed(plan_cmd(args.N, "--json", "-"), env)
-        plan.append(dict(json.loads(out), wall_s=w))
-        w, out = timed([py, "-c", OPTI_PLAIN, str(HERE), numbers], env)
-        opti.append(dict(json.loads(out), wall_s=w))
-        w, out = timed([py, "-c", OPTI, CRANE, str(args.N), START, GOAL, str(HERE)], env)
-        opti_pl.append(dict(json.loads(out), wall_s=w))
+        if env_before:
+            w, out, c = timed(plan_cmd(args.N, "--json", "-"), env_before)
+            plan_before.append(dict(json.loads(out), wall_s=w, cpu_s=c))
+        w, out, c = timed(plan_cmd(args.N, "--json", "-"), env)
+        plan.append(dict(json.loads(out), wall_s=w, cpu_s=c))
+        w, out, c = timed([py, "-c", OPTI_PLAIN, str(HERE), numbers], env)
+        opti.append(dict(json.loads(out), wall_s=w, cpu_s=c))
+        w, out, c = timed([py, "-c", OPTI, CRANE, str(args.N), START, GOAL, str(HERE)], env)
+        opti_pl.append(dict(json.loads(out), wall_s=w, cpu_s=c))
     profile = import_profile(plan_cmd(args.N, "--json", "-"), env)
-    help_profile = import_profile([py, "-m", "planner", "--help"], env)
     load_after = os.getloadavg()
 
     med = statistics.median
     r_plain = [p["wall_s"] / o["wall_s"] for p, o in zip(plan, opti)]
     r_pl = [p["wall_s"] / o["wall_s"] for p, o in zip(plan, opti_pl)]
+    r_cpu = [p["cpu_s"] / o["cpu_s"] for p, o in zip(plan, opti)]
     inside = [p["build_time_s"] + p["solve_time_s"] for p in plan]
     res = dict(
-        command=f"python benchmarks/bench_startup.py --pairs {args.pairs} --help-runs "
-                f"{args.help_runs} --N {args.N}" + (" --no-bytecode" if args.no_bytecode else ""),
+        command=command,
         bytecode=not args.no_bytecode,
         machine=dict(platform=platform.platform(), cpus=os.cpu_count(), date=t_start,
                      python=platform.python_version(), load_before=load_before,
                      load_after=load_after),
-        help=dict(wall_s=helps, median_s=med(helps), min_s=min(helps), bare_python_s=bare,
-                  bare_median_s=med(bare), imports=help_profile),
+        help=help_res,
         move=dict(crane=CRANE, start=START, goal=GOAL, N=args.N),
         compile_call=dict(nlp_cache=compiled.get("nlp_cache"),
                           build_time_s=compiled["build_time_s"]),
         plan=dict(wall_s=[p["wall_s"] for p in plan], median_s=med(p["wall_s"] for p in plan),
+                  cpu_s=[p["cpu_s"] for p in plan], cpu_median_s=med(p["cpu_s"] for p in plan),
                   inside_s=inside, inside_median_s=med(inside),
                   nlp_cache=sorted({p.get("nlp_cache") for p in plan}),
                   durations=sorted({p["duration_s"] for p in plan}), imports=profile),
         opti=dict(wall_s=[o["wall_s"] for o in opti], median_s=med(o["wall_s"] for o in opti),
+                  cpu_s=[o["cpu_s"] for o in opti], cpu_median_s=med(o["cpu_s"] for o in opti),
                   build_solve_median_s=med(o["build_solve_s"] for o in opti),
                   T=sorted({round(o["T"], 9) for o in opti})),
         opti_planner=dict(wall_s=[o["wall_s"] for o in opti_pl],
                           median_s=med(o["wall_s"] for o in opti_pl),
                           build_solve_median_s=med(o["build_s"] + o["solve_s"] for o in opti_pl)),
         ratio_plain=r_plain, ratio_plain_median=med(r_plain),
-        ratio_planner=r_pl, ratio_planner_median=med(r_pl))
+        ratio_planner=r_pl, ratio_planner_median=med(r_pl),
+        ratio_cpu=r_cpu, ratio_cpu_median=med(r_cpu))
+    if plan_before:
+        rb = [p["wall_s"] / o["wall_s"] for p, o in zip(plan_before, opti)]
+        res["plan_before"] = dict(dir=args.before, wall_s=[p["wall_s"] for p in plan_before],
+                                  median_s=med(p["wall_s"] for p in plan_before),
+                                  cpu_median_s=med(p["cpu_s"] for p in plan_before),
+                                  ratio=rb, ratio_median=med(rb),
+                                  nlp_cache=sorted({str(p.get("nlp_cache"))
+                                                    for p in plan_before}),
+                                  durations=sorted({p["duration_s"] for p in plan_before}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "startup.json").write_text(json.dumps(res, indent=1))
@@ -178,12 +231,15 @@ def main(argv=None) -> int:
     return 0
 
 
+def f3(v: float) -> str:
+    return f"{v:.3f}"
+
+
 def report(res: dict) -> str:
-    f3 = lambda v: f"{v:.3f}"  # noqa: E731
-    m, h, p, o, op = res["machine"], res["help"], res["plan"], res["opti"], res["opti_planner"]
+    """The markdown report: the --help section, and the plan section when it was run."""
+    m, h = res["machine"], res["help"]
     load = lambda t: "/".join(f"{x:.2f}" for x in t)  # noqa: E731
-    heavy = ", ".join(f"{k} {v:.3f} s" for k, v in p["imports"]["heaviest"].items())
-    return "\n".join([
+    head = [
         "# Start-up: `--help` and a one-off `plan --method nlp` as whole processes (issue 31)",
         "", f"Command: `{res['command']}`  ",
         f"Machine: {m['platform']}, {m['cpus']} CPUs, Python {m['python']}, {m['date']}; "
@@ -196,10 +252,21 @@ def report(res: dict) -> str:
         "",
         "## `crane-planner --help`", "",
         f"Median **{f3(h['median_s'])} s** over {len(h['wall_s'])} runs (min {f3(h['min_s'])}"
-        f" s; target ≤ 0.5 s); the interpreter alone (`python -c pass`, interleaved) "
-        f"{f3(h['bare_median_s'])} s. Its imports (one `-X importtime` run): "
+        f" s; target ≤ 0.5 s on a quiet machine); its CPU time (user + system) median "
+        f"{f3(h['cpu_median_s'])} s; the interpreter alone (`python -c pass`, interleaved) "
+        f"{f3(h['bare_median_s'])} s wall. Its imports (one `-X importtime` run): "
         f"{f3(h['imports']['total_s'])} s in all, none of numpy, scipy, CasADi, matplotlib, "
-        "Exudyn, Dask, toppra, Ruckig, h5py (tests/test_startup.py).", "",
+        "Exudyn, Dask, toppra, Ruckig, h5py (tests/test_startup.py)."]
+    if "before" in h:
+        head[-1] += (f" The same command from `{h['before']}` (before this change), in the same "
+                     f"rounds: median {f3(h['before_median_s'])} s.")
+    return "\n".join(head + (["", *plan_report(res)] if "plan" in res else []))
+
+
+def plan_report(res: dict) -> list:
+    p, o, op = res["plan"], res["opti"], res["opti_planner"]
+    heavy = ", ".join(f"{k} {v:.3f} s" for k, v in p["imports"]["heaviest"].items())
+    return [
         "## A one-off `plan --method nlp`, NLP cache hit", "",
         f"Move {res['move']['crane']} {res['move']['start']} -> {res['move']['goal']}, "
         f"N = {res['move']['N']}, minimum time, free path, pump on; cache "
@@ -218,13 +285,22 @@ def report(res: dict) -> str:
         f"{min(res['ratio_plain']):.2f}, max {max(res['ratio_plain']):.2f}; target ≤ 1.5×); "
         f"against the Opti process that imports the planner: "
         f"{res['ratio_planner_median']:.2f}× (min {min(res['ratio_planner']):.2f}, max "
-        f"{max(res['ratio_planner']):.2f}).", "",
+        f"{max(res['ratio_planner']):.2f}). By CPU time (user + system of each process, less "
+        f"sensitive to the other work on the machine): plan {f3(p['cpu_median_s'])} s, plain "
+        f"Opti {f3(o['cpu_median_s'])} s, ratio median {res['ratio_cpu_median']:.2f}× (min "
+        f"{min(res['ratio_cpu']):.2f}, max {max(res['ratio_cpu']):.2f})."
+        + (f" The same plan from `{res['plan_before']['dir']}` (before this change), in the "
+           f"same rounds: median {f3(res['plan_before']['median_s'])} s wall, "
+           f"{f3(res['plan_before']['cpu_median_s'])} s CPU, "
+           f"**{res['plan_before']['ratio_median']:.2f}×** the plain Opti (NLP cache "
+           f"{', '.join(res['plan_before']['nlp_cache'])}; durations "
+           f"{res['plan_before']['durations']})." if "plan_before" in res else ""), "",
         f"Imports of the plan process (one `-X importtime` run): {f3(p['imports']['total_s'])}"
         f" s in all; the heaviest top-level ones: {heavy}.", "",
         "The plain Opti has no pump limit and no model; the plan also reads the machine, "
         "computes its lower bound and first guess, checks the result on a 1 kHz resampling "
         "(evaluate()) and prints JSON (benchmarks/results/nlp_cache.md for the in-process "
-        "split)."])
+        "split)."]
 
 
 if __name__ == "__main__":

@@ -17,22 +17,33 @@ Layers: :mod:`planner.model` (spec, kinematics, dynamics, hydraulics) → :mod:`
 :mod:`planner.simulation`, :mod:`planner.calibration`, :mod:`planner.bench`, :mod:`planner.cli`);
 docs/design.md describes them, the models and the contracts.
 """
-from planner.methods import PlanRequest, PlanResult, PlanStatus, UnsupportedRequest, plan
-from planner.model import Crane, UnreachableError
-from planner.model.spec import CraneSpec, SpecError, load_spec
-from planner.trajectory import Trajectory, evaluate
 from planner.version import __version__
 
 __all__ = ["Crane", "CraneSpec", "SpecError", "UnreachableError", "load_spec", "Trajectory",
            "evaluate", "plan", "PlanRequest", "PlanResult", "PlanStatus", "UnsupportedRequest",
            "LibraryStore", "Discrepancy", "__version__"]
 
-_LAZY = {"LibraryStore": "planner.library.store", "Discrepancy": "planner.calibration.discrepancy"}
+# every public name loads its module on first use: ``import planner`` (and so every command of
+# the CLI, whose modules live inside this package) costs no numpy, CasADi, scipy or h5py until a
+# name that needs them is touched (tests/test_startup.py lists what must stay out)
+_LAZY = {"Crane": "planner.model", "UnreachableError": "planner.model",
+         "CraneSpec": "planner.model.spec", "SpecError": "planner.model.spec",
+         "load_spec": "planner.model.spec",
+         "Trajectory": "planner.trajectory", "evaluate": "planner.trajectory",
+         "plan": "planner.methods", "PlanRequest": "planner.methods",
+         "PlanResult": "planner.methods", "PlanStatus": "planner.methods",
+         "UnsupportedRequest": "planner.methods",
+         "LibraryStore": "planner.library.store", "Discrepancy": "planner.calibration.discrepancy"}
 
 
 def __getattr__(name):
-    # the products with heavier imports (h5py, the calibration stack) load on first use
     if name in _LAZY:
         import importlib
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value   # once loaded, a plain attribute
+        return value
     raise AttributeError(f"module 'planner' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

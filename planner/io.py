@@ -26,7 +26,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 IN_PLACE_ROOTS = ("/dev/", "/proc/")  # streams and devices: written in place, never replaced
 FILE_ROOTS = ("/dev/shm/",)  # ... except for these ordinary (tmpfs) folders
@@ -245,6 +244,7 @@ class LineProgress:
 def progress(total: int, desc: str, unit: str = "it", enabled: bool = True):
     """A progress reporter with ``update(k)`` and ``close()``: a tqdm bar when stderr is a
     terminal, plain lines (:class:`LineProgress`) when it is not, nothing when not ``enabled``."""
+    from tqdm import tqdm   # imported with the first progress report, not with every output
     if enabled and sys.stderr.isatty():
         return tqdm(total=total, desc=desc, unit=unit)
     if enabled:

@@ -5,25 +5,27 @@ and SVG) atomically.
 No backend is selected on import: the figures are plain ``Figure`` objects (not registered with
 pyplot), so they save without any display and show inline in Jupyter when returned. ``plt`` is
 re-exported for the benchmark scripts that draw with pyplot; pyplot itself picks Agg when there
-is no display."""
+is no display.
+
+matplotlib is imported when a figure is made, not with this module: checking a figure path
+(:func:`figure_format`, before a command's work) costs nothing, and pyplot is loaded only for
+``plt``."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 import io
 import math
+import sys
 from pathlib import Path
 
-import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.collections import PolyCollection
-from matplotlib.figure import Figure
-from matplotlib.patches import Rectangle
 
 from planner.io import atomic_write_bytes
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from planner.model import Crane
 
 __all__ = ["FIGURE_FORMATS", "FigureFormatError", "figure_format", "new_figure", "save", "plt",
@@ -56,18 +58,29 @@ def figure_format(path) -> str:
 
 def new_figure(**kw) -> Figure:
     """A Figure outside pyplot (no backend, no global state); ``kw`` go to ``Figure``."""
+    from matplotlib.figure import Figure
     return Figure(**kw)
+
+
+def __getattr__(name):
+    # ``plt``: pyplot, imported when a script asks for it (it is never needed to draw here)
+    if name == "plt":
+        import matplotlib.pyplot as plt
+        return plt
+    raise AttributeError(f"module 'planner.plots' has no attribute {name!r}")
 
 
 def save(fig, path, dpi: int = 110) -> None:
     """Write ``fig`` to ``path`` (format from the suffix, see :func:`figure_format`; tight
     bounding box, ``dpi`` for raster output) atomically, and release it from pyplot if it was
     made there."""
+    import matplotlib
     fmt = figure_format(path)
     buf = io.BytesIO()
     with matplotlib.rc_context({"svg.hashsalt": "crane-planner"}):  # stable SVG element ids
         fig.savefig(buf, format=fmt, dpi=dpi, bbox_inches="tight", metadata=_METADATA[fmt])
-    plt.close(fig)
+    if "matplotlib.pyplot" in sys.modules:   # a figure made with pyplot: release it there
+        sys.modules["matplotlib.pyplot"].close(fig)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -144,6 +157,7 @@ def workspace_figure(crane: Crane, path=None, n: int = 90) -> Figure:
     spec = crane.spec
     L = crane.limit_arrays()
     pc = crane.chain
+    from matplotlib.collections import PolyCollection
     fig = new_figure(figsize=(7, 6))
     ax = fig.subplots()
     # opaque cells with matching edges: no seams; rasterised in PDF / SVG (thousands of cells)
@@ -229,6 +243,7 @@ def trajectory_figure(crane: Crane, ev, path=None, title: str = "", walls=()) ->
     the tip path in r–z, and pump flow / power of an evaluated trajectory (an
     :class:`~planner.trajectory.Evaluation`). Written to ``path`` if given."""
     L = crane.limit_arrays()
+    from matplotlib.patches import Rectangle
     fig = new_figure(figsize=(11, 7), layout="tight")
     ax = fig.subplots(2, 2)
     _joint_panel(ax[0, 0], crane, ev)

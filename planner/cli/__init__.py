@@ -10,6 +10,11 @@ argument parsing, a call into the package and the printing: :mod:`~planner.cli.p
 :mod:`~planner.cli.studies` (bench, demo); :mod:`~planner.cli.common` has what they share.
 The package's messages name fields (`tip_speed`); :mod:`~planner.cli.wording` prints them as
 the flags that set them (--tip-speed).
+
+Building the parser imports nothing heavy: each command module imports the package parts it
+calls (numpy, CasADi, scipy, matplotlib, h5py, Exudyn, Dask) inside its command, so
+``crane-planner --help`` and a command's start-up pay only for what that command uses
+(tests/test_startup.py holds the list of what ``--help`` must not load).
 """
 from __future__ import annotations
 
@@ -19,10 +24,8 @@ import sys
 
 from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
                          studies)
-from planner.cli.common import CLIError, check_distinct, package_version
+from planner.cli.common import CLIError, VersionAction, check_distinct
 from planner.cli.wording import cli_text
-from planner.model import UnreachableError
-from planner.model.spec import SpecError
 
 __all__ = ["CLIError", "build_parser", "join_negative_values", "main"]
 
@@ -35,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crane-planner",
                                  description="Trajectory planning for hydraulic knuckle-boom "
                                              "cranes (SI units; angles may be written 30deg).")
-    ap.add_argument("--version", action="version", version=f"crane-planner {package_version()}")
+    ap.add_argument("--version", action=VersionAction)
     sub = ap.add_subparsers(dest="command", required=True)
     for group in COMMAND_GROUPS:
         group.add_parsers(sub)
@@ -80,7 +83,9 @@ def main(argv=None) -> int:
         print(f"crane-planner: interrupted (SIGINT) during {args.command}; nothing was written "
               "that was not complete", file=sys.stderr)
         return 130
-    except (SpecError, UnreachableError, CLIError, ValueError, OSError) as e:
+    except (CLIError, ValueError, OSError) as e:
+        # a bad machine spec (SpecError) and an unreachable point (UnreachableError) are
+        # ValueErrors too: the model need not be imported to catch them
         print(f"crane-planner: error: {cli_text(e, args.command)}", file=sys.stderr)
         return 2
     except KeyError as e:

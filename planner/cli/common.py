@@ -1,5 +1,9 @@
 """What every command module of the CLI shares: the user-error type, ``--json`` handling,
-argument types (tip points, method names) and reading a trajectory named on the command line."""
+argument types (tip points, method names) and reading a trajectory named on the command line.
+
+Building the parser needs none of the package's numerical parts: planner.io (numpy), the method
+registry's methods and the trajectory type are imported where an argument is checked or a
+command runs."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -7,16 +11,13 @@ from typing import TYPE_CHECKING
 import argparse
 import os
 import sys
-from importlib.metadata import PackageNotFoundError, version
 
 from planner.version import __version__
-from planner.io import OutputError, check_output, missing_dirs, output_target, write_json
-from planner.methods import available
-from planner.trajectory import Trajectory
 from planner.units import checked_trajectory, parse_point
 
 if TYPE_CHECKING:
     from planner.model import Crane
+    from planner.trajectory import Trajectory
 
 
 class CLIError(Exception):
@@ -33,25 +34,70 @@ def point_arg(text: str) -> tuple[float, float, float]:
 
 
 def method_arg(text: str) -> str:
-    """argparse type of ``--method``: a name of the method registry."""
-    names = available()
-    if text in names:
+    """argparse type of ``--method``: a name of the method registry (looking it up imports
+    that method's module; every method's only when the name is unknown, to list them)."""
+    from planner.methods import available, get
+    try:
+        get(text)
         return text
+    except KeyError:
+        names = available()
     raise argparse.ArgumentTypeError(f"unknown method {text!r}; available: {', '.join(names)}")
+
+
+class LazyChoices:
+    """argparse ``choices`` that the package supplies (``load()`` -> the allowed names), read
+    when first needed: when a value is checked or the command's own help is printed, not when
+    the parser is built (so ``crane-planner --help`` imports none of the module that knows
+    them)."""
+
+    def __init__(self, load):
+        self.load = load
+        self.names = None
+
+    def resolved(self) -> list:
+        if self.names is None:
+            self.names = list(self.load())
+        return self.names
+
+    def __contains__(self, value) -> bool:
+        return value in self.resolved()
+
+    def __iter__(self):
+        return iter(self.resolved())
+
+    def __len__(self) -> int:
+        return len(self.resolved())
 
 
 def package_version() -> str:
     """The installed distribution's version (package metadata); the source tree's
     ``planner.__version__`` when the package is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
     try:
         return version("crane-planner")
     except PackageNotFoundError:
         return __version__
 
 
+class VersionAction(argparse.Action):
+    """``--version``: print ``crane-planner VERSION`` (:func:`package_version`, read from the
+    package metadata when asked, not when the parser is built) and exit 0."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show program's version number and exit"):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0,
+                         help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        sys.stdout.write(f"crane-planner {package_version()}\n")
+        parser.exit()
+
+
 def output_arg(text: str) -> str:
     """argparse type of an output FILE (``--json``, ``--out``): checked before any work is done
     (:func:`planner.io.check_output`: not a directory, its folder writable); '-' is stdout."""
+    from planner.io import OutputError, check_output
     try:
         check_output(text)
     except OutputError as e:
@@ -76,6 +122,7 @@ def emit(args, obj) -> None:
     folders that created)."""
     target = getattr(args, "json", None)
     if target:
+        from planner.io import missing_dirs, write_json
         created = [] if target == "-" else missing_dirs(target)
         write_json(target, obj)
         note_created(created)
@@ -121,6 +168,7 @@ def check_distinct(args) -> None:
     the plan, ``--out x.csv --json x.csv`` leave JSON in the trajectory file). Inputs count when
     they are existing files (a machine id is not); outputs written in place (stdout, devices)
     do not count. Called by :func:`planner.cli.main` for every command."""
+    from planner.io import OutputError, output_target
     files = []
     for dest, label in INPUT_DESTS.items():
         v = getattr(args, dest, None)
@@ -154,6 +202,7 @@ def read_trajectory(crane: Crane, ref: str) -> Trajectory:
     database; the ID may be left out when the file holds one entry; :func:`split_ref` for a
     '#' in the file name), checked against ``crane`` (:func:`planner.units.checked_trajectory`:
     the library's crane id, the joints, the ranges)."""
+    from planner.trajectory import Trajectory
     path, entry = split_ref(ref)
     if path.endswith(".h5"):
         from planner.library.store import LibraryStore  # h5py: only when a database is read

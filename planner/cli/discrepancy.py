@@ -2,19 +2,21 @@
 calibrated model written and the feed-forward re-planned on it."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import sys
 import tomllib
 
 from planner.cli.common import CLIError, add_json_arg, emit, read_trajectory
-from planner.io import atomic_write_text
-from planner.model import Crane
-from planner.model.spec import parse_spec
-from planner.simulation.recording import Recording
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 def read_recording(args, crane: Crane, plan):
     """``--measured``: the measured-data CSV, or a ROS 2 bag read through ``--map``
     (planner.simulation.bag; the rosbags library only then)."""
+    from planner.simulation.recording import Recording
     from planner.simulation.bag import is_bag
     if args.map is None:
         if is_bag(args.measured):
@@ -33,6 +35,9 @@ def cmd_discrepancy(args):
     from planner.calibration.compensate import closed_loop
     from planner.calibration.discrepancy import Discrepancy, calibrated_spec_text
     from planner.calibration.report import write_report
+    from planner.io import atomic_write_text
+    from planner.model import Crane
+    from planner.model.spec import parse_spec
     crane = Crane.from_id(args.crane)
     plan = read_trajectory(crane, args.trajectory) if args.trajectory else None
     rec = read_recording(args, crane, plan)

@@ -5,7 +5,6 @@ the candidates of an ambiguous ``discrepancy --json`` result, at their fitted va
 from __future__ import annotations
 
 from planner.cli.common import add_json_arg, emit
-from planner.model import Crane
 
 
 def cmd_excite(args):
@@ -13,6 +12,7 @@ def cmd_excite(args):
     # scipy and the planners: only when the command runs
     from planner.calibration.excite import (candidates_from_result, design_excitation,
                                             lengthen, parse_candidates)
+    from planner.model import Crane
     crane = Crane.from_id(args.crane)
     if (args.separate is None) == (args.from_result is None):
         raise ValueError("excite: give --separate A,B[,…] or --from RESULT.json (one of them)")

@@ -1,7 +1,8 @@
 """``library build | refine | info | show | query | export``: trajectory databases (HDF5).
 
-The store and the export need h5py; they are imported inside the commands so that
-``crane-planner --help`` does not load it."""
+The store and the export need h5py, the build the planners (CasADi, scipy) and the process
+pool or Dask, a query with ``--from`` Ruckig; they are imported inside the commands so that
+``crane-planner --help`` and the other commands do not load them."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -10,18 +11,21 @@ import os
 import shlex
 import sys
 
-import numpy as np
-
 from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
                                 output_arg, point_arg)
-from planner.io import check_output_dir, missing_dirs
-from planner.library.build import build
-from planner.library.query import JoinError, far_warning, join_from, library_crane
-from planner.library.workers import Interrupted, WorkerLost
 from planner.units import parse_angle
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from planner.model import Crane
+
+
+def build(crane_id: str, suite: str, out, **kw) -> dict:
+    """:func:`planner.library.build.build` (imported when a build runs; the name the command
+    calls, so a test can stand in for the builder)."""
+    from planner.library.build import build as run
+    return run(crane_id, suite, out, **kw)
 
 
 def cpu_count() -> int:
@@ -67,6 +71,8 @@ def capped_workers(workers: int, moves: int) -> int:
 
 
 def cmd_library_build(args):
+    from planner.io import missing_dirs
+    from planner.library.workers import Interrupted, WorkerLost
     objectives = tuple(o.strip() for o in args.objectives.split(",") if o.strip())
     moves = checked_suite(args)
     if args.scheduler is None:
@@ -152,6 +158,8 @@ def cmd_library_info(args):
 
 
 def cmd_library_query(args):
+    from planner.io import missing_dirs
+    from planner.library.query import JoinError, far_warning, join_from, library_crane
     from planner.library.store import LibraryStore
     with LibraryStore.open(args.library, "r") as db:
         try:
@@ -188,6 +196,7 @@ def cmd_library_query(args):
 
 def joint_state(crane: Crane, text: str) -> np.ndarray:
     """``--from q1,q2,...`` -> one value per joint of ``crane`` (SI; angles may be '30deg')."""
+    import numpy as np
     try:
         q = np.array([parse_angle(v) for v in text.split(",")], float)
     except ValueError:
@@ -230,7 +239,10 @@ def entry_obstacles(attrs: dict) -> tuple:
 
 
 def cmd_library_show(args):
+    import numpy as np
+
     from planner.cli.plan import check_animation
+    from planner.io import missing_dirs
     from planner.library.store import LibraryStore
     check_animation(args)
     path, _, eid = args.entry.partition("#")
@@ -248,6 +260,7 @@ def cmd_library_show(args):
         spec_toml = db.spec_toml
     if args.animate:
         from planner.animate import animate  # matplotlib: only to draw
+        from planner.library.query import library_crane
         created = missing_dirs(args.animate)
         summary["animation"] = animate(
             library_crane(spec_toml), traj, args.animate,
@@ -278,6 +291,7 @@ def cmd_library_show(args):
 
 
 def cmd_library_export(args):
+    from planner.io import check_output_dir
     from planner.library.export import export
     if args.format == "rosbag2" and args.units_row:
         raise CLIError("--units-row applies to the csv format, not 'rosbag2'")

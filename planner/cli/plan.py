@@ -9,24 +9,27 @@ can still show a pressure excess there. ``lower_bound_s`` is the bound for the s
 (with acceleration limits when the method plans with them — then the pump-aware ramp bound of
 :mod:`planner.bounds.ramps` — with jerk limits only when it plans with those too), and
 ``optimality_gap`` = duration / ``lower_bound_s`` − 1 of a minimum-time plan: how far from the
-optimum the plan can at most be."""
+optimum the plan can at most be.
+
+The command imports what a plan needs when it runs: the model, the one method named (the
+registry loads only its module: an NLP plan loads no toppra, and through it no matplotlib),
+the evaluator and the bounds; the figures (matplotlib), the animation and the database writer
+(h5py) only when asked for."""
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import argparse
 import math
 import sys
 import time
 
-from planner.bounds import lower_bound
 from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
                                 output_arg, point_arg)
 from planner.cli.wording import cli_text
-from planner.feedforward import commands
-from planner.io import missing_dirs
-from planner.geometry.obstacles import Wall
-from planner.methods import PlanRequest, UnsupportedRequest, get, plan
-from planner.model import Crane, UnreachableError
-from planner.trajectory import evaluate
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 CONTROL_RATE_HZ = 50.0  # the valve commands of a plan stored with --out FILE.h5 (as a library)
 
@@ -34,6 +37,11 @@ CONTROL_RATE_HZ = 50.0  # the valve commands of a plan stored with --out FILE.h5
 def cmd_plan(args):
     """Plan one move with a registered method (planner.methods.registry); JSON keys per
     docs/design.md, "CONTRACT: command line". Failures come back as a status with a reason."""
+    from planner.bounds import lower_bound
+    from planner.geometry.obstacles import Wall
+    from planner.methods import PlanRequest, UnsupportedRequest, get, plan
+    from planner.model import Crane, UnreachableError
+    from planner.trajectory import evaluate
     check_outputs(args)   # before a long solve
     crane = Crane.from_id(args.crane)
     method = args.method
@@ -151,6 +159,7 @@ def check_animation(args) -> None:
 def write_outputs(args, crane: Crane, res, ev, walls, out: dict) -> None:
     """``--out`` (trajectory CSV, fixed-rate controller CSV, or a one-entry database) and
     ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
+    from planner.io import missing_dirs
     traj = res.trajectory
     path = str(args.out or "")
     note_created(d for p in (args.out, args.plot, args.animate) if p
@@ -162,7 +171,9 @@ def write_outputs(args, crane: Crane, res, ev, walls, out: dict) -> None:
             from planner.library.export import write_trajectory_csv  # h5py: only when needed
             write_trajectory_csv(path, crane, traj, rate=args.out_rate, units_row=args.units_row)
     elif path:
+        from planner.feedforward import commands
         from planner.library.export import write_single_entry  # h5py: only when needed
+        from planner.trajectory import evaluate
         # stored like a library entry: the plan on the control grid (50 Hz, plus its own
         # nodes: the quintic through the rows reproduces it) with its valve commands; at
         # --out-rate the fixed-rate rows; a piecewise-linear plan (DP, laws) at its own nodes

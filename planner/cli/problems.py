@@ -1,22 +1,20 @@
 """``problems list`` · ``problems show ID`` · ``problems urdf ID`` · ``bound CRANE --start
---goal``: the shipped machines, their URDF, and the analytic lower bounds of a move."""
+--goal``: the shipped machines, their URDF, and the analytic lower bounds of a move.
+
+The model (CasADi), the bounds and the figures (matplotlib) are imported by the commands that
+use them."""
 from __future__ import annotations
 
 import dataclasses
 import math
 import sys
 
-from planner.bounds import lower_bound
 from planner.cli.common import CLIError, add_json_arg, emit, output_arg, point_arg
-from planner.io import atomic_write_text
-from planner.model import Crane, load_crane
-from planner.model.urdf import urdf_xml
-from planner.problems import crane_ids
-from planner.plots import FigureFormatError, figure_format, workspace_extent, workspace_figure
 
 
 def plot_path(path) -> None:
     """Refuse a ``--plot`` path whose suffix is no figure format (before any work)."""
+    from planner.plots import FigureFormatError, figure_format
     try:
         figure_format(path)
     except FigureFormatError as e:
@@ -24,6 +22,8 @@ def plot_path(path) -> None:
 
 
 def cmd_problems_list(args):
+    from planner.model import load_crane
+    from planner.problems import crane_ids
     rows = []
     for cid in crane_ids():
         s = load_crane(cid)
@@ -37,6 +37,7 @@ def cmd_problems_list(args):
 
 
 def cmd_problems_show(args):
+    from planner.model import Crane, load_crane
     if args.plot:
         plot_path(args.plot)
     spec = load_crane(args.crane)
@@ -45,6 +46,7 @@ def cmd_problems_show(args):
     d.pop("text", None)
     emit(args, d)
     if args.plot:
+        from planner.plots import workspace_extent, workspace_figure  # matplotlib: only to draw
         crane = Crane(spec)
         workspace_figure(crane, args.plot)
         info = workspace_extent(crane)
@@ -65,6 +67,9 @@ def cmd_problems_show(args):
 
 
 def cmd_problems_urdf(args):
+    from planner.io import atomic_write_text
+    from planner.model import Crane
+    from planner.model.urdf import urdf_xml
     crane = Crane.from_id(args.crane)
     text = urdf_xml(crane)
     if args.out:
@@ -80,6 +85,8 @@ def cmd_problems_urdf(args):
 
 
 def cmd_bound(args):
+    from planner.bounds import lower_bound
+    from planner.model import Crane
     crane = Crane.from_id(args.crane)
     lb = lower_bound(crane, args.start, args.goal, ramps=True)
     emit(args, dict(status="ok", crane=crane.spec.id, crane_id=crane.spec.id, start=args.start,

@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from planner.cli.common import add_json_arg, emit
-from planner.io import atomic_write_text
-from planner.simulation.recording import read_measured_csv, resample_arrays
 
 
 def cmd_resample(args):
     """Read every column the contract knows (joint names from the header), resample, write."""
+    import numpy as np
+
+    from planner.io import atomic_write_text
+    from planner.simulation.recording import read_measured_csv, resample_arrays
     if not (math.isfinite(args.rate) and 1.0 <= args.rate <= 10000.0):
         raise ValueError(f"--rate {args.rate:g}: allowed 1 ... 10000 Hz (loggers: 20-500 Hz)")
     with open(args.measured, encoding="utf-8-sig") as fh:

@@ -1,22 +1,22 @@
 """``simulate CRANE --trajectory …`` (open-loop replay -> measured-data CSV) and ``effects list``
-(the catalogue of model effects)."""
+(the catalogue of model effects).
+
+The plants, the model and its effects are imported when a command runs (the plant names for
+``--plant`` when a value is checked or ``simulate --help`` is printed)."""
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import math
 import sys
 from dataclasses import replace
 
-import numpy as np
-
-from planner.cli.common import (CLIError, add_json_arg, emit, output_arg, read_trajectory,
-                                replay_commands)
-from planner.model import Crane
-from planner.model.effects import catalogue, parse_effect
-from planner.simulation.plant import simulate_to_csv
-from planner.simulation.plants import PLANTS, PlantDiverged, applying, plant_to_csv
-from planner.simulation.sizes import check_rate
-from planner.simulation.replay import Plant
+from planner.cli.common import (CLIError, LazyChoices, add_json_arg, emit, output_arg,
+                                read_trajectory, replay_commands)
 from planner.units import parse_angle
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 
 def noise_levels(text):
@@ -52,6 +52,7 @@ def commands_at_rate(traj, rate):
     rate); so is one whose commands are already at ``rate`` or when no rate is given."""
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise CLIError(f"--rate {rate:g}: allowed a command rate > 0 Hz")
+    import numpy as np
     t = traj.t
     if traj.u is None or len(t) <= 2 or np.ptp(np.diff(t)) >= 1e-9 or rate is None:
         return traj, None
@@ -69,6 +70,12 @@ def commands_at_rate(traj, rate):
 
 def cmd_simulate(args):
     """Replay a trajectory's valve commands open loop and write the measured-data CSV."""
+    from planner.model import Crane
+    from planner.model.effects import parse_effect
+    from planner.simulation.plant import simulate_to_csv
+    from planner.simulation.plants import applying
+    from planner.simulation.replay import Plant
+    from planner.simulation.sizes import check_rate
     crane = Crane.from_id(args.crane)
     effects = []
     for text in args.effect or []:
@@ -133,6 +140,7 @@ def _simulate_dynamic(args, crane: Crane, traj, effects, note=None):
     if args.flow_gain != 1.0 or args.pump_flow != 1.0:
         raise CLIError(f"--flow-gain/--pump-flow apply to the fast plant; with --plant "
                        f"{args.plant} use --effect flow_gain:… or --effect pump_flow_limit:…")
+    from planner.simulation.plants import PlantDiverged, plant_to_csv
     try:
         summary = plant_to_csv(crane, traj, args.out, args.plant, rate=args.rate,
                                noise=noise_levels(args.noise), seed=args.seed, effects=effects,
@@ -148,7 +156,8 @@ def _simulate_dynamic(args, crane: Crane, traj, effects, note=None):
 
 
 def cmd_effects_list(args):
-    from planner.model.effects import CATALOGUE
+    from planner.model.effects import CATALOGUE, catalogue
+    from planner.simulation.plants import applying
     cat = [dict(e, plants=applying(CATALOGUE[e["name"]])) for e in catalogue()]
     emit(args, cat)
     if not args.json:
@@ -159,6 +168,12 @@ def cmd_effects_list(args):
                 f" (--plant {' / '.join(e['plants'])} only)")
             print(f"{e['name']:18s} {e['description']}{only}\n{'':18s} parameters: {ps}")
     return 0
+
+
+def plant_names() -> list[str]:
+    """The registered plants, sorted (``--plant``'s choices)."""
+    from planner.simulation.plants import PLANTS
+    return sorted(PLANTS)
 
 
 def add_parsers(sub) -> None:
@@ -178,9 +193,12 @@ def add_parsers(sub) -> None:
                    help="command rate [Hz] of the feed-forward (50); a trajectory that "
                         "carries its own commands (u_*) is replayed at their rate, or held at "
                         "this one when given")
-    p.add_argument("--plant", choices=sorted(PLANTS), default="fast",
-                   help="fast: the quasi-static replay (default); exudyn: the independent "
-                        "dynamic plant (multibody + pressure dynamics, needs [dynamics])")
+    plant = p.add_argument("--plant", default="fast",
+                           help="fast: the quasi-static replay (default); exudyn: the "
+                                "independent dynamic plant (multibody + pressure dynamics, "
+                                "needs [dynamics])")
+    # given after add_argument, which formats (and so would read) the choices at once
+    plant.choices = LazyChoices(plant_names)
     p.add_argument("--commands", choices=("auto", "nominal", "refined"), default="auto",
                    help="a library entry's commands: refined (`library refine`) when present "
                         "(auto, default), or nominal / refined")

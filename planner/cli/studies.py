@@ -1,14 +1,15 @@
-"""``bench`` (DP vs NLP vs local laws: markdown + JSON + figures) and ``demo`` (the main job)."""
+"""``bench`` (DP vs NLP vs local laws: markdown + JSON + figures) and ``demo`` (the main job).
+
+Both import the benchmark (every planner, matplotlib) only when they run."""
 from __future__ import annotations
 
-from planner.bench.run import parse_suites, run_bench
 from planner.cli.common import CLIError, add_json_arg, emit
-from planner.demo import run_demo
 
 
 def cmd_bench(args):
     """DP vs NLP vs local laws on the seeds' suites (planner.bench): bench.md, bench.json
     and figures in --out."""
+    from planner.bench.run import parse_suites, run_bench
     try:
         suites = parse_suites(args.suite)
     except ValueError as e:
@@ -30,6 +31,7 @@ def cmd_bench(args):
 def cmd_demo(args):
     """The main job (planner.demo): machines, seed 000, a small library, the short
     benchmark and a calibration, into ``--out``."""
+    from planner.demo import run_demo
     if args.library_moves < 1 or args.workers < 1:
         raise CLIError("--library-moves and --workers must be >= 1")
     summary = run_demo(args.out, library_moves=args.library_moves, workers=args.workers,

@@ -12,6 +12,9 @@ numerically by dense sampling); :meth:`SeedPath.arc_length` gives it for a seed 
 :func:`circle` / :func:`parabola` curves are built that way from the same definitions as
 :func:`circle_path` / :func:`parabola_path`. They stay two classes because ``xyz`` means a
 point at arc length s on a Path and at parameter θ on a SeedPath.
+
+Only numpy is loaded with the module: scipy when a :class:`Curve` is built, CasADi when a seed
+curve's symbolic face is evaluated (the NLP), so a command that walks a line pays for neither.
 """
 from __future__ import annotations
 
@@ -19,9 +22,7 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
-import casadi as ca
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 __all__ = ["tip_to_xyz", "xyz_to_tip", "Path", "Line", "Waypoints", "Curve", "SeedPath",
            "circle_path", "parabola_path", "circle", "parabola"]
@@ -130,6 +131,7 @@ class Curve(Path):
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         self.length = float(cum[-1])
+        from scipy.interpolate import CubicSpline   # scipy: only for a curve's arc length
         self._u_of_s = CubicSpline(cum, u)
 
     def xyz(self, s):
@@ -204,6 +206,7 @@ def _circle(center_xyz, radius: float, theta0: float, theta1: float, plane: str,
         return np.arctan2(d @ e2, d @ e1)
 
     def p_sym(th):
+        import casadi as ca
         return ca.DM(c) + R * (ca.cos(th) * ca.DM(e1) + ca.sin(th) * ca.DM(e2))
 
     periodic = abs(abs(theta1 - theta0) - 2 * math.pi) < 1e-12
@@ -244,6 +247,7 @@ def parabola_path(x0: float = 1.6, x1: float = 3.07, z_min: float = 1.5, z_max: 
         return np.asarray(xyz, float)[..., 0]
 
     def p_sym(x):
+        import casadi as ca
         return ca.vertcat(x, ta * x, (x + sh) ** 2 / (4 * a) + k)
 
     return SeedPath("parabola", float(x0), float(x1), False, p, dp, theta_of,

@@ -4,6 +4,11 @@
 methods up here. The built-in methods register themselves when their module is imported; the
 registry imports those modules (and any ``crane_planner.methods`` entry point of an installed
 plug-in package) the first time a name is looked up, so importing the registry stays cheap.
+Looking up one built-in name (:func:`get`) imports its own module only (``BUILTIN_HOMES``: an
+NLP plan loads no toppra, and through it no matplotlib, and no package metadata is scanned);
+:func:`available` and any other name import them all, the plug-ins included. The names the
+built-in modules register belong to them: a plug-in that registers one of them is ignored with
+a warning (so a name means the same method however it was looked up).
 
 Adding a method is one module: subclass :class:`~planner.methods.base.Planner` and call
 :func:`register` on an instance at import time (or decorate the class with it).
@@ -14,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import importlib
 import time
-from importlib.metadata import entry_points
+import warnings
 
 from planner.methods.base import Planner, PlanRequest, PlanResult
 
@@ -25,6 +30,11 @@ __all__ = ["register", "unregister", "get", "available", "plan", "BUILTIN_MODULE
 
 BUILTIN_MODULES = ("planner.methods.laws", "planner.methods.laws_energy", "planner.methods.dp",
                    "planner.methods.topp", "planner.methods.ruckig", "planner.methods.nlp")
+#: the module that registers a built-in name ("law:" for every name of the family); only a
+#: shortcut: a name not registered where it is said to be loads every module
+BUILTIN_HOMES = {"nlp": ("planner.methods.nlp",), "dp": ("planner.methods.dp",),
+                 "topp": ("planner.methods.topp",), "ruckig": ("planner.methods.ruckig",),
+                 "law:": ("planner.methods.laws", "planner.methods.laws_energy")}
 ENTRY_POINT_GROUP = "crane_planner.methods"
 
 _REGISTRY: dict[str, Planner] = {}
@@ -50,14 +60,35 @@ def unregister(name: str) -> None:
 
 
 def _load() -> None:
+    """Import every built-in module, then the plug-ins' entry points (once)."""
     global _loaded
     if _loaded:
         return
     _loaded = True
     for mod in BUILTIN_MODULES:
         importlib.import_module(mod)
+    builtin = dict(_REGISTRY)
+    from importlib.metadata import entry_points   # the package metadata: only here
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         ep.load()
+    for name, p in builtin.items():
+        if _REGISTRY.get(name) is not p:
+            warnings.warn(f"method {name!r} of a plug-in ignored: the name is taken by "
+                          f"{type(p).__module__}", stacklevel=3)
+            _REGISTRY[name] = p
+
+
+def _load_for(name: str) -> None:
+    """Import what registers ``name``: its built-in module(s) when ``BUILTIN_HOMES`` names
+    them, everything when it does not or the name is not registered there."""
+    if _loaded:
+        return
+    homes = [m for key, mods in BUILTIN_HOMES.items()
+             if name == key or (key.endswith(":") and name.startswith(key)) for m in mods]
+    for mod in homes:
+        importlib.import_module(mod)
+    if name not in _REGISTRY:
+        _load()
 
 
 def available() -> list[str]:
@@ -69,7 +100,7 @@ def available() -> list[str]:
 
 def get(name: str) -> Planner:
     """The planner registered as ``name``; KeyError naming the known methods otherwise."""
-    _load()
+    _load_for(name)
     try:
         return _REGISTRY[name]
     except KeyError:

@@ -23,7 +23,6 @@ from planner.geometry.paths import Line
 from planner.methods.dp import dp
 from planner.methods.nlp.tip import CHECKS
 from planner.methods.ruckig import rest_to_rest
-from planner.methods.topp import retime
 from planner.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -93,6 +92,7 @@ def over_obstacles_guess(crane: Crane, obstacles, start, goal, lb) -> Trajectory
 def path_guess(crane: Crane, path) -> Trajectory:
     """A coarse DP (5 cm stations and telescope grid) along ``path`` retimed by TOPP-RA
     (velocity, acceleration, pump); ValueError with the method's reason when either fails."""
+    from planner.methods.topp import retime   # toppra (and its matplotlib): only for a path
     d = dp(crane, path, step=0.05, tele_step=0.05, window=3)
     if not d.ok:
         raise ValueError(d.reason)

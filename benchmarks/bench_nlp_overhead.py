@@ -1,0 +1,281 @@
+"""Where the minimum-time NLP's extra time goes, in process, against a plain CasADi Opti of the
+same size (issue 31, the "NLP pump on ≤ 1.5× a plain Opti" item).
+
+    python benchmarks/bench_nlp_overhead.py [--moves 20] [--rounds 3] [--machines umea-lab]
+
+For each machine, ``--moves`` random tip moves (joint configurations drawn inside the limits,
+as benchmarks/bench_peers.py draws its tip moves); for each move, interleaved ``--rounds`` times
+after one warm-up each:
+
+* ``nlp`` — ``MoveNLP(crane, "time", N=40, pump=True, solver="ipopt").solve(start, goal)``, the
+  whole call (first guess, IPOPT, the exact-Ruckig check), built once per machine; twice: with
+  its functions interpreted (``cache="off"``: CasADi's SX virtual machine, what bench_peers.py
+  times) and compiled (``cache="build"``: the C library a ``plan`` loads from the cache);
+* ``opti`` — benchmarks/opti_baseline.py's ``PlainOpti`` (no pump) between the joint
+  configurations at the lower bound's telescopes, built once per move, ``solve()`` timed.
+
+The split of each call, from IPOPT's own statistics (``solver.stats()``): the time in the NLP's
+functions (f, g, their gradients, the Jacobian, the Hessian of the Lagrangian), the rest of the
+solver call (IPOPT's own work: the KKT factorisations with MUMPS, the line search), and, for the
+NLP, the Python around the solver call (lower bound, Ruckig guess, exact check). Ratios are per
+move (median of its rounds), summarised over moves. Writes benchmarks/results/nlp_overhead.md
+and .json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+for p in (ROOT, HERE):   # run from a checkout; the shared Opti baseline
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+import casadi as ca  # noqa: E402
+import numpy as np  # noqa: E402
+
+from opti_baseline import PlainOpti  # noqa: E402
+from planner.bounds import lower_bound  # noqa: E402
+from planner.methods.nlp import MoveNLP  # noqa: E402
+from planner.model import Crane  # noqa: E402
+
+SEED = 31
+FUNCS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
+
+
+class TimedSolver:
+    """A CasADi solver whose calls are timed (wall clock of each ``solver(...)``)."""
+
+    def __init__(self, solver):
+        self.solver, self.calls = solver, []
+
+    def __call__(self, *a, **kw):
+        t0 = time.perf_counter()
+        try:
+            return self.solver(*a, **kw)
+        finally:
+            self.calls.append(time.perf_counter() - t0)
+
+    def __getattr__(self, name):
+        return getattr(self.solver, name)
+
+
+def moves(crane, n: int, seed: int) -> list:
+    """``n`` (start, goal) tip pairs from random joint configurations (10 % margins)."""
+    rng = np.random.default_rng(seed)
+    L = crane.limit_arrays()
+    lo = L["q_min"] + 0.1 * (L["q_max"] - L["q_min"])
+    hi = L["q_max"] - 0.1 * (L["q_max"] - L["q_min"])
+    qs = lo + rng.random((2 * n, crane.n)) * (hi - lo)
+    return [tuple(tuple(float(x) for x in np.round(crane.tip(q), 3)) for q in (qs[k], qs[n + k]))
+            for k in range(n)]
+
+
+def eval_ms(stats: dict) -> float:
+    """Milliseconds the last solve spent in the NLP's functions."""
+    return 1e3 * sum(stats.get(f"t_wall_{f}", 0.0) for f in FUNCS)
+
+
+def time_nlp(m: MoveNLP, timed: TimedSolver, a, b) -> dict:
+    timed.calls.clear()
+    t0 = time.perf_counter()
+    r = m.solve(a, b)
+    total = time.perf_counter() - t0
+    st = m.solver.stats()
+    call = 1e3 * sum(timed.calls)
+    return dict(total_ms=1e3 * total, call_ms=call, eval_ms=eval_ms(st),
+                hess_ms=1e3 * st.get("t_wall_nlp_hess_l", 0.0),
+                jac_ms=1e3 * st.get("t_wall_nlp_jac_g", 0.0),
+                g_ms=1e3 * st.get("t_wall_nlp_g", 0.0),
+                python_ms=1e3 * total - call, iterations=int(st.get("iter_count", 0)),
+                ok=r.ok, duration_s=r.duration_s, own_s=r.stats.get("nlp_duration_s"))
+
+
+def time_opti(o: PlainOpti) -> dict:
+    t0 = time.perf_counter()
+    T, it = o.solve()
+    total = time.perf_counter() - t0
+    st = o.opti.stats()
+    return dict(total_ms=1e3 * total, eval_ms=eval_ms(st),
+                hess_ms=1e3 * st.get("t_wall_nlp_hess_l", 0.0),
+                jac_ms=1e3 * st.get("t_wall_nlp_jac_g", 0.0),
+                g_ms=1e3 * st.get("t_wall_nlp_g", 0.0), iterations=it, duration_s=T)
+
+
+def nonzeros(m: MoveNLP, o: PlainOpti) -> dict:
+    """Structural nonzeros of the constraint Jacobian and of the Lagrangian's Hessian (lower
+    triangle, what IPOPT factorises) of the NLP and of the Opti problem."""
+    jac, hess = (m.solver.get_function(f) for f in ("nlp_jac_g", "nlp_hess_l"))
+    x, g = o.opti.x, o.opti.g
+    lam = ca.MX.sym("lam", g.shape[0])
+    return dict(nlp=dict(jacobian=jac.sparsity_out(1).nnz(), hessian=hess.sparsity_out(0).nnz()),
+                opti=dict(jacobian=ca.jacobian(g, x).nnz(),
+                          hessian=ca.tril(ca.hessian(o.opti.f + ca.dot(lam, g), x)[0]).nnz()))
+
+
+def med_dict(rows: list) -> dict:
+    """The median of every numeric field over ``rows``."""
+    return {k: statistics.median(r[k] for r in rows) for k, v in rows[0].items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None}
+
+
+def machine_rows(cid: str, n: int, rounds: int) -> dict:
+    crane = Crane.from_id(cid)
+    nlps = {}
+    for variant, cache in (("interpreted", "off"), ("compiled", "build")):
+        t0 = time.perf_counter()
+        m = MoveNLP(crane, "time", N=40, pump=True, solver="ipopt", cache=cache)
+        m.solver = timed = TimedSolver(m.solver)
+        nlps[variant] = (m, timed, dict(cache=m.cache_status, setup_s=time.perf_counter() - t0))
+    rows = []
+    for a, b in moves(crane, n, SEED):
+        lb = lower_bound(crane, a, b)
+        o = PlainOpti(crane, crane.ik(a, lb.tele_start), crane.ik(b, lb.tele_goal), 40,
+                      guess_T=lb.combined_s)
+        row = dict(start=list(a), goal=list(b), nlp={}, vars=dict(opti=o.variables),
+                   cons=dict(opti=o.constraints))
+        for v, (m, timed, _) in nlps.items():
+            time_nlp(m, timed, a, b)     # warm-up
+            row["vars"][v], row["cons"][v] = m.nw, len(m.lbg)
+        time_opti(o)
+        got = {v: [] for v in nlps} | {"opti": []}
+        for k in range(rounds):          # interleaved, the order turned every round
+            order = list(nlps) + ["opti"]
+            for v in (order if k % 2 == 0 else order[::-1]):
+                got[v].append(time_opti(o) if v == "opti" else time_nlp(*nlps[v][:2], a, b))
+        row["opti"] = med_dict(got.pop("opti"))
+        for v, rs in got.items():
+            row["nlp"][v] = med_dict(rs)
+            row["nlp"][v]["ok"] = all(r["ok"] for r in rs)
+            row["nlp"][v]["ratio"] = row["nlp"][v]["total_ms"] / row["opti"]["total_ms"]
+        rows.append(row)
+    return dict(machine=cid, nlp_setup={v: x[2] for v, x in nlps.items()}, moves=rows,
+                nonzeros=nonzeros(nlps["interpreted"][0], o))
+
+
+def summary(res: dict) -> dict:
+    out = {}
+    for mres in res["machines"]:
+        rows = mres["moves"]
+        s = {}
+        for v in ("interpreted", "compiled"):
+            ratios = sorted(r["nlp"][v]["ratio"] for r in rows)
+            parts = {k: statistics.median(r["nlp"][v][k] for r in rows)
+                     for k in ("total_ms", "call_ms", "eval_ms", "hess_ms", "jac_ms", "g_ms",
+                               "python_ms", "iterations")}
+            parts["ipopt_own_ms"] = statistics.median(
+                r["nlp"][v]["call_ms"] - r["nlp"][v]["eval_ms"] for r in rows)
+            parts["per_iteration_own_ms"] = statistics.median(
+                (r["nlp"][v]["call_ms"] - r["nlp"][v]["eval_ms"]) / r["nlp"][v]["iterations"]
+                for r in rows)
+            s[v] = dict(ratio_median=statistics.median(ratios), ratio_p90=float(
+                np.percentile(ratios, 90)), ratio_max=ratios[-1], ratio_min=ratios[0],
+                ok=sum(r["nlp"][v]["ok"] for r in rows), **parts)
+        o = {k: statistics.median(r["opti"][k] for r in rows)
+             for k in ("total_ms", "eval_ms", "hess_ms", "jac_ms", "g_ms", "iterations")}
+        o["ipopt_own_ms"] = statistics.median(r["opti"]["total_ms"] - r["opti"]["eval_ms"]
+                                              for r in rows)
+        o["per_iteration_own_ms"] = statistics.median(
+            (r["opti"]["total_ms"] - r["opti"]["eval_ms"]) / r["opti"]["iterations"]
+            for r in rows)
+        s["opti"] = o
+        s["size"] = dict({k: rows[0][k] for k in ("vars", "cons")}, nonzeros=mres["nonzeros"])
+        out[mres["machine"]] = s
+    return out
+
+
+def report(res: dict) -> str:
+    m = res["meta"]
+    f1 = lambda v: f"{v:.1f}"  # noqa: E731
+    L = ["# The minimum-time NLP in process against a plain Opti: where the time goes (issue 31)",
+         "", f"Command: `{m['command']}`  ",
+         f"Machine: {m['platform']}, {m['cpus']} CPUs, CasADi {m['casadi']}, {m['date']}; load "
+         f"average {m['load_before']} before, {m['load_after']} after (shared with other "
+         "sessions).  ",
+         f"{m['moves']} random tip moves per machine (seed {SEED}), {m['rounds']} interleaved "
+         "rounds each, medians per move, then over the moves. NLP: `MoveNLP(crane, 'time', "
+         "N=40, pump=True, solver='ipopt').solve(start, goal)`, the whole call; Opti: "
+         "`PlainOpti` (no pump) between the same ends, `solve()`. Split from IPOPT's own "
+         "statistics (`t_wall_nlp_*`) and a wall clock around the solver call.", ""]
+    for cid, s in res["summary"].items():
+        nz = s["size"]["nonzeros"]
+        L += [f"## {cid}", "",
+              f"Size: NLP {s['size']['vars']['interpreted']} variables / "
+              f"{s['size']['cons']['interpreted']} constraints, {nz['nlp']['jacobian']} "
+              f"Jacobian and {nz['nlp']['hessian']} Hessian nonzeros; Opti "
+              f"{s['size']['vars']['opti']} / {s['size']['cons']['opti']}, "
+              f"{nz['opti']['jacobian']} and {nz['opti']['hessian']}.", "",
+              "| | whole call ms | ratio to Opti (median, p90, max) | iterations | functions ms "
+              "(Hessian, Jacobian, g) | IPOPT's own ms (per iteration) | Python around ms |",
+              "| --- | ---: | --- | ---: | --- | --- | ---: |"]
+        for v in ("interpreted", "compiled"):
+            x = s[v]
+            L.append(f"| NLP, functions {v} ({x['ok']} ok) | {f1(x['total_ms'])} | "
+                     f"**{x['ratio_median']:.2f}×**, {x['ratio_p90']:.2f}×, "
+                     f"{x['ratio_max']:.2f}× | {x['iterations']:.0f} | {f1(x['eval_ms'])} "
+                     f"({f1(x['hess_ms'])}, {f1(x['jac_ms'])}, {f1(x['g_ms'])}) | "
+                     f"{f1(x['ipopt_own_ms'])} ({x['per_iteration_own_ms']:.2f}) | "
+                     f"{f1(x['python_ms'])} |")
+        o = s["opti"]
+        L += [f"| plain Opti | {f1(o['total_ms'])} | 1 | {o['iterations']:.0f} | "
+              f"{f1(o['eval_ms'])} ({f1(o['hess_ms'])}, {f1(o['jac_ms'])}, {f1(o['g_ms'])}) | "
+              f"{f1(o['ipopt_own_ms'])} ({o['per_iteration_own_ms']:.2f}) | - |", ""]
+        x = s["interpreted"]
+        extra = x["total_ms"] - o["total_ms"]
+        own = x["ipopt_own_ms"] - o["ipopt_own_ms"]
+        fun = x["eval_ms"] - o["eval_ms"]
+        L += [f"Where the NLP's extra {f1(extra)} ms (interpreted, medians) go: IPOPT's own "
+              f"work {f1(own)} ms ({100 * own / extra:.0f} %: "
+              f"{x['per_iteration_own_ms'] / o['per_iteration_own_ms']:.2f}× per iteration, "
+              f"the KKT system has {nz['nlp']['jacobian'] / nz['opti']['jacobian']:.1f}× the "
+              f"Jacobian and {nz['nlp']['hessian'] / nz['opti']['hessian']:.1f}× the Hessian "
+              f"nonzeros: the pump rows and the limit checks between the nodes), "
+              f"{x['iterations'] - o['iterations']:+.0f} iterations; the NLP's functions "
+              f"{f1(fun)} ms ({100 * fun / extra:.0f} %, the exact Hessian "
+              f"{f1(x['hess_ms'])} ms of them); the Python around the solver call "
+              f"{f1(x['python_ms'])} ms ({100 * x['python_ms'] / extra:.0f} %: lower bound, "
+              "Ruckig guess, exact-Ruckig check). Compiling the functions (the cache's C "
+              f"library, built with -O0) gives {f1(s['compiled']['eval_ms'])} ms in them "
+              f"against {f1(x['eval_ms'])} ms interpreted.", ""]
+    return "\n".join(L)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--moves", type=int, default=20)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--machines", default="umea-lab")
+    ap.add_argument("--out", default=str(HERE / "results"))
+    args = ap.parse_args(argv)
+    os.environ.setdefault("CRANE_PLANNER_CACHE", tempfile.mkdtemp(prefix="crane-nlp-ovh-"))
+    load_before = [round(x, 2) for x in os.getloadavg()]
+    date = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    machines = [machine_rows(c.strip(), args.moves, args.rounds)
+                for c in args.machines.split(",")]
+    meta = dict(command=f"python benchmarks/bench_nlp_overhead.py --moves {args.moves} "
+                        f"--rounds {args.rounds} --machines {args.machines}",
+                platform=platform.platform(), cpus=os.cpu_count(), casadi=ca.__version__,
+                date=date, load_before=load_before,
+                load_after=[round(x, 2) for x in os.getloadavg()], moves=args.moves,
+                rounds=args.rounds)
+    res = dict(meta=meta, machines=machines)
+    res["summary"] = summary(res)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "nlp_overhead.json").write_text(json.dumps(res, indent=1))
+    (out / "nlp_overhead.md").write_text(report(res) + "\n")
+    print(report(res))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

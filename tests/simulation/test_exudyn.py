@@ -124,6 +124,31 @@ def test_fast_path_equals_the_numpy_circuit_on_the_exact_stroke_map(cid):
         np.testing.assert_allclose(pdot, P, rtol=1e-5, atol=1.0)
 
 
+def test_the_integrator_converges_on_the_coupled_jacobian(s100f, monkeypatch):
+    """The cost of a run is the number of times the engine evaluates the plant's physics (its
+    Newton residuals and Jacobian columns). With the Jacobian of the whole residual (joint
+    forces depend on the pressures, pressure rates on the joint motion) a brisk 1.6 s move
+    takes under 15 evaluations per step; with per-object Jacobians (the coupling missing,
+    Newton converging linearly) it took ~37."""
+    from planner.simulation.dynamic import exudyn_plant
+    calls = [0]
+
+    def counting(circuit, strokes):
+        evaluate = state_function(circuit, strokes)
+
+        def counted(*args):
+            calls[0] += 1
+            return evaluate(*args)
+        return counted
+    monkeypatch.setattr(exudyn_plant, "state_function", counting)
+    q0 = random_configs(s100f, 1, seed=7)[0]
+    u = np.array([[0.0, 0.6, 0.0, 0.0], [0.5, -0.5, 0.6, 0.4], [0.0, 0.0, 0.0, 0.0]])
+    run = ExudynPlant(s100f).integrate([0.0, 0.6, 1.4], u, q0, t_end=1.6)
+    assert run.ok, run.reason
+    assert np.ptp(run.q, axis=0).min() > 0.01          # every joint moved
+    assert calls[0] / run.meta["steps"] < 15
+
+
 # ----------------------------------------------------------------------------- physics
 @pytest.mark.parametrize("cid", ["s100f", "umea-lab"])
 def test_at_rest_pressures_hold_the_models_load_holding_pressures(cid):

@@ -14,7 +14,9 @@ pressure dynamics, driven open loop by valve commands.
   cylinder pins, deflection levers, the telescope's chain ratio, a motor's gear, a rack's
   pinion radius). The chamber pressures and the pump pressure are Exudyn ``NodeGenericODE1``
   coordinates of an ``ObjectGenericODE1`` whose right-hand side is the circuit, integrated
-  implicitly together with the multibody (generalised-α, Newton).
+  implicitly together with the multibody (generalised-α, Newton on the Jacobian of the whole
+  residual, so that it sees the coupling both ways). Both user functions read one evaluation
+  of the state's physics (:mod:`planner.simulation.dynamic.fastpath`).
 * **Valves**: the commands (after the commands-stage effects: delay, spool lag) drive the
   spools through a first-order lag (``spool_time_constant``), updated exactly once per step.
 

@@ -182,10 +182,10 @@ class ExudynPlant(BasePlant):
         last = state["last"] = [None, None, None, None, None]
 
         def both(q, qd, p):
+            # evaluate subtracts an effect's extra force: a load the actuator works against
+            # (as in the quasi-static plant, where the actuator must supply it)
             tau, pdot = evaluate(q, qd, p, state["o"], state["extra"])
-            # an effect's extra force is a load the actuator works against (as in the
-            # quasi-static plant, where the actuator must supply it): inside evaluate
-            if m > n:
+            if m > n:                   # the grapple's pins: damped
                 tau += [-c_pin * w for w in qd[n:]]
             last[:] = q, qd, p, tau, pdot
             return tau, pdot
@@ -377,8 +377,9 @@ class ExudynPlant(BasePlant):
         ti.newton.numericalDifferentiation.minimumCoordinateSize = 1
         # the Jacobian of the whole residual (joints and pressures together): the engine's
         # per-object Jacobians miss the coupling (pressures -> joint forces, joint motion ->
-        # pressure rates), which left Newton converging linearly (~6 iterations per step
-        # while moving instead of ~3)
+        # pressure rates), which left Newton converging linearly (6.5 iterations per step on
+        # bench_exudyn_speed's recording instead of 3.3); it is kept over steps and renewed
+        # when an iteration shrinks the error by less than 5×
         ti.newton.numericalDifferentiation.doSystemWideDifferentiation = True
         ti.newton.modifiedNewtonContractivity = 0.2
         ti.generalizedAlpha.spectralRadius = spectral_radius

@@ -46,6 +46,12 @@ class StrokeTable:
             ds.append(D[k] + min(max(w, 0.0), 1.0) * (D[k + 1] - D[k]))
         return xs, ds
 
+    def columns(self):
+        """The tables as plain lists for lookups in plain Python: per joint (first grid point,
+        spacing, stroke column, dx/dq column), and the index of the last interval."""
+        return ([(self._q0[i], self._h[i], self._x[i], self._d[i]) for i in range(self.n)],
+                self._last - 1)
+
     def batch(self, q):
         """(x, dx/dq) for configurations (N, n) (inside the limits: clamped tables)."""
         q = np.atleast_2d(q)

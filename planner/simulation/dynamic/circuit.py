@@ -34,7 +34,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,15 +43,16 @@ from planner.model.valves import valve_params
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["Circuit", "root"]
+__all__ = ["Circuit", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING", "STOP_RAMP",
+           "STOP_SOFT"]
 
-_DP_REG = 2.0e4          # [Pa] orifice laminar region
-_STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)
-_STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
-_STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
+DP_REG = 2.0e4          # [Pa] orifice laminar region
+STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)
+STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
+STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
 #                          a damping force that jumps on at contact stalls the Newton iteration
 #                          of a start on a stop)
-_STOP_SOFT = 1.0e-4      # [m] the stiffness, too, ramps in over this penetration (the force is
+STOP_SOFT = 1.0e-4      # [m] the stiffness, too, ramps in over this penetration (the force is
 #                          k·o²/(2·δ) below δ, k·(o − δ/2) beyond: its slope is continuous at
 #                          contact; a slope that jumps from 0 to k made the implicit integrator's
 #                          Newton iteration fail on a joint that starts exactly on its stop)
@@ -61,14 +61,14 @@ _STOP_SOFT = 1.0e-4      # [m] the stiffness, too, ramps in over this penetratio
 def _stop_spring(over):
     """Penetration -> spring part of the end-stop force / stiffness (C¹ at contact)."""
     o = np.abs(over)
-    return np.sign(over) * np.where(o < _STOP_SOFT, o * o / (2.0 * _STOP_SOFT),
-                                    o - 0.5 * _STOP_SOFT)
+    return np.sign(over) * np.where(o < STOP_SOFT, o * o / (2.0 * STOP_SOFT),
+                                    o - 0.5 * STOP_SOFT)
 
 
 def root(dp):
     """Signed, regularised square root √|Δp|·sign(Δp) [√Pa] (linear within ±0.2 bar)."""
     dp = np.asarray(dp, float)
-    return dp / np.sqrt(np.sqrt(dp * dp + _DP_REG ** 2))
+    return dp / np.sqrt(np.sqrt(dp * dp + DP_REG ** 2))
 
 
 @dataclass
@@ -165,9 +165,9 @@ class Circuit:
     def stop_force(self, x, xd):
         """End-stop force (..., n) pushing back into [x_lo, x_hi] (cylinders and racks)."""
         over = np.maximum(x - self.x_hi, 0.0) - np.maximum(self.x_lo - x, 0.0)
-        k = _STOP_STIFFNESS * np.where(self.motor, 0.0, 1.0)
-        ramp = np.minimum(np.abs(over) / _STOP_RAMP, 1.0)
-        return -k * _stop_spring(over) - _STOP_DAMPING * k * ramp * xd
+        k = STOP_STIFFNESS * np.where(self.motor, 0.0, 1.0)
+        ramp = np.minimum(np.abs(over) / STOP_RAMP, 1.0)
+        return -k * _stop_spring(over) - STOP_DAMPING * k * ramp * xd
 
     def force(self, p_a, p_b, x, xd):
         """Net actuator force [N | N·m] along +x."""
@@ -227,7 +227,7 @@ class Circuit:
         flow at 10 bar under tank; zero at and above tank, with a continuous slope: d²/(d + 0.2
         bar) for d = tank − p > 0)."""
         d = np.maximum(self.p_tank - np.asarray(p, float), 0.0)
-        return self.gain / 1e6 * d * d / (d + _DP_REG)
+        return self.gain / 1e6 * d * d / (d + DP_REG)
 
     # ------------------------------------------------------------------ the ODE
     def rhs(self, p_a, p_b, p_s, o, x, xd):
@@ -252,91 +252,3 @@ class Circuit:
         p_b = np.where(F >= 0, pt, (self.area_a * pt - F) / self.area_b)
         p_a = np.where(self.single, pt + np.maximum(F, 0) / self.area_a, p_a)
         return p_a, np.where(self.single, pt, p_b)
-
-    # ------------------------------------------------------------------ scalar fast path
-    def scalar_functions(self):
-        """(force, rhs): plain-Python versions of :meth:`force` and :meth:`rhs` for one state
-        (lists of n floats; the pump pressure a float) — the integrator calls them thousands of
-        times per simulated second, where numpy's per-call overhead on 4-vectors dominates.
-        tests/test_exudyn.py checks them against the batched numpy definitions."""
-        n = self.n
-        L = {k: [float(v) for v in getattr(self, k)] for k in (
-            "area_a", "area_b", "x_lo", "x_hi", "hose_a", "hose_b", "gain", "k_out_a",
-            "k_out_b", "coulomb", "viscous", "v_smooth", "leak")}
-        single = [bool(v) for v in self.single]
-        motor = [bool(v) for v in self.motor]
-        Aa, Ab, lo, hi = L["area_a"], L["area_b"], L["x_lo"], L["x_hi"]
-        pt, dpc, beta = self.p_tank, self.dp_c, self.beta
-        sdpc = math.sqrt(dpc)
-        reg2 = _DP_REG ** 2
-        dpo = self.dp_out
-        sdpo = math.sqrt(dpo)
-        ls = self.pump_kind == "load_sensing"
-        qmax, vpump, taup = self.q_max, self.v_pump, self.tau_pump
-
-        def rt(dp):
-            return dp / math.sqrt(math.sqrt(dp * dp + reg2))
-
-        def force(pa, pb, x, xd):
-            out = []
-            for i in range(n):
-                pbi = pt if single[i] else pb[i]
-                F = (pa[i] * Aa[i] - pbi * Ab[i] - L["coulomb"][i] * math.tanh(
-                    xd[i] / L["v_smooth"][i]) - L["viscous"][i] * xd[i])
-                if not motor[i]:
-                    over = max(x[i] - hi[i], 0.0) - max(lo[i] - x[i], 0.0)
-                    if over != 0.0:
-                        o = abs(over)
-                        spring = (o * o / (2.0 * _STOP_SOFT) if o < _STOP_SOFT
-                                  else o - 0.5 * _STOP_SOFT)
-                        F -= _STOP_STIFFNESS * (math.copysign(spring, over) + _STOP_DAMPING
-                                                * min(o / _STOP_RAMP, 1.0) * xd[i])
-                out.append(F)
-            return out
-
-        def rhs(pa, pb, ps, o, x, xd):
-            dpa, dpb = [0.0] * n, [0.0] * n
-            qsum, pl_max = 0.0, 0.0
-            for i in range(n):
-                oi = o[i]
-                ext = oi > 0
-                mag = abs(oi)
-                p_in, p_out = (pa[i], pb[i]) if ext else (pb[i], pa[i])
-                if single[i] and not ext:
-                    q_in = 0.0
-                    q_out = L["gain"][i] * mag * rt(min(max(pa[i] - pt, 0.0), dpc)) / sdpc
-                else:
-                    q_in = L["gain"][i] * mag * rt(min(max(ps - p_in, 0.0), dpc)) / sdpc
-                    k_out = L["k_out_b"][i] if ext else L["k_out_a"][i]
-                    q_out = 0.0 if single[i] else k_out * mag * rt(min(p_out - pt, dpo)) / sdpo
-                    if mag > 1e-6 and p_in > pl_max:
-                        pl_max = p_in
-                qa, qb = (q_in, -q_out) if ext else (-q_out, q_in)
-                if single[i]:
-                    qb = 0.0
-                xc = min(max(x[i], lo[i]), hi[i])
-                va = L["hose_a"][i] + (0.0 if motor[i] else Aa[i] * (xc - lo[i]))
-                vb = L["hose_b"][i] + (0.0 if motor[i] else Ab[i] * (hi[i] - xc))
-                la = lb = 0.0
-                if L["leak"][i]:
-                    if pa[i] * Aa[i] >= pb[i] * Ab[i]:
-                        la = L["leak"][i] * max(pa[i] - pt, 0.0)
-                    elif not single[i]:
-                        lb = L["leak"][i] * max(pb[i] - pt, 0.0)
-                mk = L["gain"][i] / 1e6
-                da = max(pt - pa[i], 0.0)
-                dpa[i] = beta / va * (qa - Aa[i] * xd[i] - la + mk * da * da / (da + _DP_REG))
-                if not single[i]:
-                    db = max(pt - pb[i], 0.0)
-                    dpb[i] = beta / vb * (qb + Ab[i] * xd[i] - lb
-                                          + mk * db * db / (db + _DP_REG))
-                qsum += q_in
-            if ls:
-                pset = min(max(self.standby, pl_max + self.margin if pl_max > 0 else 0.0),
-                           self.p_relief)
-            else:
-                pset = self.p_set_const
-            dps = (pset - ps) / taup - beta / vpump * max(qsum - qmax, 0.0)
-            return dpa, dpb, dps
-
-        return force, rhs

@@ -14,7 +14,9 @@ pressure dynamics, driven open loop by valve commands.
   cylinder pins, deflection levers, the telescope's chain ratio, a motor's gear, a rack's
   pinion radius). The chamber pressures and the pump pressure are Exudyn ``NodeGenericODE1``
   coordinates of an ``ObjectGenericODE1`` whose right-hand side is the circuit, integrated
-  implicitly together with the multibody (generalised-α, Newton).
+  implicitly together with the multibody (generalised-α, Newton on the Jacobian of the whole
+  residual, so that it sees the coupling both ways). Both user functions read one evaluation
+  of the state's physics (:mod:`planner.simulation.dynamic.fastpath`).
 * **Valves**: the commands (after the commands-stage effects: delay, spool lag) drive the
   spools through a first-order lag (``spool_time_constant``), updated exactly once per step.
 
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from bisect import bisect_right
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -36,6 +39,7 @@ from planner.model.commands import held_commands
 from planner.model.effects.hooks import PENDULUM_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import Circuit
+from planner.simulation.dynamic.fastpath import state_function
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
 from planner.simulation.dynamic.interrupt import DeferredInterrupt
 from planner.simulation.plants import BasePlant, PlantDiverged, PlantRecord
@@ -168,33 +172,38 @@ class ExudynPlant(BasePlant):
         hnode = mbs.AddNode(NodeGenericODE1(referenceCoordinates=[0.0] * (2 * n + 1),
                                             initialCoordinates=list(map(float, p0)),
                                             numberOfODE1Coordinates=2 * n + 1))
-        C, S = self.circuit, self.strokes
         coords = exu.OutputVariableType.Coordinates
         coords_t = exu.OutputVariableType.Coordinates_t
         state = self._state
+        evaluate = state_function(self.circuit, self.strokes)
+        # both halves of the coupled system at one state in one evaluation: the engine asks
+        # for the joint forces and for the pressure rates at the same state (each residual,
+        # each Jacobian column), so the second callback finds the first one's result
+        last = state["last"] = [None, None, None, None, None]
 
-        f_force, f_rhs = C.scalar_functions()
-        n2 = 2 * n
+        def both(q, qd, p):
+            # evaluate subtracts an effect's extra force: a load the actuator works against
+            # (as in the quasi-static plant, where the actuator must supply it)
+            tau, pdot = evaluate(q, qd, p, state["o"], state["extra"])
+            if m > n:                   # the grapple's pins: damped
+                tau += [-c_pin * w for w in qd[n:]]
+            last[:] = q, qd, p, tau, pdot
+            return tau, pdot
 
         def force(mbs_, t, item, q, q_t):
             p = mbs_.GetNodeOutput(hnode, coords).tolist()
-            x, d = S(_aslist(q))
-            q_t = _aslist(q_t)
-            xd = [d[i] * q_t[i] for i in range(n)]
-            F = f_force(p[:n], p[n:n2], x, xd)
-            fx = state["extra"]
-            # an effect's extra force is a load the actuator works against (as in the
-            # quasi-static plant, where the actuator must supply it)
-            return [d[i] * (F[i] - fx[i]) for i in range(n)] + [-c_pin * w for w in q_t[n:]]
+            q, q_t = _aslist(q), _aslist(q_t)
+            if p == last[2] and q == last[0] and q_t == last[1]:
+                return last[3]
+            return both(q, q_t, p)[0]
 
         def rhs(mbs_, t, item, p):
             q = mbs_.GetNodeOutput(node, coords).tolist()
             qd = mbs_.GetNodeOutput(node, coords_t).tolist()
-            x, d = S(q)
             p = _aslist(p)
-            dpa, dpb, dps = f_rhs(p[:n], p[n:n2], p[n2], state["o"], x,
-                                  [d[i] * qd[i] for i in range(n)])
-            return dpa + dpb + [dps]
+            if p == last[2] and q == last[0] and qd == last[1]:
+                return last[4]
+            return both(q, qd, p)[1]
 
         tree = mbs.AddObject(ObjectKinematicTree(
             nodeNumber=node, jointTypes=[jt[k] for k in T["types"]],
@@ -280,7 +289,7 @@ class ExudynPlant(BasePlant):
         rec["q"], rec["qd"] = np.full((K + 1, m), np.nan), np.full((K + 1, m), np.nan)
         rec["t"] = t0 + h * np.arange(K + 1)
         rec["p_s"] = np.full(K + 1, np.nan)
-        spool = np.zeros(n)
+        spool = [0.0] * n
         decay = math.exp(-h / self.dyn.spool_time_constant)
         span = L["q_max"] - L["q_min"]
         p_cap = 10.0 * min(C.p_relief, 1e8)
@@ -296,8 +305,16 @@ class ExudynPlant(BasePlant):
             rec["p_a"][k], rec["p_b"][k], rec["p_s"][k] = p[:n], p[n:2 * n], p[2 * n]
             return q[:n], qd[:n], p
 
+        # the per-step checks and the spool in plain Python on lists (numpy's per-call
+        # overhead on n-vectors would cost more than the step's physics)
+        t_list, u_list, u_rows = t_u.tolist(), u_valves.tolist(), u
+        q_low = (L["q_min"] - 0.2 * span).tolist()
+        q_high = (L["q_max"] + 0.2 * span).tolist()
+        deadband = C.deadband.tolist()
+        isfinite = math.isfinite
+        cache = state["last"]
+
         def pre_step(mbs_, t):
-            nonlocal spool
             if stop is not None and stop.requested:     # Ctrl-C (see integrate)
                 return False
             # the engine passes the time at the end of the coming step; the state is the
@@ -307,22 +324,22 @@ class ExudynPlant(BasePlant):
                 return True
             t = t0 + k * h
             q, qd, p = record(k)
-            j = max(int(np.searchsorted(t_u, t + 1e-9 * h, side="right")) - 1, 0)
+            j = max(bisect_right(t_list, t + 1e-9 * h) - 1, 0)
             if controller is not None and state.get("j") != j:
                 state["j"] = j
                 state["u"] = np.asarray(controller(t, np.array(q), np.array(qd),
                                                    np.array(p[:n]), np.array(p[n:2 * n])),
                                         float).reshape(n)
-            cmd = u_valves[j] if controller is None else state["u"]
-            rec["u"][k] = u[j] if controller is None else cmd
+            cmd = u_list[j] if controller is None else state["u"].tolist()
+            rec["u"][k] = u_rows[j] if controller is None else cmd
             rec["spool"][k] = spool
+            ql, pl = q[:n].tolist(), p.tolist()
             bad = None
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
-                    and np.all(np.isfinite(p)) and np.all(np.isfinite(cmd))):
+            if not all(map(isfinite, ql + qd[:n].tolist() + pl + cmd)):
                 bad = "non-finite state"
-            elif np.max(np.abs(p)) > p_cap:
-                bad = f"pressure {np.max(np.abs(p)):.3g} Pa above 10× relief"
-            elif np.any(q < L["q_min"] - 0.2 * span) or np.any(q > L["q_max"] + 0.2 * span):
+            elif max(map(abs, pl)) > p_cap:
+                bad = f"pressure {max(map(abs, pl)):.3g} Pa above 10× relief"
+            elif any(a < lo or a > hi for a, lo, hi in zip(ql, q_low, q_high)):
                 bad = "a joint left its range by more than 20 %"
             elif _time.perf_counter() - wall0 > max_wall_s:
                 fail.update(status="timeout", t=t, reason=f"wall time above {max_wall_s:g} s")
@@ -330,12 +347,20 @@ class ExudynPlant(BasePlant):
             if bad:
                 fail.update(status="diverged", t=t, reason=bad, checked=True)
                 return False
-            # spool: first-order lag towards the held (delayed, lagged) command, exact step
-            target = np.clip(cmd, -1.0, 1.0)
-            spool = target + (spool - target) * decay
-            state["o"] = C.opening(spool).tolist()
+            # spool: first-order lag towards the held (delayed, lagged) command, exact step;
+            # the opening without the dead band (Circuit.opening)
+            o = []
+            for i in range(n):
+                c = -1.0 if cmd[i] < -1.0 else (1.0 if cmd[i] > 1.0 else cmd[i])
+                spool[i] = c + (spool[i] - c) * decay
+                v = -1.0 if spool[i] < -1.0 else (1.0 if spool[i] > 1.0 else spool[i])
+                w = abs(v) - deadband[i]
+                o.append(0.0 if w <= 0.0 or v == 0.0 else
+                         math.copysign(w / (1.0 - deadband[i]), v))
+            state["o"] = o
             if self.extra_forces:
                 state["extra"] = self._extra_force(t, q, qd, p, k).tolist()
+            cache[2] = None         # the inputs changed: no evaluation of the last step holds
             return True
 
         mbs.SetPreStepUserFunction(pre_step)
@@ -350,6 +375,13 @@ class ExudynPlant(BasePlant):
         ti.newton.relativeTolerance = 1e-8
         ti.newton.absoluteTolerance = 1e-6
         ti.newton.numericalDifferentiation.minimumCoordinateSize = 1
+        # the Jacobian of the whole residual (joints and pressures together): the engine's
+        # per-object Jacobians miss the coupling (pressures -> joint forces, joint motion ->
+        # pressure rates), which left Newton converging linearly (6.5 iterations per step on
+        # bench_exudyn_speed's recording instead of 3.3); it is kept over steps and renewed
+        # when an iteration shrinks the error by less than 5×
+        ti.newton.numericalDifferentiation.doSystemWideDifferentiation = True
+        ti.newton.modifiedNewtonContractivity = 0.2
         ti.generalizedAlpha.spectralRadius = spectral_radius
         s.solution.file.write = False
         exu.SetWriteToConsole(False)    # the engine's banners would corrupt --json -

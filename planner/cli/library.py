@@ -115,11 +115,20 @@ def cmd_library_build(args):
     note_created(created)
     # the unified keys beside the old ones (docs/json-keys.md)
     summary.update(crane_id=summary["crane"], solve_time_s=summary["seconds"])
+    if args.feedforward == "twin":   # every entry's commands refined on the twin, in the build
+        from planner.cli.refine import build_refine
+        code = build_refine(args, summary)
+        if code:
+            return code
     emit(args, summary)
     if not args.json:
         print(f"{summary['library']}: planned {summary['planned']} entries "
               f"({summary['statuses'] or 'none'}), {summary['skipped_existing']} already there, "
               f"{summary['seconds']:.1f} s")
+        if "refine" in summary:
+            r = summary["refine"]
+            print(f"  refined on the twin: {r['refined']} entries ({r['statuses'] or 'none'}), "
+                  f"{r['skipped_existing']} already refined, {r['seconds']:.1f} s")
         ws = summary.get("workers") or []
         if ws and summary.get("planned"):
             setup = "/".join(f"{w['setup_s']:.1f}" for w in ws)
@@ -330,6 +339,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--method", type=method_arg, default="nlp",
                    help="registered planning method of every entry (nlp); see plan --help")
     p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
+    p.add_argument("--feedforward", choices=("nominal", "twin"), default="nominal",
+                   help="twin: refine every entry's commands on the dynamic twin after planning "
+                        "(as `library refine` does; resumable the same way)")
     p.add_argument("--compile", action="store_true",
                    help="build the method's solvers once in this process and store them compiled "
                         "in the per-user cache before the workers start (they load them instead "

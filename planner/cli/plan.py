@@ -101,7 +101,8 @@ def cmd_plan(args):
                lower_bound_s=bound, lower_bounds=lb.as_dict(),
                optimality_gap=ev.duration / bound - 1.0 if args.objective == "time" and bound > 0
                else None)
-    write_outputs(args, crane, res, ev, walls, out)
+    refined = _twin_feedforward(args, crane, res.trajectory, out)
+    write_outputs(args, crane, res, ev, walls, out, refined)
     emit(args, out)
     if not args.json:
         loose = {k: v for k, v in ev.violations.items() if k not in checked and v > 1e-3}
@@ -156,15 +157,45 @@ def check_animation(args) -> None:
         raise CLIError(f"--fps {args.fps:g}: allowed 0 < fps <= {MAX_FPS:g}") from None
 
 
-def write_outputs(args, crane: Crane, res, ev, walls, out: dict) -> None:
+def _twin_feedforward(args, crane: Crane, traj, out: dict):
+    """``--feedforward twin``: the plan's 50 Hz commands refined on the dynamic twin
+    (:func:`planner.refine.refine_commands`); its provenance and predicted landing go into
+    ``out["feedforward"]``. None for the nominal feed-forward."""
+    if args.feedforward != "twin":
+        out["feedforward"] = dict(commands="nominal")
+        return None
+    if args.out_rate is not None and abs(args.out_rate - CONTROL_RATE_HZ) > 1e-9:
+        raise CLIError(f"--out-rate {args.out_rate:g}: refined commands are computed on the "
+                       f"{CONTROL_RATE_HZ:g} Hz control grid; leave --out-rate out or give "
+                       f"{CONTROL_RATE_HZ:g}")
+    if crane.spec.dynamics is None:
+        raise CLIError(f"--feedforward twin: crane '{crane.spec.id}' has no [dynamics] section "
+                       "(the twin needs bulk modulus, hose volumes, …)")
+    from planner.feedforward import commands
+    from planner.refine import refine_commands
+    ff = commands(crane, traj, CONTROL_RATE_HZ)
+    r = refine_commands(crane, traj, ff.t, ff.u)
+    out["feedforward"] = dict(commands="refined" if r.status == "improved" else "nominal",
+                              **r.info())
+    return r if r.status == "improved" else None
+
+
+def write_outputs(args, crane: Crane, res, ev, walls, out: dict, refined=None) -> None:
     """``--out`` (trajectory CSV, fixed-rate controller CSV, or a one-entry database) and
-    ``--plot`` (figure; format from the suffix). Adds the written names to ``out``."""
+    ``--plot`` (figure; format from the suffix). Adds the written names to ``out``. With
+    ``refined`` (a :class:`~planner.refine.Refinement`): a CSV carries the refined commands on
+    their grid, a database keeps them beside the nominal ones."""
     from planner.io import missing_dirs
     traj = res.trajectory
     path = str(args.out or "")
     note_created(d for p in (args.out, args.plot, args.animate) if p
                  for d in missing_dirs(p))
-    if path.lower().endswith(".csv"):
+    if path.lower().endswith(".csv") and refined is not None:
+        from planner.feedforward import on_command_grid
+        from planner.library.export import write_trajectory_csv  # h5py: only when needed
+        write_trajectory_csv(path, crane, on_command_grid(traj, refined.t_u, refined.u),
+                             units_row=args.units_row)
+    elif path.lower().endswith(".csv"):
         if args.out_rate is None and not args.units_row:
             traj.to_csv(path)  # the method's own samples (CONTRACT: trajectory CSV)
         else:
@@ -189,6 +220,11 @@ def write_outputs(args, crane: Crane, res, ev, walls, out: dict) -> None:
                            evaluation=ev if stored is traj else evaluate(crane, stored),
                            attrs=dict(solve_time_s=out["solve_time_s"], path=out["path"],
                                       source="crane-planner plan"))
+        if refined is not None:
+            from planner.library.refined import write_refined
+            from planner.library.store import LibraryStore
+            with LibraryStore.open(path, "a") as db:
+                write_refined(db, entry, refined.t_u, refined.u, refined.info())
         out["entry"] = entry
     if args.animate:
         from planner.animate import animate  # matplotlib: only to draw
@@ -252,6 +288,10 @@ def add_parsers(sub) -> None:
                    help="NLP obstacle: a vertical wall (e.g. the bunk headboard) at distance r "
                         "from the slew axis, kept clear by `clear` m (0.3); repeatable")
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
+    p.add_argument("--feedforward", choices=("nominal", "twin"), default="nominal",
+                   help="valve commands: nominal (the quasi-static inverse, default) or twin "
+                        "(refined on the dynamic twin so that the machine lands: --out keeps "
+                        "them, the JSON reports the predicted landing)")
     p.add_argument("--out", metavar="FILE.csv|FILE.h5", type=output_arg,
                    help="write the trajectory CSV, or a one-entry database (.h5; read it back "
                         "as FILE.h5 or FILE.h5#plan:OBJECTIVE)")

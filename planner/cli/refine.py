@@ -49,6 +49,27 @@ def cmd_library_refine(args):
     return 0
 
 
+def build_refine(args, summary: dict) -> int:
+    """``library build --feedforward twin``: refine the built library's entries (same workers
+    or scheduler); the refine summary goes into the build's as ``refine``. Returns an exit
+    code (0, or the signal's when interrupted: the rerun resumes both)."""
+    from planner.library.refine import refine_library
+    from planner.library.workers import Interrupted
+    try:
+        summary["refine"] = refine_library(args.out, workers=args.workers,
+                                           scheduler=args.scheduler,
+                                           show_progress=not (args.json == "-"))
+    except Interrupted as e:
+        s = getattr(e, "summary", None) or {}
+        summary["refine"] = s
+        emit(args, summary)
+        print(f"crane-planner: interrupted ({s.get('signal', e)}) while refining: "
+              f"{s.get('refined', 0)} entries refined in {args.out}; rerun the same command to "
+              "resume", file=sys.stderr)
+        return e.exit_code
+    return 0
+
+
 def _rerun(args) -> str:
     words = ["crane-planner", "library", "refine", args.library, "--workers", str(args.workers),
              "--iterations", str(args.iterations), "--tail", str(args.tail)]

@@ -212,3 +212,27 @@ def test_export_carries_the_refined_commands(lib, tmp_path, crane):
     assert "u_refined" not in e["m1:time"]
     with pytest.raises(ValueError, match="no refined commands"):
         export(path, tmp_path / "r", "csv", commands="refined")
+
+
+@pytest.mark.slow   # a whole-process plan and a 150-iteration refinement (~20 s quiet)
+def test_plan_with_the_twin_feedforward_keeps_both_commands(tmp_path):
+    """`plan --feedforward twin`: the JSON says the commands are refined and predicts a better
+    landing than the nominal ones; the one-entry database keeps both, and a replay takes the
+    refined ones by default."""
+    out = tmp_path / "p.h5"
+    r = _cli("plan", MACHINE, "--start", "1.2,0.5,0", "--goal", "1.8,0.8,20deg", "--method",
+             "ruckig", "--feedforward", "twin", "--out", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    ff = d["feedforward"]
+    assert ff["commands"] == "refined" and ff["model"]["model"] == "twin"
+    assert ff["predicted"]["refined"]["rest_offset_m"] < ff["predicted"]["nominal"][
+        "rest_offset_m"]
+    with LibraryStore.open(out) as db:
+        assert read_refined(db, "plan:time") is not None
+        assert stored_commands(db.trajectory("plan:time")) is not None
+    r = _cli("plan", MACHINE, "--start", "1.2,0.5,0", "--goal", "1.8,0.8,20deg", "--method",
+             "ruckig", "--feedforward", "twin", "--out-rate", "100", "--out",
+             str(tmp_path / "p.csv"))
+    assert r.returncode == 2 and "--out-rate 100" in r.stderr
+    assert not (tmp_path / "p.csv").exists()

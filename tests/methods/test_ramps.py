@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import ruckig
 
+from tests.methods.test_bounds import ruckig_duration as ruckig_1dof  # the oracle
 from planner import Crane
 from planner.bounds import lower_bound, rest_to_rest_time
 from planner.bounds.profiles import from_rest_distance
@@ -20,18 +21,6 @@ def with_pump(crane, max_flow, **changes):
     s = crane.spec
     return Crane(dataclasses.replace(s, pump=dataclasses.replace(s.pump, max_flow=max_flow),
                                      **changes))
-
-
-def ruckig_1dof(d, v, a, j):
-    """Ruckig's time-optimal rest-to-rest duration of one joint (an independent oracle)."""
-    inp = ruckig.InputParameter(1)
-    inp.current_position, inp.target_position = [0.0], [d]
-    inp.current_velocity = inp.current_acceleration = [0.0]
-    inp.target_velocity = inp.target_acceleration = [0.0]
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v], [a], [j]
-    tr = ruckig.Trajectory(1)
-    ruckig.Ruckig(1).calculate(inp, tr)
-    return tr.duration
 
 
 @pytest.fixture(scope="module")

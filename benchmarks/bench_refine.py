@@ -50,6 +50,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--library", required=True)
     ap.add_argument("--every", type=int, default=1, help="every K-th ok entry (1: all)")
+    ap.add_argument("--offset", type=int, default=0, help="starting at this ok entry (0)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--iterations", type=int, default=RefineOptions().iterations)
     ap.add_argument("--settle", type=float, default=3.0)
@@ -62,7 +63,7 @@ def main():
     with LibraryStore.open(lib) as db:
         ok = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
         crane_id = db.crane_id
-    ids = ok[::a.every]
+    ids = ok[a.offset::a.every]
     # refine only the selected entries: a library holding just them
     sel = Path(tmp.name) / "sel.h5"
     with LibraryStore.open(lib) as src, LibraryStore.create(sel, _spec(src)) as dst:
@@ -93,7 +94,7 @@ def main():
     rep = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
                platform=platform.platform(), cpus=os.cpu_count(), load=os.getloadavg(),
                argv=" ".join(sys.argv[1:]), crane=crane_id, library_entries=len(ok),
-               selected=len(ids), every=a.every, options=opts.__dict__, settle=a.settle,
+               selected=len(ids), every=a.every, offset=a.offset, options=opts.__dict__, settle=a.settle,
                refine=dict(summary, wall_s=refine_wall, workers=a.workers), infos=infos, runs=runs)
     out = Path(a.out)
     atomic_write_text(out / f"refine_{a.tag}.json", json.dumps(rep, indent=1, default=str))
@@ -108,6 +109,13 @@ def _spec(store):
     return parse_spec(tomllib.loads(store.spec_toml), "<library spec>", store.spec_toml)
 
 
+def _objectives(rep) -> str:
+    c = {}
+    for r in rep["runs"]["nominal"]["rows"]:
+        c[r.get("objective")] = c.get(r.get("objective"), 0) + 1
+    return ", ".join(f"{k} {v}" for k, v in sorted(c.items(), key=str))
+
+
 def landed(r) -> bool:
     e = r.get("exudyn") or {}
     return (r.get("status") == "ok" and e.get("offset_m", 1) <= TOL
@@ -120,7 +128,8 @@ def markdown(rep) -> str:
          f"{rep['load'][0]:.1f} {rep['load'][1]:.1f} {rep['load'][2]:.1f}. "
          f"`python benchmarks/bench_refine.py {rep['argv']}`.", "",
          f"Entries: {rep['selected']} of the library's {rep['library_entries']} ok entries "
-         f"(every {rep['every']}-th, in the file's order). Refined by `library refine` on the "
+         f"(every {rep['every']}-th from entry {rep.get('offset', 0)}, in the file's order; "
+         f"objectives {_objectives(rep)}). Refined by `library refine` on the "
          f"twin of the library's own spec (options {rep['options']}); each entry replayed "
          f"open loop on the **Exudyn plant** (the judge; same spec parameters) with its "
          f"nominal and its refined commands, valves closed {rep['settle']:g} s after the last "

@@ -12,12 +12,13 @@
    each entry are replayed on every machine (and on the spec's own machine, the reference).
 2. **A work cycle.** Entries that chain (each one's start joints = the previous one's goal
    joints, within 1e-6) are replayed back to back as ONE Exudyn recording on the spec's
-   machine: each move starts from whatever the previous one left (trapped pressures, residual
-   motion), the refined commands with their tails on one clock (the next move starts when the
-   previous one's commands end), and separately the nominal ones. Per move: the rest offset
-   just before the next move starts (mean tip position over the last ``gap`` s before it,
-   from the goal) and the ringing (largest tip distance from that rest point between the
-   plan's end and the next start).
+   machine (and on the first drawn one): each move starts from whatever the previous one left
+   (trapped pressures, residual motion), the refined commands with their tails on one clock
+   (the next move starts ``gap`` s, the grapple's work with the valves closed, after the later
+   of the plan's end and the end of the refined commands), and separately the nominal ones on
+   the same clock. Per move: the rest offset just before the next move starts (mean tip
+   position over the 1.5 s before it, from the goal) and the ringing (largest tip distance
+   from that rest point between the plan's end and the next start).
 
     python benchmarks/bench_refine_robust.py --library LIB.h5 --work DIR [--entries 20]
         [--machines 6] [--seed 0] [--workers 2] [--gap 3.0] [--subset 12]
@@ -260,8 +261,8 @@ def cycle_task(path: str, chain: list, which: str, machine: dict, gap: float) ->
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--library", required=True)
-    ap.add_argument("--work", required=True)
+    ap.add_argument("--library")
+    ap.add_argument("--work")
     ap.add_argument("--entries", type=int, default=20)
     ap.add_argument("--machines", type=int, default=6)
     ap.add_argument("--seed", type=int, default=0)
@@ -272,8 +273,16 @@ def main():
     ap.add_argument("--subset", type=int, default=12,
                     help="entries replayed on the machines without a cycle (the first K)")
     ap.add_argument("--refine-only", action="store_true")
+    ap.add_argument("--markdown", metavar="JSON", help="only rewrite the .md from a results "
+                    "JSON")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     a = ap.parse_args()
+    if a.markdown:
+        rep = json.loads(Path(a.markdown).read_text())
+        atomic_write_text(Path(a.out) / "refine_robust.md", markdown(rep))
+        return
+    if not (a.library and a.work):
+        ap.error("--library and --work are required (unless --markdown)")
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
     sel, chain = selection(a.library, work, a.entries)
@@ -336,6 +345,16 @@ def _line(label, rows):
             f"| {len(rows) - len(ok)} |")
 
 
+def _refine_cost(rep) -> str:
+    inf = [i for i in rep["infos"].values() if i]
+    st = collections.Counter(i.get("status") for i in inf)
+    cpu = [i.get("cpu_s") for i in inf]
+    ln = [i.get("lengthened_s") for i in inf]
+    return (f"{len(inf)} of {len(rep['infos'])} refined, statuses {dict(st)}; CPU per entry "
+            f"median {_q(cpu, 50):.0f} s, p90 {_q(cpu, 90):.0f} s; lengthened past the plan's "
+            f"end median {_q(ln, 50):.2f} s, max {_q(ln, 100):.2f} s")
+
+
 def markdown(rep) -> str:
     head = ("| machine, commands | landed (rest ≤ 5 mm, ringing < 5 mm) | rest offset median / "
             "p90 / max [mm] | ringing median / p90 / max [mm] | tip error during the move "
@@ -347,10 +366,8 @@ def markdown(rep) -> str:
          f"Entries: the {len(rep['chain'])} time-optimal entries of `{Path(rep['library']).name}` "
          "that chain in joint space (each one starts at the previous one's goal joints): "
          f"{', '.join(rep['chain'])}. Refined once by `library refine` on the twin of the "
-         f"spec's **nominal** `[dynamics]` (options {rep['options']}; {rep['refine']['refined']} "
-         f"refined in {rep['refine']['wall_s']:.0f} s wall on {rep['workers']} workers, "
-         f"CPU per entry median {rep['refine']['cpu_per_entry_s']['median'] or float('nan'):.0f} "
-         "s). Judge: the Exudyn plant. Landing: rest offset (mean tip over the last 1.5 s, from "
+         f"spec's **nominal** `[dynamics]` (options {rep['options']}; {_refine_cost(rep)}). "
+         "Judge: the Exudyn plant. Landing: rest offset (mean tip over the last 1.5 s, from "
          f"the goal) ≤ 5 mm and ringing (largest tip distance from that rest point after the "
          f"plan's end) < 5 mm, valves closed {rep['settle']:g} s after the last command.", "",
          "## 1. Machines the twin was not told about", "",
@@ -422,16 +439,18 @@ def markdown(rep) -> str:
               f"least-squares slope of the rest offset over the move number "
               f"{1e3 * slope:+.2f} mm per move; median offset of the first {half} moves "
               f"{1e3 * np.median(off[:half]):.1f} mm, of the last {len(off) - half} "
-              f"{1e3 * np.median(off[half:]):.1f} mm; largest joint offset at rest "
-              f"{', '.join(f'{n} {v:.4f}' for n, v in zip(('slew', 'boom', 'jib', 'tele'), np.abs(jo).max(axis=0)))} "
+              f"{1e3 * np.median(off[half:]):.1f} mm; largest |joint offset| at rest (joints in "
+              "spec order) "
+              f"{', '.join(f'{v:.4f}' for v in np.abs(jo).max(axis=0))} "
               "(rad | m).", "",
               "| # | entry | starts at s | rest offset [mm] (alone) | ringing [mm] (alone) | "
               "tip error during the move [mm] | joint offset at rest |",
               "| ---: | --- | ---: | --- | --- | ---: | --- |"]
         for j, (r, o) in enumerate(zip(cr, one)):
+            nan = float("nan")
             L.append(f"| {j + 1} | {r['id']} | {r['start_s']:.1f} | {1e3 * r['offset_m']:.1f} "
-                     f"({1e3 * (o.get('offset_m') or float('nan')):.1f}) | "
-                     f"{1e3 * r['peak_osc_m']:.1f} ({1e3 * (o.get('peak_osc_m') or float('nan')):.1f}) "
+                     f"({1e3 * (o.get('offset_m') or nan):.1f}) | {1e3 * r['peak_osc_m']:.1f} "
+                     f"({1e3 * (o.get('peak_osc_m') or nan):.1f}) "
                      f"| {1e3 * r['max_track_m']:.0f} | "
                      f"{' '.join(f'{v:+.4f}' for v in r['joint_offset'])} |")
         L.append("")

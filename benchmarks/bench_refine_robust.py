@@ -240,6 +240,7 @@ def cycle_task(path: str, chain: list, which: str, machine: dict, gap: float) ->
         step = max(int(round(1.0 / RATE / run.meta["step"])), 1)
         t, q = run.t[::step], run.q[::step]
         tip = crane.fk(q)
+        jo_prev = np.zeros(crane.n)
         for k, tr in enumerate(trajs):
             end, nxt = starts[k] + tr.duration, starts[k + 1]
             goal = crane.fk(tr.q[-1:])[0]
@@ -253,7 +254,12 @@ def cycle_task(path: str, chain: list, which: str, machine: dict, gap: float) ->
                 id=chain[k], start_s=starts[k], offset_m=float(np.linalg.norm(rest - goal)),
                 peak_osc_m=float(np.linalg.norm(tip[after] - rest, axis=1).max()),
                 max_track_m=float(np.linalg.norm(tip[during] - ref, axis=1).max()),
-                joint_offset=(q[w].mean(axis=0) - tr.q[-1]).tolist()))
+                joint_offset=(q[w].mean(axis=0) - tr.q[-1]).tolist(),
+                # the move's own part of the offset: its joint offset minus the one it
+                # started with (open loop, a start offset is carried through), at the tip
+                own_m=float(np.linalg.norm(
+                    crane.fk((q[w].mean(axis=0) - jo_prev)[None])[0] - goal))))
+            jo_prev = q[w].mean(axis=0) - tr.q[-1]
     return dict(commands=which, machine=machine["name"], status=run.status, reason=run.reason,
                 span_s=starts[-1], steps=run.meta.get("step"), rows=rows,
                 cpu_s=time.process_time() - t_c0)
@@ -272,6 +278,10 @@ def main():
     ap.add_argument("--gap", type=float, default=3.0)
     ap.add_argument("--subset", type=int, default=12,
                     help="entries replayed on the machines without a cycle (the first K)")
+    ap.add_argument("--subset-no-db", type=int, default=8,
+                    help="entries replayed on the drawn machines without their dead band")
+    ap.add_argument("--reuse", metavar="JSON", help="take the replays an earlier results "
+                    "JSON holds for the same machines and settle time")
     ap.add_argument("--refine-only", action="store_true")
     ap.add_argument("--markdown", metavar="JSON", help="only rewrite the .md from a results "
                     "JSON")
@@ -299,16 +309,32 @@ def main():
         from planner.library.refined import read_refined
         infos = {i: (read_refined(db, i) or (None, None, None))[2] for i in chain}
     machines = draw_machines(dyn, a.machines, a.seed, a.spread)
+    # the drawn machines once more without their dead band (on fewer entries): what the
+    # dead band alone costs
+    no_db = [dict(m, name=f"{m['name']}-no-db",
+                  joints={k: dict(j, deadband=None) for k, j in m["joints"].items()})
+             for m in machines[2:]]
     on_cycle = machines[:1] + machines[2:3]     # the spec's machine and the first drawn one
-    tasks = [(str(sel), i, w, m, a.settle) for m in machines
-             for i in (chain if m in on_cycle else chain[:a.subset])
+    tasks = [(str(sel), i, w, m, a.settle) for m in machines + no_db
+             for i in (chain if m in on_cycle else
+                       chain[:a.subset_no_db] if m in no_db else chain[:a.subset])
              for w in ("nominal", "refined")]
     cyc = [(str(sel), chain, w, m, a.gap) for m in on_cycle for w in ("nominal", "refined")]
+    old = {}
+    if a.reuse:     # rows of an earlier run on the very same machines, entries and commands
+        prev = json.loads(Path(a.reuse).read_text())
+        same = {m["name"] for m in prev["machines"] + prev.get("machines_no_db", [])
+                if m in machines + no_db}
+        old = {(r["machine"], r["id"], r["commands"]): r for r in prev["rows"]
+               if r["machine"] in same and prev["settle"] == a.settle}
+    rows = [old[(t[3]["name"], t[1], t[2])] for t in tasks if (t[3]["name"], t[1], t[2]) in old]
+    tasks = [t for t in tasks if (t[3]["name"], t[1], t[2]) not in old]
+    print(f"{len(rows)} replays reused, {len(tasks)} to run", flush=True)
     t1 = time.perf_counter()
     with WorkerPool(a.workers) as pool:
         cycles = list(pool.imap_unordered(cycle_task, cyc))
         print(f"cycles {time.perf_counter() - t1:.0f} s", flush=True)
-        rows = list(pool.imap_unordered(replay_task, tasks))
+        rows += list(pool.imap_unordered(replay_task, tasks))
     replay_wall = time.perf_counter() - t1
     print(f"replays {replay_wall:.0f} s", flush=True)
     rep = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -316,6 +342,7 @@ def main():
                argv=" ".join(sys.argv[1:]), library=str(a.library), chain=chain,
                seed=a.seed, spread=a.spread, subset=a.subset, settle=a.settle, gap=a.gap,
                options=opts.__dict__, refine=summary, infos=infos, machines=machines,
+               machines_no_db=no_db, subset_no_db=a.subset_no_db, reused=len(old) and a.reuse,
                rows=rows, cycles=cycles, replay_wall_s=replay_wall, workers=a.workers)
     out = Path(a.out)
     atomic_write_text(out / "refine_robust.json", json.dumps(rep, indent=1, default=str))
@@ -400,14 +427,21 @@ def markdown(rep) -> str:
                        for j in J.values()) + " |")
     L += ["", head, "| --- | ---: | --- | --- | --- | ---: |"]
     rows = rep["rows"]
-    for m in rep["machines"]:
+    for m in rep["machines"] + rep.get("machines_no_db", []):
         for w in ("nominal", "refined"):
             L.append(_line(f"{m['name']}, {w}",
                            [r for r in rows if r["machine"] == m["name"] and r["commands"] == w]))
     drawn = {m["name"] for m in rep["machines"][2:]}
+    no_db = {m["name"] for m in rep.get("machines_no_db", [])}
     for w in ("nominal", "refined"):
         L.append(_line(f"**all drawn machines, {w}**",
                        [r for r in rows if r["machine"] in drawn and r["commands"] == w]))
+    for w in ("nominal", "refined"):
+        L.append(_line(f"**all drawn machines without their dead band, {w}**",
+                       [r for r in rows if r["machine"] in no_db and r["commands"] == w]))
+    if no_db:
+        L += ["", f"`mK-no-db`: machine mK with the spec's dead band (0) instead of its drawn "
+              f"one, on the first {rep['subset_no_db']} entries."]
     L += ["", "## 2. A work cycle: the chain back to back as one recording", "",
           f"The {len(rep['chain'])} moves on one clock, each starting from the state the previous "
           f"one left; move k+1 starts {rep['gap']:g} s (valves closed: the grapple's work) after "
@@ -427,13 +461,19 @@ def markdown(rep) -> str:
             continue
         one = [single.get((c["machine"], c["commands"], r["id"]), {}) for r in cr]
         n_c, n_s = sum(map(_landed, cr)), sum(map(_landed, one))
+        own = [dict(r, offset_m=r["own_m"]) for r in cr if "own_m" in r]
+        n_o = sum(map(_landed, own))
         off = np.array([r["offset_m"] for r in cr])
         k = np.arange(len(off))
         slope = float(np.polyfit(k, off, 1)[0])
         jo = np.array([r["joint_offset"] for r in cr])
         half = len(off) // 2
         L += [f"Landed in the cycle {n_c} of {len(cr)} ({100 * n_c / len(cr):.0f} %), alone "
-              f"{n_s} of {len(one)} ({100 * n_s / max(len(one), 1):.0f} %). Rest offset "
+              f"{n_s} of {len(one)} ({100 * n_s / max(len(one), 1):.0f} %); counting only "
+              f"each move's own part of the offset (its joint offset at rest minus the one it "
+              f"started with, at the tip) {n_o} of {len(own)} "
+              f"({100 * n_o / max(len(own), 1):.0f} %), own part median / p90 / max "
+              f"{_dist(own, 'offset_m')} mm. Rest offset "
               f"median / p90 / max {_dist(cr, 'offset_m')} mm (alone {_dist(one, 'offset_m')}); "
               f"ringing {_dist(cr, 'peak_osc_m')} mm (alone {_dist(one, 'peak_osc_m')}). Drift: "
               f"least-squares slope of the rest offset over the move number "
@@ -443,13 +483,14 @@ def markdown(rep) -> str:
               "spec order) "
               f"{', '.join(f'{v:.4f}' for v in np.abs(jo).max(axis=0))} "
               "(rad | m).", "",
-              "| # | entry | starts at s | rest offset [mm] (alone) | ringing [mm] (alone) | "
-              "tip error during the move [mm] | joint offset at rest |",
-              "| ---: | --- | ---: | --- | --- | ---: | --- |"]
+              "| # | entry | starts at s | rest offset [mm] (alone) | its own part [mm] | "
+              "ringing [mm] (alone) | tip error during the move [mm] | joint offset at rest |",
+              "| ---: | --- | ---: | --- | ---: | --- | ---: | --- |"]
         for j, (r, o) in enumerate(zip(cr, one)):
             nan = float("nan")
             L.append(f"| {j + 1} | {r['id']} | {r['start_s']:.1f} | {1e3 * r['offset_m']:.1f} "
-                     f"({1e3 * (o.get('offset_m') or nan):.1f}) | {1e3 * r['peak_osc_m']:.1f} "
+                     f"({1e3 * (o.get('offset_m') or nan):.1f}) | "
+                     f"{1e3 * r.get('own_m', nan):.1f} | {1e3 * r['peak_osc_m']:.1f} "
                      f"({1e3 * (o.get('peak_osc_m') or nan):.1f}) "
                      f"| {1e3 * r['max_track_m']:.0f} | "
                      f"{' '.join(f'{v:+.4f}' for v in r['joint_offset'])} |")

@@ -52,8 +52,8 @@ from planner.model.valves import valve_params
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["Circuit", "PressureBulk", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING", "STOP_RAMP",
-           "STOP_SOFT"]
+__all__ = ["Circuit", "PressureBulk", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING",
+           "STOP_RAMP", "STOP_SOFT"]
 
 DP_REG = 2.0e4          # [Pa] orifice laminar region
 STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)

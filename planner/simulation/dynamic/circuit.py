@@ -27,6 +27,14 @@ Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
   the full-command speed), plus stiff end stops at the strokes of the joint limits (their
   damping ramped in over the first millimetre, so the force is continuous at contact).
 
+**Pressure-dependent bulk modulus** (opt-in, :class:`PressureBulk`; off by default, and never in
+the twin): β(p) = β₀·clip((p + p_a)/(p_ref + p_a), lo, hi) in every chamber and the pump line —
+oil with entrained air is softer at low pressure (the air is compressed) and stiffer at high. In
+a closed chamber (Q = 0) compressed from V₀ to V, within the unclipped range,
+(p + p_a) = (p₀ + p_a)·(V₀/V)^(β₀/(p_ref + p_a)). The energy balance
+(:mod:`planner.simulation.dynamic.energy`) keeps β₀ for the oil's stored energy, so with the
+law on its residual is only approximate.
+
 Orifice roots are regularised below 0.2 bar (linear through zero) so that Newton's method of
 the implicit integrator sees finite slopes.
 """
@@ -34,6 +42,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +52,8 @@ from planner.model.valves import valve_params
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["Circuit", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING", "STOP_RAMP",
-           "STOP_SOFT"]
+__all__ = ["Circuit", "PressureBulk", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING",
+           "STOP_RAMP", "STOP_SOFT"]
 
 DP_REG = 2.0e4          # [Pa] orifice laminar region
 STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent for drives)
@@ -69,6 +78,29 @@ def root(dp):
     """Signed, regularised square root √|Δp|·sign(Δp) [√Pa] (linear within ±0.2 bar)."""
     dp = np.asarray(dp, float)
     return dp / np.sqrt(np.sqrt(dp * dp + DP_REG ** 2))
+
+
+@dataclass(frozen=True)
+class PressureBulk:
+    """A bulk modulus that rises with pressure (see the module doc): the factor on β₀ is
+    (p + ``p_abs``)/(``p_ref`` + ``p_abs``) clipped to [``lo``, ``hi``]; ``p_ref`` [Pa] the
+    pressure at which the spec's β₀ holds, ``p_abs`` [Pa] the atmosphere (gauge pressures)."""
+    p_ref: float = 8.0e6
+    p_abs: float = 1.0e5
+    lo: float = 0.5
+    hi: float = 1.25
+
+    def __post_init__(self):
+        for name, v, lo, hi in (("p_ref", self.p_ref, 1e5, 1e8), ("p_abs", self.p_abs, 0.0, 1e6),
+                                ("lo", self.lo, 0.01, 1.0), ("hi", self.hi, 1.0, 10.0)):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
+                raise ValueError(f"PressureBulk: field '{name}' = {v!r}; allowed: "
+                                 f"{lo:g} .. {hi:g}")
+
+    def factor(self, p):
+        """β(p)/β₀ for pressures p [Pa] (any shape)."""
+        r = (np.asarray(p, float) + self.p_abs) / (self.p_ref + self.p_abs)
+        return np.clip(r, self.lo, self.hi)
 
 
 @dataclass
@@ -105,6 +137,7 @@ class Circuit:
     tau_pump: float
     v_pump: float
     efficiency: float
+    bulk: PressureBulk | None = None    # None: β constant (the spec's)
 
     @classmethod
     def from_crane(cls, crane: Crane, dyn, stops, gain_scale=1.0, deadband=None, pump_scale=1.0,
@@ -146,6 +179,10 @@ class Circuit:
             efficiency=pump.efficiency)
 
     # ------------------------------------------------------------------ pieces
+    def beta_at(self, p):
+        """Effective bulk modulus [Pa] at pressures p (β when the law is off)."""
+        return self.beta if self.bulk is None else self.beta * self.bulk.factor(p)
+
     def opening(self, spool):
         """Effective valve opening (..., n) from spool positions: dead band removed."""
         s = np.clip(spool, -1.0, 1.0)
@@ -235,12 +272,12 @@ class Circuit:
         f = self.flows(p_a, p_b, p_s, o)
         va, vb = self.volumes(x)
         la, lb = self.leak_flows(p_a, p_b)
-        dpa = self.beta / va * (f["q_a"] - self.area_a * xd - la + self.makeup(p_a))
-        dpb = self.beta / vb * (f["q_b"] + self.area_b * xd - lb + self.makeup(p_b))
+        dpa = self.beta_at(p_a) / va * (f["q_a"] - self.area_a * xd - la + self.makeup(p_a))
+        dpb = self.beta_at(p_b) / vb * (f["q_b"] + self.area_b * xd - lb + self.makeup(p_b))
         dpb = np.where(self.single, 0.0, dpb)
         excess = np.maximum(np.sum(f["q_in"], axis=-1) - self.q_max, 0.0)
         dps = ((self.pump_setpoint(f["p_load"]) - p_s) / self.tau_pump
-               - self.beta / self.v_pump * excess)
+               - self.beta_at(p_s) / self.v_pump * excess)
         return dpa, dpb, dps
 
     def initial_pressures(self, force):

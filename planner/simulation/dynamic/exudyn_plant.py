@@ -38,7 +38,7 @@ from planner.model import Crane
 from planner.model.commands import held_commands
 from planner.model.effects.hooks import PENDULUM_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
-from planner.simulation.dynamic.circuit import Circuit
+from planner.simulation.dynamic.circuit import Circuit, PressureBulk
 from planner.simulation.dynamic.fastpath import state_function
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
 from planner.simulation.dynamic.interrupt import DeferredInterrupt
@@ -104,14 +104,17 @@ class ExudynPlant(BasePlant):
     with no physical data, evaluated at the start of each step and held over it) and the
     sensors (``sense_q_at`` / ``sense_p_at``, on the output: :meth:`sense`). An effect with
     none of these (a bare stroke drift) is refused by name. ``dynamics`` overrides the spec's
-    ``[dynamics]``; ``step`` is the fixed integration step [s]."""
+    ``[dynamics]``; ``step`` is the fixed integration step [s]. ``bulk``: a
+    :class:`~planner.simulation.dynamic.circuit.PressureBulk` makes the oil's bulk modulus rise
+    with pressure (a physical effect the twin does not model; None, the default: constant β)."""
     name = "exudyn"
     description = ("Exudyn multibody + chamber-pressure dynamics, its own circuit code (the "
                    "independent judge)")
     hooks = PENDULUM_HOOKS
     physical_first = True
 
-    def __init__(self, crane: Crane, effects=(), dynamics=None, step: float = 2e-3):
+    def __init__(self, crane: Crane, effects=(), dynamics=None, step: float = 2e-3,
+                 bulk: PressureBulk | None = None):
         spec = crane.spec
         dyn = dynamics if dynamics is not None else spec.dynamics
         if dyn is None:
@@ -149,6 +152,11 @@ class ExudynPlant(BasePlant):
                                                   np.array([d.leakage for d in jd])),
                                coulomb=np.array([d.coulomb for d in jd]),
                                viscous=np.array([d.viscous for d in jd]))
+        if bulk is not None:
+            if not isinstance(bulk, PressureBulk):
+                raise ValueError(f"ExudynPlant: bulk = {bulk!r}; allowed: None or a "
+                                 "PressureBulk")
+            self.circuit = replace(self.circuit, bulk=bulk)
         self.tree = (tree_parameters(true_spec, payload) if dyn.grapple is None else
                      extend_tree(tree_parameters(true_spec, 0.0), payload, dyn.grapple))
         self.strokes = StrokeTable(crane)

@@ -7,7 +7,9 @@ dx/dq (the dense tables of :class:`~planner.simulation.dynamic.bodies.StrokeTabl
 interpolation, x extrapolated linearly beyond the table and dx/dq held there), the joint
 torques τ = dx/dq·(F − F_extra) of the actuator forces, and the pressure rates
 (ṗ_a, ṗ_b, ṗ_s) of the circuit — so the stroke lookups are done once per state, not once
-per callback. The equations are those of
+per callback (with the opt-in pressure-dependent bulk modulus of
+:class:`~planner.simulation.dynamic.circuit.PressureBulk` when the circuit carries one). The
+equations are those of
 :class:`~planner.simulation.dynamic.circuit.Circuit` (its module doc); the numpy versions
 there are the definition, and tests/simulation/test_exudyn.py checks this fast path against
 them (plain Python because numpy's per-call overhead on 4-vectors would dominate).
@@ -39,6 +41,15 @@ def state_function(circuit, strokes):
     qmax, k_pump, inv_tau = float(C.q_max), beta / float(C.v_pump), 1.0 / float(C.tau_pump)
     k_stop, c_stop = STOP_STIFFNESS, STOP_STIFFNESS * STOP_DAMPING
     tables, last = S.columns()
+    law = C.bulk                      # None: β constant (the default, bit-identical)
+    if law is not None:
+        b_pa, b_ref = float(law.p_abs), float(law.p_ref) + float(law.p_abs)
+        b_lo, b_hi = float(law.lo), float(law.hi)
+
+        def bulk(pr):
+            """β(p) of the pressure-dependent law (circuit.PressureBulk)."""
+            r = (pr + b_pa) / b_ref
+            return beta * (b_lo if r < b_lo else (b_hi if r > b_hi else r))
     joints = []
     for i in range(n):
         motor, single = bool(C.motor[i]), bool(C.single[i])
@@ -118,11 +129,13 @@ def state_function(circuit, strokes):
                     lb = leak * (pb - pt if pb > pt else 0.0)
             mk = gain / 1e6
             e = pt - pa if pa < pt else 0.0
-            pdot[i] = beta / va * (qa - Aa * xd - la + mk * e * e / (e + DP_REG))
+            ba = beta if law is None else bulk(pa)
+            pdot[i] = ba / va * (qa - Aa * xd - la + mk * e * e / (e + DP_REG))
             if not single:
                 vb = hose_b + (0.0 if motor else Ab * (hi - xc))
                 e = pt - pb if pb < pt else 0.0
-                pdot[n + i] = beta / vb * (qb + Ab * xd - lb + mk * e * e / (e + DP_REG))
+                bb = beta if law is None else bulk(pb)
+                pdot[n + i] = bb / vb * (qb + Ab * xd - lb + mk * e * e / (e + DP_REG))
             qsum += q_in
         if ls:
             pset = pl_max + margin if pl_max > 0 else 0.0
@@ -130,6 +143,8 @@ def state_function(circuit, strokes):
         else:
             pset = p_const
         excess = qsum - qmax
+        if excess > 0.0 and law is not None:
+            excess *= bulk(ps) / beta
         pdot[2 * n] = (pset - ps) * inv_tau - k_pump * (excess if excess > 0.0 else 0.0)
         return tau, pdot
 

@@ -49,7 +49,7 @@ from planner.trajectory import Trajectory, evaluate
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["shaper", "shape", "ShapingPlanner", "pendulum_of_request"]
+__all__ = ["shaper", "shape", "ShapingPlanner", "pendulum_of_request", "clearance_margin"]
 
 RETIME_ROUNDS = 4          # slow-downs after a broken limit
 CLEARANCE_ROUNDS = 2       # base plans with raised clearance after a too-close shaped move
@@ -114,7 +114,7 @@ def pendulum_of_request(crane: Crane, request: PlanRequest, who: str) -> Pendulu
                                  .replace("pendulum `zeta`", "`grapple_zeta`")) from None
 
 
-def _clearance(crane: Crane, traj: Trajectory, obstacles, rate: float = 1000.0) -> float:
+def clearance_margin(crane: Crane, traj: Trajectory, obstacles, rate: float = 1000.0) -> float:
     """The smallest distance minus CLEARANCE_SHARE × clearance over every obstacle [m]
     (≥ 0: clear) on a ``rate`` resampling."""
     if not obstacles:
@@ -176,7 +176,7 @@ class ShapingPlanner(Planner):
                 return PlanResult("violation", f"{self.name}: the shaped move still exceeds "
                                   f"a limit by {100 * ev.max_limit_violation:.2f} % after "
                                   f"slowing the plan × {k:.2f}", method=self.name)
-            short = _clearance(crane, shaped, obstacles)
+            short = clearance_margin(crane, shaped, obstacles)
             if short >= 0:
                 break
             raised += -short + 0.02

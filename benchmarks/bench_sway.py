@@ -76,7 +76,9 @@ def main(argv=None):
     ap.add_argument("--length", type=float, default=1.5, help="link length [m]")
     ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
     ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
-    ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway")
+    ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
+                    help="registered methods, each with +OPTION=VALUE for its request options "
+                         "(e.g. nlp-sway+swing_robust=0.1)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--tag", default="sway", help="result file name stem")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
@@ -101,11 +103,13 @@ def main(argv=None):
     rows = []
     for mv in moves:
         for name in args.methods.split(","):
+            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1
+            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra)}
             req = PlanRequest(mv.start, mv.goal, obstacles=obstacles,
-                              options={} if name == "nlp" else opts)
+                              options={} if method == "nlp" else dict(opts, **extra))
             t0 = time.perf_counter()
             try:
-                res = plan(crane, req, name)
+                res = plan(crane, req, method)
             except Exception as e:            # a method's failure is a row, not a crash
                 rows.append(dict(method=name, move=mv.id, status="error", reason=str(e)))
                 continue

@@ -40,7 +40,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.geometry.paths import tip_to_xyz
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.nlp.guess import stretch
 from planner.methods.registry import plan as plan_with, register
 from planner.model.pendulum import Pendulum, predict_swing
@@ -173,7 +174,7 @@ class ShapingPlanner(Planner):
                 k *= f
                 tr = stretch(tr, tr.duration * f)
             else:
-                return PlanResult("violation", f"{self.name}: the shaped move still exceeds "
+                return PlanResult(PlanStatus.VIOLATION, f"{self.name}: the shaped move still exceeds "
                                   f"a limit by {100 * ev.max_limit_violation:.2f} % after "
                                   f"slowing the plan × {k:.2f}", method=self.name)
             short = clearance_margin(crane, shaped, obstacles)
@@ -184,13 +185,13 @@ class ShapingPlanner(Planner):
                                      for ob in request.obstacles)
             base_req = replace(base_req, obstacles=obstacles_raised)
         else:
-            return PlanResult("obstacle", f"{self.name}: the shaped move comes {-short:.3f} m "
+            return PlanResult(PlanStatus.OBSTACLE, f"{self.name}: the shaped move comes {-short:.3f} m "
                               "closer to an obstacle than allowed, after raising the "
                               f"clearance of the plan it shapes by {raised:.3f} m",
                               method=self.name)
         pred = predict_swing(crane, shaped, pend)
         base_pred = predict_swing(crane, base.trajectory, pend)
-        return PlanResult("ok", trajectory=shaped, duration_s=shaped.duration,
+        return PlanResult(PlanStatus.OK, trajectory=shaped, duration_s=shaped.duration,
                           solve_time_s=_time.perf_counter() - t_start, method=self.name,
                           stats=dict(shaper=dict(times=times.tolist(), amplitudes=amps.tolist()),
                                      pendulum_hz=pend.omega / (2 * math.pi),

@@ -49,7 +49,8 @@ import casadi as ca
 import numpy as np
 
 from planner.geometry.paths import tip_to_xyz
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.nlp.guess import Guesses, stretch
 from planner.methods.nlp.limits import add_velocity_limits, step
 from planner.methods.nlp.pump import PumpRows
@@ -204,11 +205,11 @@ class SwayNLP:
             sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
                               ubg=self.ubg)
         except RuntimeError as e:
-            return "error", f"IPOPT failed: {e}", None, 0
+            return PlanStatus.ERROR, f"IPOPT failed: {e}", None, 0
         st = self.solver.stats()
         ist, iters = st.get("return_status", ""), st.get("iter_count", 0)
         if ist not in STATUS_OK:
-            return str(ipopt_code(ist)), f"IPOPT: {ist}", None, iters
+            return ipopt_code(ist), f"IPOPT: {ist}", None, iters
         w = np.array(sol["x"]).ravel()
         X, U = lay.unpack(w, "X"), lay.unpack(w, "U")
         T = float(w[lay.slice("T")][0])
@@ -219,7 +220,7 @@ class SwayNLP:
         tr = Trajectory(np.linspace(0.0, T, N + 1), X[:n].T, X[n:2 * n].T, X[2 * n:].T,
                         joint_names=tuple(crane.names), method="nlp-sway", objective="time",
                         limits=LIMITS, meta=dict(N=N, path="free", ipopt_status=ist))
-        return "ok", "", tr, iters
+        return PlanStatus.OK, "", tr, iters
 
 
 def _link(L, a, b):
@@ -287,25 +288,25 @@ class SwayPlanner(Planner):
         warm = (("sway-blind", lambda: base.trajectory),
                 ("zvd", lambda: shape(base.trajectory, times, amps)),
                 ("slowed", lambda: stretch(base.trajectory, 1.15 * base.duration_s)))
-        iters, last = 0, ("failed", "no warm start converged")
+        iters, last = 0, (PlanStatus.FAILED, "no warm start converged")
         for label, make in warm:
             code, reason, tr, it = nlp.solve(request.start, request.goal,
                                              nlp.guess_from(make()))
             iters += it
-            if code != "ok":
+            if code is not PlanStatus.OK:
                 last = (code, reason)
                 continue
             ev = evaluate(crane, tr)
             if ev.max_limit_violation > self.tolerance:
-                last = ("limits", f"a limit exceeded by {100 * ev.max_limit_violation:.2f} % "
+                last = (PlanStatus.LIMITS, f"a limit exceeded by {100 * ev.max_limit_violation:.2f} % "
                                   "between the check points")
                 continue
             if clearance_margin(crane, tr, request.obstacles) < 0:
-                last = ("obstacle", "the tip comes closer to an obstacle than 0.96 × its "
+                last = (PlanStatus.OBSTACLE, "the tip comes closer to an obstacle than 0.96 × its "
                                     "clearance between the check points")
                 continue
             pred = predict_swing(crane, tr, pend)
-            return PlanResult("ok", trajectory=tr, duration_s=tr.duration,
+            return PlanResult(PlanStatus.OK, trajectory=tr, duration_s=tr.duration,
                               solve_time_s=_time.perf_counter() - t0 - build, method=self.name,
                               stats=dict(iterations=iters, warm_start=label,
                                          build_time_s=build, base_duration_s=base.duration_s,

@@ -39,12 +39,13 @@ from bench_exudyn_claims import subset_suite  # noqa: E402
 from planner import Crane  # noqa: E402
 from planner.bench.context import Settings  # noqa: E402
 from planner.bench.suites import build_suite  # noqa: E402
-from planner.feedforward import with_settle  # noqa: E402
+from planner.feedforward import commands, with_settle  # noqa: E402
 from planner.geometry.paths import tip_to_xyz, xyz_to_tip  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods import PlanRequest, plan  # noqa: E402
 from planner.model.effects import make  # noqa: E402
 from planner.model.pendulum import Pendulum, predict_swing  # noqa: E402
+from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
 
@@ -79,6 +80,9 @@ def main(argv=None):
     ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
                     help="registered methods, each with +OPTION=VALUE for its request options "
                          "(e.g. nlp-sway+swing_robust=0.1)")
+    ap.add_argument("--refine", type=int, default=0, metavar="ITER",
+                    help="replay the twin's refined feed-forward (planner.refine, ITER "
+                         "L-BFGS-B iterations) instead of the nominal one")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--tag", default="sway", help="result file name stem")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
@@ -125,8 +129,19 @@ def main(argv=None):
             tr = res.trajectory
             pred = predict_swing(crane, tr, pend)
             tip_c, load_c = clearances(crane, tr, pend, obstacles)
-            run_tr = with_settle(crane, tr, args.settle)
-            rec = plant.run(run_tr.t, run_tr.u, tr.q[0], t_end=float(run_tr.t[-1]), rate=50.0)
+            if args.refine:   # the twin's feed-forward (planner.refine) instead of the nominal
+                ff = commands(crane, tr, 50.0)
+                ref = refine_commands(crane, tr, ff.t, ff.u,
+                                      options=RefineOptions(iterations=args.refine))
+                k = int(round(args.settle * 50.0))
+                t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
+                u = np.vstack([ref.u, np.zeros((k, crane.n))])
+                row.update(refine=str(ref.status), refine_s=ref.wall_s,
+                           lengthened_s=ref.lengthened_s)
+            else:
+                run_tr = with_settle(crane, tr, args.settle)
+                t_u, u = run_tr.t, run_tr.u
+            rec = plant.run(t_u, u, tr.q[0], t_end=float(t_u[-1]), rate=50.0)
             row.update(duration_s=float(tr.duration), model_residual_m=pred.residual_m,
                        model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
                        load_clearance_m=load_c, plant=rec.status)
@@ -166,11 +181,15 @@ def markdown(res) -> list:
          f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
          f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py --moves "
          f"{a['moves']} --length {a['length']:g} --zeta {a['zeta']:g} --settle "
-         f"{a['settle']:g} --methods {a['methods']}` ({res['wall_s'] / 60:.1f} min). s100f, "
+         f"{a['settle']:g} --methods {a['methods']}"
+         + (f" --refine {a['refine']}" if a.get("refine") else "")
+         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min). s100f, "
          f"its {res['effect'].get('length', a['length'])} m grapple link "
          f"({res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
-         f"{len(res['moves'])} forwarder moves over the headboard; every plan's nominal 50 Hz "
-         "feed-forward replayed open loop, then the valves closed. Swing: the horizontal "
+         f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
+         + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
+            else "nominal 50 Hz feed-forward")
+         + " replayed open loop, then the valves closed. Swing: the horizontal "
          "distance of the load's centre of mass from under the tip (the plant's tree). "
          "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",
          "| method | ok / moves | duration s (median) | duration ratio to nlp (median) | "

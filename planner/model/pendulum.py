@@ -37,6 +37,7 @@ for a swing in one plane (an elliptic swing stays inside it).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -54,6 +55,7 @@ __all__ = ["Pendulum", "SwingPrediction", "predict_swing", "tip_motion", "STATE"
 
 #: the swing state's entries, in order
 STATE = ("alpha", "beta", "alpha_dot", "beta_dot")
+_TIP_MOTION: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()   # crane -> functions
 
 
 def _check(name: str, value, lo: float, hi: float, allow_lo: bool) -> float:
@@ -220,7 +222,7 @@ class Pendulum:
 def tip_motion(crane: Crane) -> ca.Function:
     """``tip_motion(q, qd, qdd) -> (p, v, a)``: the tip's Cartesian position [m], velocity
     [m/s] and acceleration [m/s²] in frame 0 (the crane's forward kinematics, J q̈ + J̇ q̇)."""
-    cache = crane.__dict__.setdefault("_pendulum_cache", {})
+    cache = _TIP_MOTION.setdefault(crane, {})
     if "tip_motion" not in cache:
         n = crane.n
         q, qd, qdd = ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n)

@@ -30,7 +30,8 @@ it reached its iteration limit so, and those use the exact one.
 It is warm-started from the sway-blind ``nlp`` plan of the same move (same obstacles), with the
 swing the model predicts along it; when IPOPT does not converge from there, from that plan
 shaped by ZVD (:mod:`planner.methods.shaping`: nearly sway-free already, half a period longer)
-and from the plan slowed by 15 %. The winner is judged again by
+from the plan slowed by 15 %, and last from the sway-blind plan with IPOPT's exact Hessian
+(measured: one forwarder move in 12 reached the iteration limit from all three). The winner is judged again by
 :func:`~planner.trajectory.evaluate` (1 kHz, the limits it plans with) and its swing by
 :func:`~planner.model.pendulum.predict_swing` on a 200 Hz grid (stats ``swing_residual_m``,
 ``swing_peak_m``): the RK4 on the NLP's intervals is a discretisation, the fine integration
@@ -173,12 +174,25 @@ class SwayNLP:
         self.lbw, self.ubw, self.lbg, self.ubg = lay.bounds()
         # L-BFGS: half the build and faster solves on the plain problem; the robust and the
         # swing-bounded ones reached max_iter with it (measured on s100f), so exact there
-        ipopt = dict(IPOPT) if robust == 0 and swing_max is None else \
-            {k: v for k, v in IPOPT.items() if k != "hessian_approximation"}
-        self.solver = ca.nlpsol("sway", "ipopt", {"x": lay.w, "p": lay.P, "f": f, "g": lay.g},
-                                {"expand": True, "print_time": False, "ipopt": ipopt})
+        self._problem = {"x": lay.w, "p": lay.P, "f": f, "g": lay.g}
+        self._exact = None
+        self.solver = self._solver(exact=robust > 0 or swing_max is not None)
         self.guesses = Guesses(crane, lay, self.lbw, self.ubw, N, "free")
         self.build_time_s = _time.perf_counter() - t0
+
+    def _solver(self, exact: bool):
+        ipopt = {k: v for k, v in IPOPT.items() if not (exact and k == "hessian_approximation")}
+        return ca.nlpsol("sway", "ipopt", self._problem,
+                         {"expand": True, "print_time": False, "ipopt": ipopt})
+
+    def exact_solver(self):
+        """The same NLP under IPOPT with the exact Hessian (built on first use; its seconds
+        added to ``build_time_s``)."""
+        if self._exact is None:
+            t0 = _time.perf_counter()
+            self._exact = self._solver(exact=True)
+            self.build_time_s += _time.perf_counter() - t0
+        return self._exact
 
     def guess_from(self, traj: Trajectory) -> np.ndarray:
         """Primal guess: the joints of ``traj`` on the NLP's grid and the swing the model
@@ -195,18 +209,20 @@ class SwayNLP:
         self.layout.pack(w0, "S", np.vstack(blocks))
         return w0
 
-    def solve(self, start, goal, guess: np.ndarray) -> tuple:
-        """(status code, reason, trajectory or None, IPOPT iterations) from ``guess``."""
+    def solve(self, start, goal, guess: np.ndarray, exact: bool = False) -> tuple:
+        """(status code, reason, trajectory or None, IPOPT iterations) from ``guess``
+        (``exact``: with the exact Hessian, :meth:`exact_solver`)."""
+        solver = self.exact_solver() if exact else self.solver
         crane, lay, n, N = self.crane, self.layout, self.crane.n, self.N
         P = lay.param_vector(start=tip_to_xyz(np.asarray(start, float)),
                              goal=tip_to_xyz(np.asarray(goal, float)),
                              payload=crane.spec.payload.total, activity=0.0)
         try:
-            sol = self.solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
-                              ubg=self.ubg)
+            sol = solver(x0=guess, p=P, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg,
+                         ubg=self.ubg)
         except RuntimeError as e:
             return PlanStatus.ERROR, f"IPOPT failed: {e}", None, 0
-        st = self.solver.stats()
+        st = solver.stats()
         ist, iters = st.get("return_status", ""), st.get("iter_count", 0)
         if ist not in STATUS_OK:
             return ipopt_code(ist), f"IPOPT: {ist}", None, iters
@@ -271,41 +287,42 @@ class SwayPlanner(Planner):
     def plan(self, crane: Crane, request: PlanRequest) -> PlanResult:
         t0 = _time.perf_counter()
         pend = pendulum_of_request(crane, request, self.name)
-        base = plan_with(crane, PlanRequest(request.start, request.goal, obstacles=request.obstacles,
-                                            options={"intervals": request.option("intervals", 40)}),
-                         "nlp")
+        base = plan_with(crane, PlanRequest(
+            request.start, request.goal, obstacles=request.obstacles,
+            options={"intervals": request.option("intervals", 40)}), "nlp")
         if not base.ok:
             base.method, base.reason = self.name, f"the sway-blind nlp plan: {base.reason}"
             return base
-        nb = len(self._built)
+        b0 = sum(x[1].build_time_s for x in self._built.values())
         # RK4 steps of at most ω₀·h = 0.4 rad: one step per interval left 16 mm where 10 were
         # asked on a 10.9 s forwarder move (ω₀·h = 0.68), two 10.1 mm (predict_swing, 200 Hz)
         N = request.option("intervals", 40)
         sub = max(1, math.ceil(pend.omega * 1.1 * base.duration_s / N / SUBSTEP_RAD))
         nlp = self.built(crane, pend, request, sub)
-        build = nlp.build_time_s if len(self._built) > nb else 0.0
         times, amps = shaper("zvd", pend.omega, pend.zeta)
-        warm = (("sway-blind", lambda: base.trajectory),
-                ("zvd", lambda: shape(base.trajectory, times, amps)),
-                ("slowed", lambda: stretch(base.trajectory, 1.15 * base.duration_s)))
+        warm = (("sway-blind", lambda: base.trajectory, False),
+                ("zvd", lambda: shape(base.trajectory, times, amps), False),
+                ("slowed", lambda: stretch(base.trajectory, 1.15 * base.duration_s), False),
+                ("sway-blind, exact Hessian", lambda: base.trajectory, True))
         iters, last = 0, (PlanStatus.FAILED, "no warm start converged")
-        for label, make in warm:
+        for label, make, exact in warm:
             code, reason, tr, it = nlp.solve(request.start, request.goal,
-                                             nlp.guess_from(make()))
+                                             nlp.guess_from(make()), exact)
             iters += it
             if code is not PlanStatus.OK:
                 last = (code, reason)
                 continue
             ev = evaluate(crane, tr)
             if ev.max_limit_violation > self.tolerance:
-                last = (PlanStatus.LIMITS, f"a limit exceeded by {100 * ev.max_limit_violation:.2f} % "
-                                  "between the check points")
+                last = (PlanStatus.LIMITS, f"a limit exceeded by "
+                        f"{100 * ev.max_limit_violation:.2f} % between the check points")
                 continue
             if clearance_margin(crane, tr, request.obstacles) < 0:
-                last = (PlanStatus.OBSTACLE, "the tip comes closer to an obstacle than 0.96 × its "
-                                    "clearance between the check points")
+                last = (PlanStatus.OBSTACLE, "the tip comes closer to an obstacle than 0.96 × "
+                        "its clearance between the check points")
                 continue
             pred = predict_swing(crane, tr, pend)
+            build = sum(x[1].build_time_s for x in self._built.values()) - b0
             return PlanResult(PlanStatus.OK, trajectory=tr, duration_s=tr.duration,
                               solve_time_s=_time.perf_counter() - t0 - build, method=self.name,
                               stats=dict(iterations=iters, warm_start=label,
@@ -316,6 +333,7 @@ class SwayPlanner(Planner):
                                          swing_peak_m=pred.peak_during_m,
                                          base_swing_residual_m=predict_swing(
                                              crane, base.trajectory, pend).residual_m))
+        build = sum(x[1].build_time_s for x in self._built.values()) - b0
         return PlanResult(last[0], f"{self.name}: {last[1]}", method=self.name,
                           solve_time_s=_time.perf_counter() - t0 - build, iterations=iters,
                           build_time_s=build)

@@ -58,7 +58,8 @@ def cmd_plan(args):
                           options=dict(intervals=args.intervals, step=args.step,
                                        tele_step=args.tele_step, window=args.window,
                                        rate=args.rate, tele0=args.tele0,
-                                       nlp_cache="build" if args.compile else None))
+                                       nlp_cache="build" if args.compile else None,
+                                       grapple=args.grapple, grapple_zeta=args.grapple_zeta))
         t0 = time.perf_counter()
         res = plan(crane, req, method)
     except UnsupportedRequest as e:
@@ -101,6 +102,9 @@ def cmd_plan(args):
                lower_bound_s=bound, lower_bounds=lb.as_dict(),
                optimality_gap=ev.duration / bound - 1.0 if args.objective == "time" and bound > 0
                else None)
+    swing = predicted_swing(args, crane, res.trajectory)
+    if swing:
+        out["swing"] = swing
     refined = _twin_feedforward(args, crane, res.trajectory, out)
     write_outputs(args, crane, res, ev, walls, out, refined)
     emit(args, out)
@@ -117,6 +121,23 @@ def cmd_plan(args):
 
 
 OUT_SUFFIXES = (".csv", ".h5")
+
+
+def predicted_swing(args, crane: Crane, traj) -> dict | None:
+    """The model's swing of the load along the plan (planner.model.pendulum) when the grapple
+    is known: ``--grapple LENGTH``, or the spec's ``[dynamics.grapple]``; None otherwise."""
+    from planner.model.pendulum import Pendulum, predict_swing
+    dyn = crane.spec.dynamics
+    if args.grapple is None and (dyn is None or dyn.grapple is None):
+        return None
+    try:
+        pend = Pendulum.of(crane, args.grapple, zeta=args.grapple_zeta)
+    except ValueError as e:
+        raise CLIError(str(e).replace("pendulum `length`", "--grapple")
+                       .replace("pendulum `zeta`", "--grapple-zeta")) from None
+    pred = predict_swing(crane, traj, pend)
+    return dict(grapple_m=pend.length, pendulum_hz=pend.omega / (2 * math.pi),
+                zeta=pend.zeta, residual_swing_m=pred.residual_m, swing_peak_m=pred.peak_during_m)
 
 
 def check_outputs(args) -> None:
@@ -292,6 +313,13 @@ def add_parsers(sub) -> None:
                    help="valve commands: nominal (the quasi-static inverse, default) or twin "
                         "(refined on the dynamic twin so that the machine lands: --out keeps "
                         "them, the JSON reports the predicted landing)")
+    p.add_argument("--grapple", type=float, metavar="LENGTH",
+                   help="the grapple hangs on a link of LENGTH m (default: the spec's "
+                        "[dynamics.grapple]): zv, zvd and nlp-sway plan with it, and the JSON "
+                        "gets the model's predicted swing (swing.residual_swing_m)")
+    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
+                   help="the grapple pins' damping, a share of critical (default: the spec's, "
+                        "else 0)")
     p.add_argument("--out", metavar="FILE.csv|FILE.h5", type=output_arg,
                    help="write the trajectory CSV, or a one-entry database (.h5; read it back "
                         "as FILE.h5 or FILE.h5#plan:OBJECTIVE)")

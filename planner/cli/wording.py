@@ -29,6 +29,8 @@ FLAGS = {
     "tele_step": "--tele-step",
     "window": "--window",
     "tele0": "--tele0",
+    "grapple": "--grapple",
+    "grapple_zeta": "--grapple-zeta",
     "scheduler": "--scheduler",
     "out": "--out",
     "units_row": "--units-row",

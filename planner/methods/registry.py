@@ -29,11 +29,14 @@ if TYPE_CHECKING:
 __all__ = ["register", "unregister", "get", "available", "plan", "BUILTIN_MODULES"]
 
 BUILTIN_MODULES = ("planner.methods.laws", "planner.methods.laws_energy", "planner.methods.dp",
-                   "planner.methods.topp", "planner.methods.ruckig", "planner.methods.nlp")
+                   "planner.methods.topp", "planner.methods.ruckig", "planner.methods.nlp",
+                   "planner.methods.shaping", "planner.methods.sway")
 #: the module that registers a built-in name ("law:" for every name of the family); only a
 #: shortcut: a name not registered where it is said to be loads every module
 BUILTIN_HOMES = {"nlp": ("planner.methods.nlp",), "dp": ("planner.methods.dp",),
                  "topp": ("planner.methods.topp",), "ruckig": ("planner.methods.ruckig",),
+                 "zv": ("planner.methods.shaping",), "zvd": ("planner.methods.shaping",),
+                 "nlp-sway": ("planner.methods.sway",),
                  "law:": ("planner.methods.laws", "planner.methods.laws_energy")}
 ENTRY_POINT_GROUP = "crane_planner.methods"
 

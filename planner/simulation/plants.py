@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["PlantRecord", "BasePlant", "FastPlant", "PLANTS", "plant_class", "make_plant",
-           "applying", "PlantDiverged", "plant_to_csv"]
+           "applying", "PlantDiverged", "plant_to_csv", "load_swing"]
 
 
 class PlantDiverged(RuntimeError):
@@ -210,6 +210,22 @@ def _elsewhere(effect, here: str) -> str:
             else "no registered plant applies it")
 
 
+def load_swing(plant: BasePlant, rec: PlantRecord):
+    """(t (K,) [s], (K, 2) [m]): the horizontal offset (x, y) in frame 0 of the load's centre
+    of mass from under the boom tip, on the plant's own integration grid, for a plant whose
+    grapple hangs on its link (the Exudyn plant with ``[dynamics.grapple]`` or the
+    ``grapple_swing`` effect); None for any other."""
+    run = rec.meta.get("run")
+    if getattr(run, "grapple_q", None) is None or not hasattr(plant, "tree"):
+        return None
+    from planner.simulation.dynamic.grapple import link_frames
+    tree = plant.tree
+    n = tree["crane_links"]
+    _, links = link_frames(tree, np.hstack([run.q, run.grapple_q]))
+    com = (links[-1] @ np.array([tree["grapple"].length, 0.0, 0.0, 1.0]))[:, :2]
+    return np.asarray(run.t, float), com - links[n][:, :2, 3]
+
+
 def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
                  seed: int = 0, effects=(), plan=None, **run_kw) -> dict:
     """What ``crane-planner simulate --plant NAME`` does for a registered plant: replay
@@ -222,7 +238,10 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     trajectory whose end is the arrival; ``traj`` then carries the commands, e.g.
     :func:`planner.feedforward.with_settle`) the summary adds how the run lands
     (:func:`planner.refine.landing_measures`: ``rest_offset_m``, ``residual_oscillation_m``,
-    ``track_m``)."""
+    ``track_m``). A plant whose grapple swings on its link (:func:`load_swing`) adds the
+    CSV columns ``swing_x``, ``swing_y`` [m] and ``residual_swing_m`` (the largest offset
+    after the plan's end: over its tail when the commands run on, else at the record's
+    last sample) and ``swing_peak_m`` (during the move)."""
     from planner.feedforward import commands
     from planner.simulation.recording import noise_levels
     p = make_plant(plant, crane, effects)
@@ -234,7 +253,17 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     rec = p.run(t_u, u, traj.q[0], t_end=float(max(traj.t[-1], t_u[-1])), rate=rate, **run_kw)
     if not rec.ok:
         raise PlantDiverged(rec.status, rec.t_fail, rec.reason, plant)
-    cols = rec.recording().with_noise(crane, noise, seed).to_csv(out, crane)
+    swing = load_swing(p, rec)
+    if swing is None:
+        cols = rec.recording().with_noise(crane, noise, seed).to_csv(out, crane)
+    else:   # the load's horizontal offset from under the tip, beside the sensors' columns
+        from planner.io import atomic_write_text
+        cols, M = rec.recording().with_noise(crane, noise, seed).table(crane)
+        cols = cols + ["swing_x", "swing_y"]
+        M = np.hstack([M, np.column_stack([np.interp(rec.t, swing[0], swing[1][:, i])
+                                           for i in (0, 1)])])
+        atomic_write_text(out, "\n".join([",".join(cols)] + [",".join(f"{v:.10g}" for v in row)
+                                                             for row in M]) + "\n")
     q_plan = traj.sample(np.clip(rec.t, traj.t[0], traj.t[-1]))[0]
     tip_err = np.linalg.norm(crane.fk(rec.q_true) - crane.fk(q_plan), axis=1)
     extra = {k: rec.meta[k] for k in ("steps", "wall_s") if k in rec.meta}
@@ -243,6 +272,12 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     if plan is not None:
         from planner.refine import landing_measures
         extra.update(landing_measures(crane, rec.t, rec.q_true, plan))
+    if swing is not None:   # after the plan's end: its tail (a settle) or the last sample
+        t_arrive = float((traj if plan is None else plan).t[-1])
+        r = np.linalg.norm(swing[1], axis=1)
+        after = swing[0] >= min(t_arrive, swing[0][-1]) - 1e-9
+        extra.update(residual_swing_m=float(r[after].max()),
+                     swing_peak_m=float(r[swing[0] <= t_arrive].max(initial=0.0)))
     pump_J = p.pump_energy(rec)
     if pump_J is not None:   # the plant's own pump work beside the quasi-static model's
         from planner.trajectory import evaluate

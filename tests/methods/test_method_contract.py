@@ -32,6 +32,7 @@ MOVES = {
     "cat215b": ((5.2, 0.0, -0.25), (6.2, 1.0, 0.25)),
 }
 TIP_SPEED = 1.0        # [m/s] for the methods that read one
+GRAPPLE_M = 1.5        # [m] grapple link for the methods that shape or plan its swing
 # (method, machine) refused because the machine lacks what the method needs
 REFUSED = {("law:max_lift", m) for m in ("s100f", "umea-lab", "cat215b")}  # no [laws] table
 
@@ -42,7 +43,8 @@ REST = 1e-6            # joint speed and acceleration at the ends [SI]
 def _request(method: str, start, goal) -> PlanRequest:
     p = get(method)
     return PlanRequest(start, goal, objective=p.objectives[0], path=p.default_path,
-                       tip_speed=TIP_SPEED if p.reads("tip_speed", p.objectives[0]) else None)
+                       tip_speed=TIP_SPEED if p.reads("tip_speed", p.objectives[0]) else None,
+                       options={"grapple": GRAPPLE_M} if getattr(p, "grapple", False) else {})
 
 
 def test_every_machine_has_a_move(crane):

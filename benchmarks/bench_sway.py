@@ -1,0 +1,238 @@
+#!/usr/bin/env python3
+"""Sway-free moves on the Exudyn plant with the grapple on its link (issue 29): the residual
+swing after arrival and the duration of the sway-blind minimum-time plan (``nlp``), its ZV and
+ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side. s100f.
+
+    python benchmarks/bench_sway.py [--moves 12] [--length 1.5] [--zeta 0.05] [--settle 6]
+                                    [--methods nlp,zv,zvd,nlp-sway] [--out benchmarks/results]
+
+Forwarder moves over the headboard (the library subset of the shipped forwarder cycle, half
+pick-ups, half drops); every method plans with the headboard and the grapple it is told
+(``--length``, ``--zeta``: share of critical damping at each pin); its 50 Hz nominal
+feed-forward is replayed open loop on the Exudyn plant with the ``grapple_swing`` effect of the
+same link, then ``--settle`` s with the valves closed. Measured from the plant's own tree
+(:func:`planner.simulation.plants.load_swing`): the load's horizontal offset from under the
+tip — its peak during the move, after arrival (the residual swing) and in the last second.
+Beside them: the model's prediction (:func:`planner.model.pendulum.predict_swing`), the tip's
+clearance from the headboard at 1 kHz and the load's (tip + the model's link) in the plan,
+solve times. Judge: the Exudyn plant.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+for p in (str(ROOT), str(HERE)):
+    if p not in sys.path:
+        sys.path.insert(0, p)
+
+from bench_exudyn_claims import subset_suite  # noqa: E402
+from planner import Crane  # noqa: E402
+from planner.bench.context import Settings  # noqa: E402
+from planner.bench.suites import build_suite  # noqa: E402
+from planner.feedforward import commands, with_settle  # noqa: E402
+from planner.geometry.paths import tip_to_xyz, xyz_to_tip  # noqa: E402
+from planner.io import atomic_write_text, dumps  # noqa: E402
+from planner.methods import PlanRequest, plan  # noqa: E402
+from planner.model.effects import make  # noqa: E402
+from planner.model.pendulum import Pendulum, predict_swing  # noqa: E402
+from planner.refine import RefineOptions, refine_commands  # noqa: E402
+from planner.simulation.plants import load_swing, make_plant  # noqa: E402
+
+
+def log(*a):
+    print(*a, file=sys.stderr, flush=True)
+
+
+def clearances(crane, traj, pend, obstacles):
+    """(tip, load) smallest distance minus clearance [m] over the obstacles at 1 kHz; the load
+    at the model's predicted swing."""
+    if not obstacles:
+        return float("nan"), float("nan")
+    pred = predict_swing(crane, traj, pend, rate=1000.0)
+    q = traj.sample(pred.t)[0]
+    cyl = crane.tip(q)
+    xyz = tip_to_xyz(cyl)
+    off = pred.offset
+    dz = -np.sqrt(np.maximum(pend.length ** 2 - np.sum(off ** 2, axis=1), 0.0))
+    load = xyz + np.column_stack([off, dz])
+    lcyl = xyz_to_tip(load)
+    tip = min(float(ob.distance(xyz, cyl).min() - ob.clearance) for ob in obstacles)
+    ld = min(float(ob.distance(load, lcyl).min() - ob.clearance) for ob in obstacles)
+    return tip, ld
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--moves", type=int, default=12)
+    ap.add_argument("--length", type=float, default=1.5, help="link length [m]")
+    ap.add_argument("--plant-length", type=float, default=None,
+                    help="the plant's link length [m] when it differs from the one planned "
+                         "with (robustness; default --length)")
+    ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
+    ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
+    ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
+                    help="registered methods, each with +OPTION=VALUE for its request options "
+                         "(e.g. nlp-sway+swing_robust=0.1)")
+    ap.add_argument("--refine", type=int, default=0, metavar="ITER",
+                    help="replay the twin's refined feed-forward (planner.refine, ITER "
+                         "L-BFGS-B iterations) instead of the nominal one")
+    ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--tag", default="sway", help="result file name stem")
+    ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
+                    / "crane-sway")
+    args = ap.parse_args(argv)
+    t_start = time.perf_counter()
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    crane = Crane.from_id("s100f")
+    pend = Pendulum.of(crane, args.length, zeta=args.zeta)
+    plant_length = args.plant_length or args.length    # the plant's link: off when asked
+    effect = make("grapple_swing", length=plant_length, damping=round(pend.damping, 1))
+    plant = make_plant("exudyn", crane, [effect])
+    args.work.mkdir(parents=True, exist_ok=True)
+    suite = build_suite(str(subset_suite(args.work / "forwarder-cycle-claims.toml")),
+                        Settings(forwarder_moves=10 ** 6))
+    obstacles = tuple(suite.obstacles)
+    moves = []
+    for first in ("p", "d"):
+        ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
+        want = args.moves // 2 if first == "p" else args.moves - args.moves // 2
+        moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
+    opts = {"grapple": args.length, "grapple_zeta": args.zeta}
+    rows = []
+    for mv in moves:
+        for name in args.methods.split(","):
+            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1
+            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra)}
+            req = PlanRequest(mv.start, mv.goal, obstacles=obstacles,
+                              options={} if method == "nlp" else dict(opts, **extra))
+            t0 = time.perf_counter()
+            try:
+                res = plan(crane, req, method)
+            except Exception as e:            # a method's failure is a row, not a crash
+                rows.append(dict(method=name, move=mv.id, status="error", reason=str(e)))
+                continue
+            row = dict(method=name, move=mv.id, status=str(res.status),
+                       wall_s=time.perf_counter() - t0,
+                       solve_time_s=float(res.solve_time_s),
+                       build_time_s=float(res.stats.get("build_time_s", 0.0)))
+            if not res.ok:
+                row["reason"] = res.reason
+                rows.append(row)
+                log(f"{mv.id:28s} {name:9s} {res.status}: {res.reason}")
+                continue
+            tr = res.trajectory
+            pred = predict_swing(crane, tr, pend)
+            tip_c, load_c = clearances(crane, tr, pend, obstacles)
+            if args.refine:   # the twin's feed-forward (planner.refine) instead of the nominal
+                ff = commands(crane, tr, 50.0)
+                ref = refine_commands(crane, tr, ff.t, ff.u,
+                                      options=RefineOptions(iterations=args.refine))
+                k = int(round(args.settle * 50.0))
+                t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
+                u = np.vstack([ref.u, np.zeros((k, crane.n))])
+                row.update(refine=str(ref.status), refine_s=ref.wall_s,
+                           lengthened_s=ref.lengthened_s)
+            else:
+                run_tr = with_settle(crane, tr, args.settle)
+                t_u, u = run_tr.t, run_tr.u
+            rec = plant.run(t_u, u, tr.q[0], t_end=float(t_u[-1]), rate=50.0)
+            row.update(duration_s=float(tr.duration), model_residual_m=pred.residual_m,
+                       model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
+                       load_clearance_m=load_c, plant=rec.status)
+            if rec.ok:
+                ts, sw = load_swing(plant, rec)
+                r = np.linalg.norm(sw, axis=1)
+                T = float(tr.duration)
+                row.update(swing_during_m=float(r[ts <= T].max()),
+                           swing_after_m=float(r[ts >= T].max()),
+                           swing_left_m=float(r[ts >= T + args.settle - 1.0].max()),
+                           tip_end_error_m=float(np.linalg.norm(
+                               crane.fk(rec.q_true[-1]) - crane.fk(tr.q[-1]))))
+            rows.append(row)
+            log(f"{mv.id:28s} {name:9s} T={row['duration_s']:.2f} s  after "
+                f"{row.get('swing_after_m', float('nan')) * 1e3:5.0f} mm  model "
+                f"{pred.residual_m * 1e3:5.0f} mm  solve {row['solve_time_s']:.1f} s")
+    res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+               machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
+                            load=list(os.getloadavg())),
+               args={k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
+               effect=dict(effect.values), pendulum_hz=pend.omega / (2 * np.pi),
+               moves=[m.id for m in moves], rows=rows, wall_s=time.perf_counter() - t_start)
+    args.out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(args.out / f"{args.tag}.json", dumps(res))
+    atomic_write_text(args.out / f"{args.tag}.md", "\n".join(markdown(res)) + "\n")
+    log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
+
+
+def _q(v, p):
+    return float(np.percentile(v, p)) if len(v) else float("nan")
+
+
+def markdown(res) -> list:
+    a, rows = res["args"], res["rows"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    L = ["# Sway-free moves on the Exudyn plant with the grapple (issue 29)", "",
+         f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
+         f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py --moves "
+         f"{a['moves']} --length {a['length']:g} --zeta {a['zeta']:g} --settle "
+         f"{a['settle']:g} --methods {a['methods']}"
+         + (f" --refine {a['refine']}" if a.get("refine") else "")
+         + (f" --plant-length {a['plant_length']:g}" if a.get("plant_length") else "")
+         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min). s100f, "
+         f"its {res['effect'].get('length', a['length'])} m grapple link "
+         + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
+         + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
+         f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
+         + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
+            else "nominal 50 Hz feed-forward")
+         + " replayed open loop, then the valves closed. Swing: the horizontal "
+         "distance of the load's centre of mass from under the tip (the plant's tree). "
+         "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",
+         "| method | ok / moves | duration s (median) | duration ratio to nlp (median) | "
+         "residual swing mm (median / p90 / max) | swing left after "
+         f"{a['settle']:g} s mm (median) | model residual mm (median / p90) | swing during "
+         "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | solve s "
+         "(median / p90) |",
+         "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | --- |"]
+    by = {m: {r["move"]: r for r in rows if r["method"] == m and "swing_after_m" in r}
+          for m in methods}
+    for m in methods:
+        ok = list(by[m].values())
+        n_all = sum(r["method"] == m for r in rows)
+        if not ok:
+            L.append(f"| {m} | 0 / {n_all} |" + " |" * 9)
+            continue
+        aft = [r["swing_after_m"] * 1e3 for r in ok]
+        mod = [r["model_residual_m"] * 1e3 for r in ok]
+        ratio = [r["duration_s"] / by["nlp"][r["move"]]["duration_s"] for r in ok
+                 if "nlp" in by and r["move"] in by["nlp"]]
+        sol = [r["solve_time_s"] for r in ok]
+        L.append(f"| {m} | {len(ok)} / {n_all} | {np.median([r['duration_s'] for r in ok]):.2f} "
+                 f"| {np.median(ratio) if ratio else float('nan'):.2f} | "
+                 f"{np.median(aft):.0f} / {_q(aft, 90):.0f} / {max(aft):.0f} | "
+                 f"{np.median([r['swing_left_m'] for r in ok]) * 1e3:.0f} | "
+                 f"{np.median(mod):.0f} / {_q(mod, 90):.0f} | "
+                 f"{np.median([r['swing_during_m'] for r in ok]) * 1e3:.0f} | "
+                 f"{min(r['tip_clearance_m'] for r in ok) * 1e3:.0f} | "
+                 f"{min(r['load_clearance_m'] for r in ok) * 1e3:.0f} | "
+                 f"{np.median(sol):.2f} / {_q(sol, 90):.2f} |")
+    fails = [r for r in rows if "swing_after_m" not in r]
+    if fails:
+        L += ["", "Not replayed: " + "; ".join(f"{r['method']} {r['move']}: {r['status']} "
+                                               f"({r.get('reason', r.get('plant', ''))})"
+                                               for r in fails)]
+    return L
+
+
+if __name__ == "__main__":
+    main()

@@ -155,33 +155,34 @@ def _cli(*args):
                           text=True, timeout=600)
 
 
-def test_simulate_takes_the_refined_commands_and_reports_the_landing(lib, tmp_path):
+def test_simulate_takes_the_refined_commands_and_reports_the_landing(lib, tmp_path, capsys):
     import shutil
+
+    from planner.cli import main
     path = tmp_path / "lib.h5"
     shutil.copy(lib, path)
-    r = _cli("simulate", MACHINE, "--trajectory", f"{path}#m0:time", "--out",
-             str(tmp_path / "a.csv"), "--plant", "twin", "--commands", "refined")
-    assert r.returncode == 2 and "no refined commands" in r.stderr and "library refine" \
-        in r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
-    refine_library(path, options=RefineOptions(iterations=15, settle=1.0), limit=1,
+    ref = f"{path}#m0:time"
+    assert main(["simulate", MACHINE, "--trajectory", ref, "--out", str(tmp_path / "a.csv"),
+                 "--plant", "twin", "--commands", "refined"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no refined commands" in err[0] and "library refine" in err[0]
+    refine_library(path, options=RefineOptions(iterations=8, settle=1.0), limit=1,
                    show_progress=False)
     out = {}
     for which in ("nominal", "auto"):
-        r = _cli("simulate", MACHINE, "--trajectory", f"{path}#m0:time", "--out",
-                 str(tmp_path / f"{which}.csv"), "--plant", "twin", "--commands", which,
-                 "--settle", "1.5", "--json")
-        assert r.returncode == 0, r.stderr
-        out[which] = json.loads(r.stdout)
+        assert main(["simulate", MACHINE, "--trajectory", ref, "--out",
+                     str(tmp_path / f"{which}.csv"), "--plant", "twin", "--commands", which,
+                     "--settle", "1.5", "--json"]) == 0
+        out[which] = json.loads(capsys.readouterr().out)
     assert out["nominal"]["commands_used"] == "nominal"
     assert out["auto"]["commands_used"] == "refined"
     for o in out.values():
         assert o["settle_s"] == 1.5 and o["rest_offset_m"] >= 0
         assert np.isfinite(o["residual_oscillation_m"])
     assert out["auto"]["rest_offset_m"] < out["nominal"]["rest_offset_m"]
-    r = _cli("simulate", MACHINE, "--trajectory", f"{path}#m0:time", "--out",
-             str(tmp_path / "b.csv"), "--settle", "-1")
-    assert r.returncode == 2 and "--settle" in r.stderr
+    assert main(["simulate", MACHINE, "--trajectory", ref, "--out", str(tmp_path / "b.csv"),
+                 "--settle", "-1"]) == 2
+    assert "--settle" in capsys.readouterr().err
 
 
 def test_export_carries_the_refined_commands(lib, tmp_path, crane):

@@ -126,7 +126,7 @@ def test_library_refine_resumes_with_identical_results(lib, tmp_path):
     """A refine stopped after the first entry and rerun gives the file an uninterrupted run
     gives; a rerun with the same twin and options skips every entry."""
     import shutil
-    opts = RefineOptions(iterations=4, settle=1.0)
+    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5)
     whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
     shutil.copy(lib, whole)
     shutil.copy(lib, part)

@@ -31,7 +31,8 @@ def test_rest_to_rest_matches_ruckig(d, v, a, j):
     assert rest_to_rest_time(d, v, a, j) == pytest.approx(ruckig_duration(d, v, a, j), rel=1e-6)
 
 
-def _ruckig_move(crane, qs, qg):
+def ruckig_move(crane, qs, qg, samples: int = 4000):
+    """The synchronised time-optimal Ruckig move between two configurations, sampled."""
     L = crane.limit_arrays()
     n = crane.n
     inp = ruckig.InputParameter(n)
@@ -44,7 +45,7 @@ def _ruckig_move(crane, qs, qg):
     inp.max_jerk = list(L["qddd_max"])
     tr = ruckig.Trajectory(n)
     ruckig.Ruckig(n).calculate(inp, tr)
-    t = np.linspace(0, tr.duration, 4000)
+    t = np.linspace(0, tr.duration, samples)
     s = [tr.at_time(x) for x in t]
     return Trajectory(t, [p[0] for p in s], [p[1] for p in s], [p[2] for p in s],
                       joint_names=tuple(crane.names))
@@ -70,7 +71,7 @@ def test_feasible_moves_never_beat_the_bound(cid, start, goal):
             qg = crane.ik(goal, rng.uniform(lo, hi))
         except UnreachableError:
             continue
-        tr = _ruckig_move(crane, qs, qg)
+        tr = ruckig_move(crane, qs, qg)
         # (jerk is piecewise constant in Ruckig: between samples the quintic interpolant of a
         # piecewise cubic is not exact in jerk, so judge up to acceleration here)
         ev = evaluate(crane, tr, kinds=("position", "velocity", "acceleration"))

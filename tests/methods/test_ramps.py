@@ -5,9 +5,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-import ruckig
 
-from tests.methods.test_bounds import ruckig_duration as ruckig_1dof  # the oracle
+from tests.methods.test_bounds import ruckig_duration as ruckig_1dof  # the oracles
+from tests.methods.test_bounds import ruckig_move
 from planner import Crane
 from planner.bounds import lower_bound, rest_to_rest_time
 from planner.bounds.profiles import from_rest_distance
@@ -80,20 +80,7 @@ def _feasible_move(crane, qs, qg):
     """A move that respects every limit the bound assumes: the synchronised Ruckig move
     between the configurations, slowed uniformly until its pump draw (evaluate(), 1 kHz) is
     within Q_max."""
-    L = crane.limit_arrays()
-    n = crane.n
-    inp = ruckig.InputParameter(n)
-    inp.current_position, inp.target_position = list(qs), list(qg)
-    inp.current_velocity = inp.current_acceleration = [0.0] * n
-    inp.target_velocity = inp.target_acceleration = [0.0] * n
-    inp.max_velocity, inp.min_velocity = list(L["qd_max"]), list(L["qd_min"])
-    inp.max_acceleration, inp.max_jerk = list(L["qdd_max"]), list(L["qddd_max"])
-    tr = ruckig.Trajectory(n)
-    ruckig.Ruckig(n).calculate(inp, tr)
-    t = np.linspace(0, tr.duration, 3000)
-    s = [tr.at_time(x) for x in t]
-    traj = Trajectory(t, [p[0] for p in s], [p[1] for p in s], [p[2] for p in s],
-                      joint_names=tuple(crane.names))
+    traj = ruckig_move(crane, qs, qg, samples=3000)
     peak = evaluate(crane, traj, kinds=("pump_flow",)).peak_pump_flow
     return traj.duration * max(1.0, peak / crane.spec.pump.max_flow)
 

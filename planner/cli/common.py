@@ -197,6 +197,21 @@ def check_distinct(args) -> None:
         seen.append((label, v, keys))
 
 
+def entry_of(db, path: str, entry: str) -> str:
+    """The entry a ``FILE.h5#ID`` names in the open library ``db``: ``entry``, or the only one
+    when it is left out; one-line CLIError when it is ambiguous or unknown (with the first
+    few ids)."""
+    ids = db.ids()
+    if not entry:
+        if len(ids) != 1:
+            raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
+        return ids[0]
+    if entry not in ids:
+        near = ", ".join(ids[:5]) + (", ..." if len(ids) > 5 else "")
+        raise CLIError(f"{path}: no entry {entry!r}; its entries: {near or 'none'}")
+    return entry
+
+
 def read_trajectory(crane: Crane, ref: str) -> Trajectory:
     """A trajectory named on the command line: FILE.csv, or FILE.h5#ID (an entry of a library
     database; the ID may be left out when the file holds one entry; :func:`split_ref` for a
@@ -207,11 +222,7 @@ def read_trajectory(crane: Crane, ref: str) -> Trajectory:
     if path.endswith(".h5"):
         from planner.library.store import LibraryStore  # h5py: only when a database is read
         with LibraryStore.open(path, "r") as db:
-            ids = db.ids()
-            if not entry:
-                if len(ids) != 1:
-                    raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
-                entry = ids[0]
+            entry = entry or entry_of(db, path, entry)
             return checked_trajectory(crane, db.trajectory(entry), f"{path}#{entry}",
                                       crane_id=db.crane_id)
     try:
@@ -241,7 +252,7 @@ def replay_commands(crane: Crane, ref: str, traj: Trajectory, which: str = "auto
     from planner.library.refined import entry_commands
     from planner.library.store import LibraryStore, StoreError
     with LibraryStore.open(path, "r") as db:
-        entry = entry or db.ids()[0]
+        entry = entry or entry_of(db, path, entry)
         try:
             t_u, u, used, _ = entry_commands(db, entry, traj, which)
         except StoreError as e:

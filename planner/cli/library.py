@@ -11,8 +11,8 @@ import os
 import shlex
 import sys
 
-from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
-                                output_arg, point_arg)
+from planner.cli.common import (CLIError, add_json_arg, emit, entry_of, method_arg,
+                                note_created, output_arg, point_arg, split_ref)
 from planner.units import parse_angle
 
 if TYPE_CHECKING:
@@ -254,16 +254,9 @@ def cmd_library_show(args):
     from planner.io import missing_dirs
     from planner.library.store import LibraryStore
     check_animation(args)
-    path, _, eid = args.entry.partition("#")
+    path, eid = split_ref(args.entry)
     with LibraryStore.open(path, "r") as db:
-        ids = db.ids()
-        if not eid:
-            if len(ids) != 1:
-                raise CLIError(f"{path} holds {len(ids)} entries: name one as {path}#ID")
-            eid = ids[0]
-        if eid not in ids:
-            near = ", ".join(ids[:5]) + (", ..." if len(ids) > 5 else "")
-            raise CLIError(f"{path}: no entry {eid!r}; its entries: {near or 'none'}")
+        eid = entry_of(db, path, eid)
         summary = entry_summary(db, eid)
         traj = db.trajectory(eid) if args.animate else None
         spec_toml = db.spec_toml

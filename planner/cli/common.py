@@ -260,3 +260,14 @@ def replay_commands(crane: Crane, ref: str, traj: Trajectory, which: str = "auto
     if used == "refined":
         return on_command_grid(traj, t_u, u), used
     return traj, used
+
+
+def add_animate_args(p, shows: str) -> None:
+    """``--animate FILE`` and ``--fps`` of a command that draws a move; ``shows``: what the
+    drawing shows besides the crane and the tip path (the walls, the suite's obstacles)."""
+    p.add_argument("--animate", metavar="FILE.gif|.mp4|.html", type=output_arg,
+                   help="animate the move: the crane in a side and a top view, the tip path, "
+                        f"{shows} (.mp4 needs ffmpeg; .html is self-contained)")
+    p.add_argument("--fps", type=float, default=20.0,
+                   help="--animate frames per second of the move (20; at most 30, and at most "
+                        "600 frames: longer moves play faster)")

@@ -11,8 +11,8 @@ import os
 import shlex
 import sys
 
-from planner.cli.common import (CLIError, add_json_arg, emit, entry_of, method_arg,
-                                note_created, output_arg, point_arg, split_ref)
+from planner.cli.common import (CLIError, add_animate_args, add_json_arg, emit, entry_of,
+                                method_arg, note_created, output_arg, point_arg, split_ref)
 from planner.units import parse_angle
 
 if TYPE_CHECKING:
@@ -350,12 +350,7 @@ def add_parsers(sub) -> None:
     p = lsub.add_parser("show", help="one entry's summary; --animate draws its move")
     p.add_argument("entry", metavar="LIB.h5#ID",
                    help="the entry (the ID may be left out when the library holds one)")
-    p.add_argument("--animate", metavar="FILE.gif|.mp4|.html", type=output_arg,
-                   help="animate the move: the crane in a side and a top view, the tip path, "
-                        "the suite's obstacles (.mp4 needs ffmpeg; .html is self-contained)")
-    p.add_argument("--fps", type=float, default=20.0,
-                   help="--animate frames per second of the move (20; at most 30, and at most "
-                        "600 frames: longer moves play faster)")
+    add_animate_args(p, "the suite's obstacles")
     add_json_arg(p)
     p.set_defaults(func=cmd_library_show)
     p = lsub.add_parser("query", help="the entry nearest to a requested move")

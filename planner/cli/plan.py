@@ -24,8 +24,8 @@ import math
 import sys
 import time
 
-from planner.cli.common import (CLIError, add_json_arg, emit, method_arg, note_created,
-                                output_arg, point_arg)
+from planner.cli.common import (CLIError, add_animate_args, add_json_arg, emit, method_arg,
+                                note_created, output_arg, point_arg)
 from planner.cli.wording import cli_text
 
 if TYPE_CHECKING:
@@ -330,12 +330,7 @@ def add_parsers(sub) -> None:
                    help="CSV --out: a second line '# s,rad,...' with every column's unit")
     p.add_argument("--plot", metavar="FILE.png|.pdf|.svg", type=output_arg,
                    help="draw joints, rates, tip path, pump (format from the suffix)")
-    p.add_argument("--animate", metavar="FILE.gif|.mp4|.html", type=output_arg,
-                   help="animate the move: the crane in a side and a top view, the tip path, "
-                        "the walls (.mp4 needs ffmpeg; .html is self-contained)")
-    p.add_argument("--fps", type=float, default=20.0,
-                   help="--animate frames per second of the move (20; at most 30, and at most "
-                        "600 frames: longer moves play faster)")
+    add_animate_args(p, "the walls")
     add_json_arg(p)
     p.epilog = ("JSON: max_limit_violation covers the limit kinds the method plans with "
                 "(checked_limits); violations and max_violation_all_kinds cover every kind "

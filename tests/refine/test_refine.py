@@ -80,7 +80,7 @@ def test_the_adjoint_gradient_matches_central_differences(crane, twin, move):
 
 def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin, move):
     t_u, u = stored_commands(move)
-    opts = RefineOptions(iterations=25, settle=1.5)
+    opts = RefineOptions(iterations=12, settle=1.5)
     r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
     assert r.status == RefineStatus.IMPROVED, r.reason
     nom, ref = r.predicted["nominal"], r.predicted["refined"]

@@ -9,6 +9,7 @@ import pytest
 from planner import Crane
 from planner.cli import main
 from planner.trajectory import Trajectory
+from tests.library.test_faults import children
 
 
 def _cli(capsys, *argv):
@@ -294,18 +295,6 @@ def test_ctrl_c_while_the_workers_start_is_exit_130(tmp_path):
     import sys
     import time
     from pathlib import Path
-
-    def children(pid):
-        out = []
-        for d in filter(str.isdigit, os.listdir("/proc")):
-            try:
-                with open(f"/proc/{d}/stat") as fh:
-                    st = fh.read().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(st[1]) == pid and st[0] not in "ZX":
-                out.append(int(d))
-        return out
 
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     p = subprocess.Popen([sys.executable, "-m", "planner", "library", "build", "s100f",

@@ -48,7 +48,8 @@ def _alive(pid: int) -> bool:
     return s is not None and s[0] not in "ZX"
 
 
-def _children(pid: int) -> list[int]:
+def children(pid: int) -> list[int]:
+    """The live child processes of ``pid`` (from /proc)."""
     out = []
     for d in os.listdir("/proc"):
         if d.isdigit():
@@ -97,7 +98,7 @@ def test_ctrl_c_stops_a_two_worker_build_promptly_and_the_file_resumes(tmp_path,
     lib, err = tmp_path / "int.h5", tmp_path / "err.txt"
     p = _start(BUILD + ["--workers", "2", "--out", lib], err)
     _wait_for(err, "library s100f: 1/4", p)
-    workers = _children(p.pid)
+    workers = children(p.pid)
     assert len(workers) >= 2
     os.killpg(p.pid, signal.SIGINT)                      # Ctrl-C: driver and workers
     assert p.wait(timeout=WAIT_S) == 130                 # 128 + SIGINT, the shell convention
@@ -121,7 +122,7 @@ def test_killing_the_driver_leaves_no_worker_and_no_lock(tmp_path, clean):
     lib, err = tmp_path / "kill.h5", tmp_path / "err.txt"
     p = _start(BUILD + ["--workers", "2", "--out", lib], err)
     _wait_for(err, "library s100f: 1/4", p)
-    workers = _children(p.pid)
+    workers = children(p.pid)
     assert len(workers) >= 2 and all(_alive(w) for w in workers)
     p.kill()                                             # as the OOM killer would
     p.wait()

@@ -18,8 +18,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "planner"]
 ENV = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_faults import children  # noqa: E402  (the live children of a process, /proc)
 
 
 def cli(argv, cwd, timeout=600) -> dict:
@@ -31,6 +29,19 @@ def cli(argv, cwd, timeout=600) -> dict:
     return dict(rc=r.returncode, s=round(time.monotonic() - t0, 2),
                 line=lines[-1] if lines else r.stdout.strip().splitlines()[-1],
                 traceback="Traceback" in r.stderr, stdout=r.stdout)
+
+
+def children(pid) -> list[int]:
+    out = []
+    for d in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{d}/stat") as fh:
+                st = fh.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(st[1]) == pid and st[0] not in "ZX":
+            out.append(int(d))
+    return out
 
 
 def default_sigint():

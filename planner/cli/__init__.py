@@ -7,6 +7,7 @@ One thin module per command group registers its sub-parsers (``add_parsers``) an
 argument parsing, a call into the package and the printing: :mod:`~planner.cli.problems`
 (problems, bound), :mod:`~planner.cli.plan`, :mod:`~planner.cli.library`,
 :mod:`~planner.cli.simulate` (simulate, effects), :mod:`~planner.cli.discrepancy`,
+:mod:`~planner.cli.calibrate` (the dynamic twin fitted to logs),
 :mod:`~planner.cli.studies` (bench, demo); :mod:`~planner.cli.common` has what they share.
 The package's messages name fields (`tip_speed`); :mod:`~planner.cli.wording` prints them as
 the flags that set them (--tip-speed).
@@ -22,15 +23,16 @@ import argparse
 import re
 import sys
 
-from planner.cli import (discrepancy, excite, library, plan, problems, resample, simulate,
-                         studies)
+from planner.cli import (calibrate, discrepancy, excite, library, plan, problems, resample,
+                         simulate, studies)
 from planner.cli.common import CLIError, VersionAction, check_distinct
 from planner.cli.wording import cli_text
 
 __all__ = ["CLIError", "build_parser", "join_negative_values", "main"]
 
 # the order of the sub-commands in --help
-COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, resample, excite, studies)
+COMMAND_GROUPS = (problems, plan, library, simulate, discrepancy, calibrate, resample, excite,
+                  studies)
 
 
 def build_parser() -> argparse.ArgumentParser:

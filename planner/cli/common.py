@@ -171,11 +171,12 @@ def check_distinct(args) -> None:
     from planner.io import OutputError, output_target
     files = []
     for dest, label in INPUT_DESTS.items():
-        v = getattr(args, dest, None)
-        path = (split_ref(v)[0] if dest in ("trajectory", "entry") and isinstance(v, str)
-                else v)
-        if isinstance(path, str) and path and os.path.isfile(path):
-            files.append((label, v, path))
+        vals = getattr(args, dest, None)
+        for v in (vals if isinstance(vals, list) else [vals]):   # a repeated option: a list
+            path = (split_ref(v)[0] if dest in ("trajectory", "entry") and isinstance(v, str)
+                    else v)
+            if isinstance(path, str) and path and os.path.isfile(path):
+                files.append((label, v, path))
     for dest, label in OUTPUT_DESTS.items():
         v = getattr(args, dest, None)
         if not isinstance(v, str) or not v or v == "-":

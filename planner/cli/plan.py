@@ -194,8 +194,9 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
                        "(the twin needs bulk modulus, hose volumes, …)")
     from planner.feedforward import commands
     from planner.refine import refine_commands
+    from planner.simulation.twin_plant import twin_of
     ff = commands(crane, traj, CONTROL_RATE_HZ)
-    r = refine_commands(crane, traj, ff.t, ff.u)
+    r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane))
     out["feedforward"] = dict(commands="refined" if r.status == "improved" else "nominal",
                               **r.info())
     return r if r.status == "improved" else None

@@ -43,11 +43,11 @@ def model_crane(spec_text: str, where: str):
 
 
 def _twin(spec_text: str, where: str, step: float):
-    from planner.model.twin import Twin
+    from planner.simulation.twin_plant import twin_of
     key = (spec_text, step)
     if key not in _TWINS:
         crane = model_crane(spec_text, where)
-        _TWINS[key] = (crane, Twin(crane, step=step))
+        _TWINS[key] = (crane, twin_of(crane, step=step))
     return _TWINS[key]
 
 

@@ -26,7 +26,11 @@ from planner.simulation.replay import valve_set
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["TwinPlant"]
+__all__ = ["TwinPlant", "twin_of", "CARRIED"]
+
+#: the hooks a bare :class:`~planner.model.twin.Twin` carries (its data); the others act in
+#: :meth:`TwinPlant.run` around it
+CARRIED = ("valves", "payload", "bodies", "dynamics", "sense_q_at", "sense_p_at")
 
 
 class TwinPlant(BasePlant):
@@ -108,3 +112,22 @@ class TwinPlant(BasePlant):
                 q = e.sense_q_at(self.crane, t, q)
                 p_a, p_b = e.sense_p_at(self.crane, t, p_a, p_b)
         return q, p_a, p_b
+
+
+def twin_of(crane: Crane, step: float = 2e-3) -> Twin:
+    """The twin of ``crane`` with the spec's own ``[[effects]]`` (a model written by
+    ``discrepancy --save-model``) applied, for work on the bare twin (the feed-forward
+    refinement): effects on the machine's data (valves, payload, bodies, dynamics) are carried;
+    sensor effects change only what is measured, not the motion the commands are refined
+    for; an effect acting on the command signal, the start or as an extra force is refused by
+    name (ValueError), never dropped."""
+    if not crane.spec.effects:
+        return Twin(crane, step=step)
+    plant = TwinPlant(crane, step=step)
+    for e in plant.effects:
+        extra = [h for h in plant.applied[e] if h not in CARRIED]
+        if extra:
+            raise ValueError(f"crane '{crane.spec.id}': effects: '{e.name}' acts through "
+                             f"{', '.join(extra)}, which the refinement's bare twin does not "
+                             f"carry; allowed: effects on {', '.join(CARRIED[:4])}")
+    return plant.twin

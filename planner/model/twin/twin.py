@@ -78,13 +78,16 @@ class TwinRun:
 
 
 def _stepper(crane: Crane, spec, step, newton, chunk):
-    key = (id(crane), crane.spec.path, repr(spec.joints) if spec is not crane.spec else "",
-           step, newton, chunk)
+    """The compiled step of the rigid bodies of ``spec``: the right-hand side depends on
+    nothing else of the machine (its joints and gravity; the hydraulic data are inputs), so
+    every crane object with the same bodies — a calibrated spec, a library's copy of the
+    spec — shares one."""
+    key = (repr(spec.joints), repr(spec.gravity), step, newton, chunk)
     st = _STEPPERS.get(key)
-    if st is None or st[0] is not crane:
+    if st is None:
         fs = build_rhs(crane, spec)
-        st = _STEPPERS[key] = (crane, Stepper(fs["rhs"], crane.n, step, newton, chunk), fs)
-    return st[1], st[2]
+        st = _STEPPERS[key] = (Stepper(fs["rhs"], crane.n, step, newton, chunk), fs)
+    return st
 
 
 class Twin:

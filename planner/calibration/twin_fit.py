@@ -1,0 +1,334 @@
+"""Calibrating the dynamic twin from logs (issue 28, "the loop"): the twin's physical
+parameters (:mod:`planner.calibration.twin_params`) fitted so that the twin, driven by the
+logged commands, reproduces the logged positions and pressures.
+
+**Segments.** An open-loop replay of a long log with wrong parameters drifts (a dead band or a
+leak shifts every later move), which makes the misfit depend on the whole past and the fit
+ill-conditioned. The log is therefore cut at its holds — every stretch of at least
+``hold`` seconds with every command at zero — and each segment (a hold's last sample, the move
+that follows, the next hold) is simulated from the state measured at its start: the logged
+positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the
+spools closed, the pump line at its rest pressure. A hold's trapped pressures are thus taken
+as they were, not as the quasi-static holding pressures. A log without pressures starts each
+segment from the model's holding pressures. A log without holds is one segment.
+
+**Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
+level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
+5 % of seed 001's sensor accuracies (:data:`planner.simulation.recording.NOISE_DEFAULTS`) so
+that a noiseless synthetic log stays finite. A twin run that diverges scores
+:data:`DIVERGED` per remaining sample.
+
+**Fit.** scipy's trust-region reflective least squares on the scaled parameters (bounded), its
+Jacobian by forward differences of whole twin runs (one run per parameter; the twin's
+parameters are inputs of its compiled step, so nothing is recompiled). **Intervals**: the
+Gauss–Newton covariance s²·(JᵀJ)⁻¹ at the solution, s² the misfit per degree of freedom
+(model error widens them honestly), mapped to values (log-scaled parameters: a factor
+interval); a parameter whose scaled standard deviation exceeds :data:`UNIDENTIFIED` (a factor
+e or one typical size) is reported as not identified by these logs.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.calibration.noise import noise_floor_at
+from planner.calibration.twin_params import machine_of, select, twin_parameters
+from planner.model.twin import Twin
+from planner.simulation.recording import NOISE_DEFAULTS
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+    from planner.simulation.recording import Recording
+
+__all__ = ["Segment", "segments", "TwinFit", "TwinFitResult", "calibrate_twin",
+           "DIVERGED", "UNIDENTIFIED"]
+
+DIVERGED = 1e3          # [σ] residual per sample after a twin run diverged
+UNIDENTIFIED = 1.0      # scaled standard deviation above which a parameter is not identified
+_FD_STEP = 1e-3         # forward-difference step in the scaled parameters
+_Z95 = 1.959964
+
+
+@dataclass
+class Segment:
+    """Samples ``k0 … k1`` (inclusive) of recording ``rec`` simulated from the state measured
+    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None)."""
+    rec: int
+    k0: int
+    k1: int
+    q0: np.ndarray
+    p_a0: np.ndarray | None
+    p_b0: np.ndarray | None
+
+
+def segments(rec: Recording, index: int = 0, hold: float = 0.5,
+             anchor: float = 0.2) -> list[Segment]:
+    """The segments of ``rec`` (module doc): cut at the last sample of every hold of at least
+    ``hold`` s, the start state averaged over the hold's last ``anchor`` s."""
+    t, u = rec.t, rec.u
+    still = np.all(np.abs(u) < 1e-9, axis=1)
+    cuts = []
+    k, N = 0, len(t)
+    while k < N:
+        if still[k]:
+            e = k
+            while e + 1 < N and still[e + 1]:
+                e += 1
+            if t[e] - t[k] >= hold - 1e-9 or k == 0:
+                cuts.append((k, e))
+            k = e + 1
+        else:
+            k += 1
+    if not cuts or cuts[0][0] != 0:
+        cuts.insert(0, (0, 0))
+    out = []
+    for i, (s, e) in enumerate(cuts):
+        k1 = cuts[i + 1][1] if i + 1 < len(cuts) else N - 1
+        if k1 <= e:
+            continue
+        a = max(s, int(np.searchsorted(t, t[e] - anchor)))
+        q0 = rec.q[a:e + 1].mean(axis=0)
+        pa = None if rec.p_a is None else rec.p_a[a:e + 1].mean(axis=0)
+        pb = None if rec.p_b is None else rec.p_b[a:e + 1].mean(axis=0)
+        out.append(Segment(index, e, k1, q0, pa, pb))
+    return out
+
+
+def _noise(crane: Crane, rec: Recording) -> tuple[np.ndarray, np.ndarray | None]:
+    """(σ of each position channel (n,), σ of each pressure channel (2n,) or None)."""
+    src = rec.logged if rec.logged is not None else rec
+    floor_q = np.array([NOISE_DEFAULTS["angle"] if j.type == "revolute"
+                        else NOISE_DEFAULTS["length"] for j in crane.spec.joints])
+    sq = np.maximum(noise_floor_at(src.t, src.q), 0.05 * floor_q)
+    if rec.p_a is None:
+        return sq, None
+    sp = np.maximum(noise_floor_at(src.t, np.hstack([src.p_a, src.p_b])),
+                    0.05 * NOISE_DEFAULTS["pressure"])
+    return sq, sp
+
+
+@dataclass
+class TwinFitResult:
+    """A calibration: ``values`` (name -> fitted value), ``nominal`` (the spec's),
+    ``interval`` (name -> 95 % (lo, hi)), ``identified`` (name -> bool), ``sd_scaled``,
+    the misfit before and after (RMS in noise units, positions and pressures apart),
+    ``runs`` (twin runs), ``runtime_s``, ``status`` of the optimiser, the ``dynamics`` and
+    ``deadband`` of the calibrated machine, ``segments`` and ``samples`` used."""
+    values: dict
+    nominal: dict
+    interval: dict
+    identified: dict
+    sd_scaled: dict
+    rms_before: dict
+    rms_after: dict
+    runs: int
+    runtime_s: float
+    status: str
+    message: str
+    dynamics: object = None
+    deadband: np.ndarray | None = None
+    segments: int = 0
+    samples: int = 0
+    units: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return dict(status=self.status, message=self.message, runtime_s=self.runtime_s,
+                    twin_runs=self.runs, segments=self.segments, samples=self.samples,
+                    rms_before=self.rms_before, rms_after=self.rms_after,
+                    parameters={k: dict(value=self.values[k], nominal=self.nominal[k],
+                                        unit=self.units.get(k, ""),
+                                        interval95=list(self.interval[k]),
+                                        identified=self.identified[k],
+                                        sd_scaled=self.sd_scaled[k]) for k in self.values})
+
+
+class TwinFit:
+    """The least-squares problem of fitting ``parameters`` (names, groups or kinds; default
+    all) of ``crane``'s twin to ``recordings`` (module doc)."""
+
+    #: [s] moving-average window of the first stage: longer than a hydraulic mode's period
+    #: (0.7–3 Hz on the machines here), so the stage sees the settled compression, not the phase
+    SMOOTH = 0.5
+    #: the bulk-modulus factors tried before the raw stage (6 % apart: the valley of the raw
+    #: misfit is about ±15 % wide on the machines here)
+    SCAN = np.geomspace(0.5, 2.0, 25)
+
+    def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
+                 step: float = 2e-3, pressures: bool = True):
+        self.crane = crane
+        self.recs = list(recordings)
+        if not self.recs:
+            raise ValueError("measured: no recording given; allowed: one or more logs")
+        self.all_params = twin_parameters(crane)
+        self.params = select(self.all_params, parameters)
+        self.step = step
+        self.segs = [s for i, r in enumerate(self.recs) for s in segments(r, i, hold)]
+        if not self.segs:
+            raise ValueError("measured: the logs hold no motion after their first sample; "
+                             "allowed: a log of commanded moves")
+        self.use_p = pressures and all(r.p_a is not None for r in self.recs)
+        self.sig = [_noise(crane, r) for r in self.recs]
+        self.runs = 0
+        self.smooth = 0.0
+
+    # ----------------------------------------------------------------- the model
+    def twin(self, values: dict) -> Twin:
+        dyn, db = machine_of(self.crane, values)
+        tw = Twin(self.crane, dynamics=dyn, deadband=db, step=self.step)
+        return tw
+
+    def values_of(self, z) -> dict:
+        return {p.name: p.to_value(float(v)) for p, v in zip(self.params, z)}
+
+    def z0(self) -> np.ndarray:
+        return np.array([p.to_z(p.nominal) if p.log or p.nominal > 0 else 0.0
+                         for p in self.params])
+
+    def residuals(self, z, split: bool = False):
+        """The scaled residual vector at ``z`` (split: (position part, pressure part))."""
+        tw = self.twin(self.values_of(z))
+        self.runs += 1
+        n = self.crane.n
+        rq, rp = [], []
+        for s in self.segs:
+            r = self.recs[s.rec]
+            sq, sp = self.sig[s.rec]
+            t = r.t[s.k0:s.k1 + 1]
+            x0 = tw.rest_state(s.q0)
+            if self.use_p and s.p_a0 is not None:
+                x0[2 * n:3 * n], x0[3 * n:4 * n] = s.p_a0, s.p_b0
+            run = tw.simulate(t, r.u[s.k0:s.k1 + 1], s.q0, t_end=t[-1], x0=x0)
+            ts = t[1:]
+            good = ts <= run.t[-1] + 1e-9 if not run.ok else np.ones(ts.size, bool)
+            q, pa, pb, _ = run.sample(np.minimum(ts, run.t[-1]))
+            q, mq = self._low(q, ts), self._low(r.q[s.k0 + 1:s.k1 + 1], ts)
+            eq = (q - mq) / sq
+            eq[~good] = DIVERGED
+            rq.append(eq.ravel())
+            if self.use_p:
+                ep = (self._low(np.hstack([pa, pb]), ts)
+                      - self._low(np.hstack([r.p_a[s.k0 + 1:s.k1 + 1],
+                                             r.p_b[s.k0 + 1:s.k1 + 1]]), ts)) / sp
+                ep[~good] = DIVERGED
+                rp.append(ep.ravel())
+        rq = np.concatenate(rq)
+        rp = np.concatenate(rp) if rp else np.zeros(0)
+        rq, rp = np.nan_to_num(rq, nan=DIVERGED), np.nan_to_num(rp, nan=DIVERGED)
+        return (rq, rp) if split else np.concatenate([rq, rp])
+
+    def _low(self, Y, t):
+        """``Y`` (samples × channels) moving-averaged over :attr:`smooth` seconds (0: as is)."""
+        if self.smooth <= 0 or len(t) < 3:
+            return Y
+        from scipy.ndimage import uniform_filter1d
+        w = max(int(round(self.smooth / float(np.median(np.diff(t))))), 1)
+        return uniform_filter1d(Y, w, axis=0, mode="nearest") if w > 1 else Y
+
+    def jacobian(self, z, r0=None) -> np.ndarray:
+        """Forward differences of :meth:`residuals` (one twin run per parameter), stepping
+        away from the nearer bound."""
+        r0 = self.residuals(z) if r0 is None else r0
+        J = np.empty((r0.size, len(self.params)))
+        for i, p in enumerate(self.params):
+            lo, hi = p.z_bounds
+            h = _FD_STEP if z[i] + _FD_STEP <= hi else -_FD_STEP
+            zi = np.array(z, float)
+            zi[i] += h
+            J[:, i] = (self.residuals(zi) - r0) / h
+        return J
+
+    def rms(self, z) -> dict:
+        rq, rp = self.residuals(z, split=True)
+        return dict(positions=float(np.sqrt(np.mean(rq ** 2))),
+                    pressures=float(np.sqrt(np.mean(rp ** 2))) if rp.size else None)
+
+    # ----------------------------------------------------------------- the fit
+    def scan_oil(self, z, lb, ub) -> np.ndarray:
+        """``z`` with the bulk modulus (when fitted) moved to the best of a geometric grid
+        (×:data:`SCAN` around its value) on the raw misfit: the ringing's frequency goes as
+        sqrt(β), so the raw misfit has one narrow valley per ringing phase and a local search
+        started a few tens of per cent off stays in the wrong one (module doc)."""
+        names = [p.name for p in self.params]
+        if "bulk_modulus" not in names:
+            return z
+        i = names.index("bulk_modulus")
+        best, best_z = None, z
+        for f in np.log(self.SCAN):
+            zi = np.array(z, float)
+            zi[i] = float(np.clip(z[i] + f, lb[i], ub[i]))
+            r = self.residuals(zi)
+            c = float(r @ r)
+            if best is None or c < best:
+                best, best_z = c, zi
+        return best_z
+
+    def solve(self, max_iterations: int = 12, tol: float = 1e-3) -> TwinFitResult:
+        from scipy.optimize import least_squares
+        wall0 = time.perf_counter()
+        z0 = self.z0()
+        lb = np.array([p.z_bounds[0] for p in self.params])
+        ub = np.array([p.z_bounds[1] for p in self.params])
+        z0 = np.clip(z0, lb, ub)
+        before = self.rms(z0)
+        cache = {}
+
+        def fun(z):
+            key = (z.tobytes(), self.smooth)
+            if key not in cache:
+                cache.clear()
+                cache[key] = self.residuals(z)
+            return cache[key]
+
+        def jac(z):
+            return self.jacobian(z, fun(z))
+        z = z0
+        # stage 1 on the moving averages (the ringing's phase removed: a smooth valley),
+        # stage 2 on the samples as logged, from there (module doc)
+        stages = ((self.SMOOTH, max(max_iterations // 2, 1)),
+                  (0.0, max(max_iterations - max_iterations // 2, 1)))
+        for smooth, iters in stages:
+            self.smooth = smooth
+            if smooth == 0.0:
+                z = self.scan_oil(z, lb, ub)
+            sol = least_squares(fun, z, jac=jac, bounds=(lb, ub), method="trf", x_scale=1.0,
+                                max_nfev=iters, ftol=tol, xtol=tol, gtol=1e-8)
+            z = np.clip(sol.x, lb, ub)
+        r = fun(z)
+        J = sol.jac if sol.jac is not None else self.jacobian(z, r)
+        m, k = r.size, len(self.params)
+        s2 = float(r @ r) / max(m - k, 1)
+        JTJ = J.T @ J
+        cov = s2 * np.linalg.pinv(JTJ, rcond=1e-12)
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        values, nominal, interval, ident, sds, units = {}, {}, {}, {}, {}, {}
+        for p, zi, si in zip(self.params, z, sd):
+            v = p.to_value(zi)
+            values[p.name], nominal[p.name], units[p.name] = v, p.nominal, p.unit
+            if p.log:
+                lo, hi = v * math.exp(-_Z95 * si), v * math.exp(_Z95 * si)
+            else:
+                lo, hi = max(v - _Z95 * si * p.scale, 0.0), v + _Z95 * si * p.scale
+            interval[p.name] = (float(lo), float(hi))
+            ident[p.name] = bool(si <= UNIDENTIFIED)
+            sds[p.name] = float(si)
+        after = self.rms(z)
+        dyn, db = machine_of(self.crane, values)
+        return TwinFitResult(values=values, nominal=nominal, interval=interval,
+                             identified=ident, sd_scaled=sds, rms_before=before,
+                             rms_after=after, runs=self.runs,
+                             runtime_s=time.perf_counter() - wall0,
+                             status="converged" if sol.status > 0 else "stopped",
+                             message=str(sol.message), dynamics=dyn, deadband=db,
+                             segments=len(self.segs),
+                             samples=int(sum(s.k1 - s.k0 for s in self.segs)), units=units)
+
+
+def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,
+                   hold: float = 0.5, step: float = 2e-3) -> TwinFitResult:
+    """Fit ``parameters`` of ``crane``'s twin to ``recordings`` (module doc)."""
+    return TwinFit(crane, recordings, parameters, hold=hold, step=step).solve(max_iterations)

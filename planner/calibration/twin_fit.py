@@ -159,7 +159,7 @@ class TwinFit:
     SCAN = np.geomspace(0.5, 2.0, 25)
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
-                 step: float = 2e-3, pressures: bool = True):
+                 step: float = 2e-3, pressures: bool = True, workers: int = 1):
         self.crane = crane
         self.recs = list(recordings)
         if not self.recs:
@@ -175,6 +175,10 @@ class TwinFit:
         self.sig = [_noise(crane, r) for r in self.recs]
         self.runs = 0
         self.smooth = 0.0
+        self.workers = int(workers)
+        self._pool = None
+        if self.workers < 1:
+            raise ValueError(f"workers: {workers!r}; allowed: an integer >= 1")
 
     # ----------------------------------------------------------------- the model
     def twin(self, values: dict) -> Twin:
@@ -231,16 +235,38 @@ class TwinFit:
 
     def jacobian(self, z, r0=None) -> np.ndarray:
         """Forward differences of :meth:`residuals` (one twin run per parameter), stepping
-        away from the nearer bound."""
+        away from the nearer bound; the runs spread over :attr:`workers` processes."""
         r0 = self.residuals(z) if r0 is None else r0
-        J = np.empty((r0.size, len(self.params)))
+        steps, zs = [], []
         for i, p in enumerate(self.params):
             lo, hi = p.z_bounds
             h = _FD_STEP if z[i] + _FD_STEP <= hi else -_FD_STEP
             zi = np.array(z, float)
             zi[i] += h
-            J[:, i] = (self.residuals(zi) - r0) / h
-        return J
+            steps.append(h)
+            zs.append(zi)
+        cols = self._map(zs)
+        return np.column_stack([(c - r0) / h for c, h in zip(cols, steps)])
+
+    def _map(self, zs) -> list:
+        """:meth:`residuals` at each of ``zs``: here, or on the worker processes (forked:
+        they inherit this problem and its compiled twin)."""
+        if self.workers <= 1 or len(zs) < 2:
+            return [self.residuals(zi) for zi in zs]
+        global _ACTIVE
+        if self._pool is None:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+            _ACTIVE = self
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("fork"))
+        self.runs += len(zs)
+        return list(self._pool.map(_residuals_in_worker, zs))
+
+    def close(self) -> None:
+        """Stop the worker processes (if any)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
 
     def rms(self, z) -> dict:
         rq, rp = self.residuals(z, split=True)
@@ -258,16 +284,24 @@ class TwinFit:
             return z
         i = names.index("bulk_modulus")
         best, best_z = None, z
+        zs = []
         for f in np.log(self.SCAN):
             zi = np.array(z, float)
             zi[i] = float(np.clip(z[i] + f, lb[i], ub[i]))
-            r = self.residuals(zi)
+            zs.append(zi)
+        for zi, r in zip(zs, self._map(zs)):
             c = float(r @ r)
             if best is None or c < best:
                 best, best_z = c, zi
         return best_z
 
     def solve(self, max_iterations: int = 12, tol: float = 1e-3) -> TwinFitResult:
+        try:
+            return self._solve(max_iterations, tol)
+        finally:
+            self.close()
+
+    def _solve(self, max_iterations: int, tol: float) -> TwinFitResult:
         from scipy.optimize import least_squares
         wall0 = time.perf_counter()
         z0 = self.z0()
@@ -329,6 +363,14 @@ class TwinFit:
 
 
 def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,
-                   hold: float = 0.5, step: float = 2e-3) -> TwinFitResult:
+                   hold: float = 0.5, step: float = 2e-3, workers: int = 1) -> TwinFitResult:
     """Fit ``parameters`` of ``crane``'s twin to ``recordings`` (module doc)."""
-    return TwinFit(crane, recordings, parameters, hold=hold, step=step).solve(max_iterations)
+    return TwinFit(crane, recordings, parameters, hold=hold, step=step,
+                   workers=workers).solve(max_iterations)
+
+
+_ACTIVE: TwinFit | None = None    # the problem the forked workers inherited
+
+
+def _residuals_in_worker(z):
+    return _ACTIVE.residuals(np.asarray(z, float))

@@ -54,6 +54,20 @@ def test_fit_finds_the_oil_and_a_dead_band_it_was_not_told(lab):
     assert res.identified["bulk_modulus"]
 
 
+def test_jacobian_on_worker_processes_is_the_same(lab):
+    rec = twin_log(lab, {}, duration=3.0)
+    one = TwinFit(lab, [rec], parameters="oil,pump")
+    two = TwinFit(lab, [rec], parameters="oil,pump", workers=2)
+    try:
+        z = one.z0() + 0.1
+        np.testing.assert_array_equal(one.jacobian(z), two.jacobian(z))
+        assert two.runs == 1 + len(two.params)
+    finally:
+        two.close()
+    with pytest.raises(ValueError, match="workers: 0; allowed"):
+        TwinFit(lab, [rec], workers=0)
+
+
 def test_segments_start_at_the_end_of_each_hold(lab):
     rec = twin_log(lab, {}, duration=4.0)
     segs = segments(rec, hold=0.5)

@@ -9,8 +9,13 @@ ill-conditioned. The log is therefore cut at its holds — every stretch of at l
 that follows, the next hold) is simulated from the state measured at its start: the logged
 positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the
 spools closed, the pump line at its rest pressure. A hold's trapped pressures are thus taken
-as they were, not as the quasi-static holding pressures. A log without pressures starts each
-segment from the model's holding pressures. A log without holds is one segment.
+as they were, not as the quasi-static holding pressures. A hold does not always mean rest: a
+lightly damped mode (the slew's trapped oil, 0.7 Hz on s100f) still rings through a short
+hold, and its average over the window is not its state. So a chamber whose pressure spreads
+over more than twice its noise in the window keeps the twin's own state, carried from the
+previous segment (its pressures, velocities, pump and spools), and only the positions are
+re-anchored. A log without pressures starts each segment from the model's holding pressures
+(or the carried state). A log without holds is one segment.
 
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
@@ -57,13 +62,16 @@ _Z95 = 1.959964
 @dataclass
 class Segment:
     """Samples ``k0 … k1`` (inclusive) of recording ``rec`` simulated from the state measured
-    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None)."""
+    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None, their spreads ``sd_a``,
+    ``sd_b`` over the anchor window)."""
     rec: int
     k0: int
     k1: int
     q0: np.ndarray
     p_a0: np.ndarray | None
     p_b0: np.ndarray | None
+    sd_a: np.ndarray | None = None     # spread of the pressures over the anchor window
+    sd_b: np.ndarray | None = None
 
 
 def segments(rec: Recording, index: int = 0, hold: float = 0.5,
@@ -93,9 +101,11 @@ def segments(rec: Recording, index: int = 0, hold: float = 0.5,
             continue
         a = max(s, int(np.searchsorted(t, t[e] - anchor)))
         q0 = rec.q[a:e + 1].mean(axis=0)
-        pa = None if rec.p_a is None else rec.p_a[a:e + 1].mean(axis=0)
-        pb = None if rec.p_b is None else rec.p_b[a:e + 1].mean(axis=0)
-        out.append(Segment(index, e, k1, q0, pa, pb))
+        pa = pb = sa = sb = None
+        if rec.p_a is not None:
+            pa, sa = rec.p_a[a:e + 1].mean(axis=0), rec.p_a[a:e + 1].std(axis=0)
+            pb, sb = rec.p_b[a:e + 1].mean(axis=0), rec.p_b[a:e + 1].std(axis=0)
+        out.append(Segment(index, e, k1, q0, pa, pb, sa, sb))
     return out
 
 
@@ -199,14 +209,14 @@ class TwinFit:
         self.runs += 1
         n = self.crane.n
         rq, rp = [], []
+        carry = None
         for s in self.segs:
             r = self.recs[s.rec]
             sq, sp = self.sig[s.rec]
             t = r.t[s.k0:s.k1 + 1]
-            x0 = tw.rest_state(s.q0)
-            if self.use_p and s.p_a0 is not None:
-                x0[2 * n:3 * n], x0[3 * n:4 * n] = s.p_a0, s.p_b0
+            x0 = self.start_state(tw, s, carry)
             run = tw.simulate(t, r.u[s.k0:s.k1 + 1], s.q0, t_end=t[-1], x0=x0)
+            carry = (s.rec, s.k1, run) if run.ok else None
             ts = t[1:]
             good = ts <= run.t[-1] + 1e-9 if not run.ok else np.ones(ts.size, bool)
             q, pa, pb, _ = run.sample(np.minimum(ts, run.t[-1]))
@@ -224,6 +234,26 @@ class TwinFit:
         rp = np.concatenate(rp) if rp else np.zeros(0)
         rq, rp = np.nan_to_num(rq, nan=DIVERGED), np.nan_to_num(rp, nan=DIVERGED)
         return (rq, rp) if split else np.concatenate([rq, rp])
+
+    def start_state(self, tw: Twin, s: Segment, carry) -> np.ndarray:
+        """A segment's start (module doc): the measured positions; the twin's own velocities,
+        pressures, pump and spools where the previous segment of the same log ran up to
+        here, else rest; the measured pressures of each chamber that was quiet over the
+        anchor window (spread under twice its noise: not ringing)."""
+        n = self.crane.n
+        x0 = tw.rest_state(s.q0)
+        if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
+            run = carry[2]
+            x0[n:2 * n] = run.qd[-1]
+            x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
+            x0[4 * n] = run.p_s[-1]
+            x0[4 * n + 1:] = run.spool[-1]
+        if self.use_p and s.p_a0 is not None:
+            sp = self.sig[s.rec][1]
+            qa, qb = s.sd_a < 2.0 * sp[:n], s.sd_b < 2.0 * sp[n:]
+            x0[2 * n:3 * n][qa] = s.p_a0[qa]
+            x0[3 * n:4 * n][qb] = s.p_b0[qb]
+        return x0
 
     def _low(self, Y, t):
         """``Y`` (samples × channels) moving-averaged over :attr:`smooth` seconds (0: as is)."""

@@ -24,7 +24,7 @@ from planner.trajectory import evaluate
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["energy_optimal", "pareto_front", "stretch"]
+__all__ = ["energy_optimal", "hold_creep", "pareto_front", "stretch"]
 
 
 def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,

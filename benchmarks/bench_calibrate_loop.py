@@ -6,7 +6,8 @@ plant throughout; the twin only fits and refines.
 Machines: the drawn machines of ``bench_refine_robust.py`` (same seed and spread: each
 machine's bulk modulus, hose volumes, spool and pump time constants, friction within ±30 %,
 a leakage and a valve dead band the spec does not have, and a bulk modulus that rises with
-pressure — an effect the twin lacks). Per machine:
+pressure), plus a command delay U(0, ``--delay-max``) between the command and the valves — an
+effect the calibrated twin has no parameter for. Per machine:
 
 1. the excitation (``trials.excitation``, ``--duration`` s, or ``--excitation FILE.csv``)
    replayed open loop on the machine, logged at 50 Hz with seed 001's sensor noise;
@@ -15,8 +16,8 @@ pressure — an effect the twin lacks). Per machine:
 3. the first ``--entries`` entries of the chain library refined on it (``library refine
    --model``, a copy of the library per machine) and replayed on the machine.
 
-The nominal commands and the commands refined on the spec's twin (un-calibrated) on the same
-machines are the rows of ``refine_robust.json`` (same machines, settle, entries).
+Beside them, on the same machines: the nominal commands and the commands refined once on the
+spec's twin (un-calibrated; the refinements ``bench_refine_robust.py`` stored in ``sel.h5``).
 
     python benchmarks/bench_calibrate_loop.py --work /tmp/robust/work [--machines 6]
         [--entries 8] [--duration 120] [--iterations 12] [--workers 2]
@@ -39,10 +40,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_refine_robust import (TOL, _crane, _landed, draw_machines, machine_plant,  # noqa: E402
-                                 replay_task)
+from bench_refine_robust import TOL, _crane, _landed, draw_machines  # noqa: E402
+from bench_refine_robust import machine_plant as robust_plant  # noqa: E402
 from planner.io import atomic_write_text  # noqa: E402
 from planner.library.refine import refine_library  # noqa: E402
+from planner.library.refined import entry_commands  # noqa: E402
 from planner.library.store import LibraryStore  # noqa: E402
 from planner.library.workers import WorkerPool  # noqa: E402
 from planner.refine import RefineOptions  # noqa: E402
@@ -54,12 +56,45 @@ def truth_of(m: dict) -> dict:
     """The drawn machine's values under the calibration's parameter names."""
     out = dict(bulk_modulus=m["bulk_modulus"], spool_time_constant=m["spool_time_constant"],
                pump_time_constant=m["pump_time_constant"])
+    law = m.get("bulk_law") or {}
+    out.update(bulk_low=law.get("lo", 1.0), bulk_high=law.get("hi", 1.0),
+               bulk_reference_pressure=law.get("p_ref", 8e6))
     for k, j in m["joints"].items():
         out[f"hose_a.{k}"], out[f"hose_b.{k}"] = j["hose_volume"]
         for q in ("coulomb", "viscous", "leakage"):
             out[f"{q}.{k}"] = j[q]
         out[f"deadband.{k}"] = j["deadband"] if j["deadband"] is not None else 0.0
     return out
+
+
+def machine_plant(crane, m: dict):
+    """The Exudyn plant of drawn machine ``m``: bench_refine_robust's machine (its
+    ``[dynamics]`` values, dead bands and pressure law) with its command ``delay`` — a
+    transport delay between the command and the valves (bus, controller cycle), which the
+    twin's calibrated family has no parameter for."""
+    from planner.model.effects import make
+    return robust_plant(crane, m, [make("time_delay", delay=m["delay"])] if m.get("delay")
+                        else ())
+
+
+def replay_task(path: str, entry_id: str, which: str, machine: dict, settle: float) -> dict:
+    """One entry's ``which`` commands ("nominal" or "refined") on machine ``machine``."""
+    from planner.simulation.dynamic.claims import replay_move
+    t0 = time.process_time()
+    crane = _crane(path)
+    with LibraryStore.open(path, "r") as db:
+        traj = db.trajectory(entry_id)
+        t_u, u, used, _ = entry_commands(db, entry_id, traj, which)
+    if used != which:
+        return dict(id=entry_id, machine=machine["name"], commands=which, status="missing",
+                    reason=f"no {which} commands", duration_s=float(traj.duration))
+    m = replay_move(crane, traj, t_u=t_u, u=u, settle=settle, tol=TOL,
+                    plant=machine_plant(crane, machine))
+    e = m.exudyn
+    return dict(id=entry_id, machine=machine["name"], commands=used, status=m.status,
+                reason=m.reason, duration_s=float(traj.duration), library=Path(path).name,
+                offset_m=e.get("offset_m"), peak_osc_m=e.get("peak_osc_m"),
+                max_track_m=e.get("max_track_m"), cpu_s=time.process_time() - t0)
 
 
 def calibrate_task(lib: str, work: str, m: dict, duration: float, iterations: int,
@@ -106,6 +141,8 @@ def main():
     ap.add_argument("--iterations", type=int, default=12)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--delay-max", type=float, default=0.03,
+                    help="each machine's command delay drawn from U(0, this) [s]")
     ap.add_argument("--markdown", metavar="JSON")
     a = ap.parse_args()
     if a.markdown:
@@ -120,6 +157,9 @@ def main():
     check = draw_machines(_crane(str(sel)).spec.dynamics, len(machines), robust["seed"],
                           robust["spread"])[2:]
     assert json.loads(json.dumps(check, default=float)) == machines, "machines differ"
+    rng = np.random.default_rng(a.seed + 1000)
+    for m in machines:     # the effect the twin lacks: a command delay per machine
+        m["delay"] = float(rng.uniform(0.0, a.delay_max))
     t0 = time.perf_counter()
     fits = {}
     done = {}
@@ -152,20 +192,27 @@ def main():
                                            show_progress=False)
         print(f"refined on cal-{m['name']}: {refine[m['name']].get('refined')}", flush=True)
     refine_wall = time.perf_counter() - t1
-    tasks = [(str(work / f"cal-{m['name']}.h5"), i, "refined", m, robust["settle"])
-             for m in machines if fits[m["name"]]["status"] == "ok" for i in chain]
+    # every command kind on every machine: nominal and refined on the spec's twin (sel.h5),
+    # refined on the calibrated twin (the machine's own copy)
+    tasks = [(str(sel), i, w, m, robust["settle"]) for m in machines for i in chain
+             for w in ("nominal", "refined")]
+    tasks += [(str(work / f"cal-{m['name']}.h5"), i, "refined", m, robust["settle"])
+              for m in machines if fits[m["name"]]["status"] == "ok" for i in chain]
+    t2 = time.perf_counter()
     with WorkerPool(a.workers) as pool:
         rows = list(pool.imap_unordered(replay_task, tasks))
     for r in rows:
-        r["commands"] = "calibrated"
-    old = [r for r in robust["rows"] if r["machine"] in {m["name"] for m in machines}
-           and r["id"] in chain]
+        if r["commands"] == "refined" and r.get("library", "").startswith("cal-"):
+            r["commands"] = "calibrated"
+    replay_wall = time.perf_counter() - t2
+    old = []
     rep = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
                platform=platform.platform(), cpus=os.cpu_count(), load=os.getloadavg(),
                argv=" ".join(sys.argv[1:]), chain=chain, machines=machines,
                truth={m["name"]: truth_of(m) for m in machines}, fits=fits,
                refine=refine, rows=rows + old, settle=robust["settle"], tol=TOL,
-               calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, options=opts.__dict__,
+               calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, replay_wall_s=replay_wall,
+               options=opts.__dict__, delay_max=a.delay_max,
                duration=a.duration, iterations=a.iterations, excitation=a.excitation)
     atomic_write_text(RESULTS / "calibrate_loop.json", json.dumps(rep, indent=1, default=float))
     atomic_write_text(RESULTS / "calibrate_loop.md", markdown(rep))
@@ -194,6 +241,10 @@ def markdown(rep) -> str:
          "modulus the twin does not have). The twin only fits the log and refines. Landing: "
          "rest offset ≤ 5 mm and ringing < 5 mm, valves closed "
          f"{rep['settle']:g} s after the last command. Entries: {', '.join(rep['chain'])}.",
+         "", "Machines (drawn; the planner never saw them): "
+         + "; ".join(f"{m['name']}: command delay {1e3 * m.get('delay', 0):.0f} ms, β(p) "
+                     f"low {m['bulk_law']['lo']:.2f} at p_ref "
+                     f"{m['bulk_law']['p_ref'] / 1e6:.1f} MPa" for m in rep["machines"]) + ".",
          "", f"Calibration: one {rep['duration']:g} s excitation log per machine "
          f"({'`' + rep['excitation'] + '`' if rep.get('excitation') else 'trials.excitation'}"
          f", 50 Hz, seed 001's noise), every parameter, {rep['iterations']} least-squares "

@@ -200,8 +200,16 @@ class TwinFit:
         return {p.name: p.to_value(float(v)) for p, v in zip(self.params, z)}
 
     def z0(self) -> np.ndarray:
-        return np.array([p.to_z(p.nominal) if p.log or p.nominal > 0 else 0.0
-                         for p in self.params])
+        """The start: the spec's values, moved off a bound (the trust-region method cannot
+        move a variable that sits exactly on one): a quantity the spec has at 0 starts at
+        half its typical size, one on a bound of its factor range 5 % of the range inside."""
+        out = []
+        for p in self.params:
+            lo, hi = p.z_bounds
+            z = p.to_z(p.nominal) if p.log or p.nominal > 0 else 0.5
+            inset = 0.05 * (hi - lo) if p.log else 0.0
+            out.append(float(np.clip(z, lo + inset, hi - inset)))
+        return np.array(out)
 
     def residuals(self, z, split: bool = False):
         """The scaled residual vector at ``z`` (split: (position part, pressure part))."""

@@ -90,14 +90,15 @@ def time_nlp(m: MoveNLP, timed: TimedSolver, a, b) -> dict:
     t0 = time.perf_counter()
     r = m.solve(a, b)
     total = time.perf_counter() - t0
-    st = m.solver.stats()
+    st = m.solver.stats() if timed.calls else {}   # certified: the NLP was not solved
     call = 1e3 * sum(timed.calls)
     return dict(total_ms=1e3 * total, call_ms=call, eval_ms=eval_ms(st),
                 hess_ms=1e3 * st.get("t_wall_nlp_hess_l", 0.0),
                 jac_ms=1e3 * st.get("t_wall_nlp_jac_g", 0.0),
                 g_ms=1e3 * st.get("t_wall_nlp_g", 0.0),
                 python_ms=1e3 * total - call, iterations=int(st.get("iter_count", 0)),
-                ok=r.ok, duration_s=r.duration_s, own_s=r.stats.get("nlp_duration_s"))
+                ok=r.ok, duration_s=r.duration_s, own_s=r.stats.get("nlp_duration_s"),
+                certified=float(bool(r.stats.get("certified"))))
 
 
 def time_opti(o: PlainOpti) -> dict:

@@ -15,12 +15,15 @@ over-estimated smoothly by √(j² + ε²) (ε = 10⁻²·j_max): the limit hold
 cruise at the limit (j = 0) is checked ε·h²/32 inside it (umea-lab, N = 40: ~1e-5 of the
 velocity limit). The earlier uniform tightening j_max·h²/32 held a long move's cruise that far
 below the limit (up to +9.7 % duration against the Ruckig optimum on joint-space ends). Both
-limits of a check point are one row: with c and r the middle and half-width of [q̇_min, q̇_max],
-|q̇ − c| + gap ≤ r says q̇ + gap ≤ q̇_max and q̇ − gap ≥ q̇_min, |q̇ − c| over-estimated by
-√((q̇ − c)² + δ²), δ = :data:`VEL_SMOOTH`·r (at a limit the row is δ²/2r = 5·10⁻⁷·r
-conservative). Measured on 20 random umea-lab moves with the pump (issue 31): the two-row form
-with ε = 10⁻³ took 32 IPOPT iterations (median), this one 19 (480 instead of 960 velocity rows
-at N = 40), the NLP's own durations +5·10⁻⁶ (median, relative).
+limits of a check point are one row: with c and r the middle and half-width of [q̇_min, q̇_max]
+and x = 1 − gap/r, ((q̇ − c)/r)² ≤ x·|x| holds exactly when |q̇ − c| + gap ≤ r, i.e. q̇ + gap ≤
+q̇_max and q̇ − gap ≥ q̇_min (x·|x| < 0 when the gap alone exceeds r: no q̇ passes). Measured
+(issue 31): on 20 random umea-lab moves with the pump the two-row form with ε = 10⁻³ took 656
+IPOPT iterations in all, this one 438 (480 instead of 960 velocity rows at N = 40; 1.9× → 1.55×
+a plain Opti, the NLP always solved); on 40 random moves per machine 1459 → 912 (umea-lab) and
+1475 → 1253 (s100f), every solve ok, the NLP's own durations +4·10⁻⁶ and +7·10⁻⁶ (median
+relative). A smooth |q̇ − c| ≈ √((q̇ − c)² + δ²), δ = 10⁻³·r, was as fast on umea-lab but
+stalled IPOPT on long s100f moves (219–1000 iterations: its curvature 1/δ at q̇ = c).
 
 Pump. An actuator draws A_a·ẋ extending and A_b·|ẋ| retracting (a single-acting one nothing
 retracting): c₁·ẋ + c₂·|ẋ| with c₁ = (A_a − A_b)/2, c₂ = (A_a + A_b)/2 (single-acting: A_b = 0).
@@ -36,11 +39,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["step", "add_velocity_limits", "pump_draw", "PUMP_SMOOTH", "JERK_SMOOTH", "VEL_SMOOTH"]
+__all__ = ["step", "add_velocity_limits", "pump_draw", "PUMP_SMOOTH", "JERK_SMOOTH"]
 
 PUMP_SMOOTH = 1e-2   # largest over-estimate of the smooth pump draw, a fraction of Q_max
 JERK_SMOOTH = 1e-2   # ε of the smooth |j| in the velocity check, a fraction of j_max
-VEL_SMOOTH = 1e-3    # δ of the smooth |q̇ − c| in the velocity check, a fraction of r
 
 
 def step(q, v, a, j, h):
@@ -67,11 +69,10 @@ def add_velocity_limits(layout, L, jmax, pts, mids, ends, U, h, uniform: bool = 
         return
     eps2 = (JERK_SMOOTH * np.asarray(jmax, float)) ** 2
     c, r = (L["qd_max"] + L["qd_min"]) / 2, (L["qd_max"] - L["qd_min"]) / 2
-    d2 = (VEL_SMOOTH * r) ** 2
     for k in range(N):
-        gap = ca.sqrt(U[:, k] ** 2 + eps2) * h[k] ** 2 / 32
-        for _, v, _ in (pts[k], mids[k], ends[k]):   # |v - c| + gap <= r, smoothly
-            layout.add_con("velocity", ca.sqrt((v - c) ** 2 + d2) + gap, -ca.inf, r,
+        x = 1 - ca.sqrt(U[:, k] ** 2 + eps2) * h[k] ** 2 / (32 * r)   # 1 - gap/r
+        for _, v, _ in (pts[k], mids[k], ends[k]):   # |v - c| + gap <= r
+            layout.add_con("velocity", ((v - c) / r) ** 2 - x * ca.fabs(x), -ca.inf, 0.0,
                            stage=(k, 1))
 
 

@@ -421,6 +421,8 @@ class MoveNLP:
                         if _round and warm_rounds() else [])   # solvers built on first use
             attempts += [(self.twins.ipopt if twin else lambda: self.solver, {})
                          for twin in tries]
+            if self.objective == "time":   # a failed minimum-time solve: IPOPT probing
+                attempts.append((self.twins.probing, {}))
             for k, (get_solver, warm) in enumerate(attempts):
                 solver = get_solver()
                 try:

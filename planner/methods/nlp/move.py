@@ -54,7 +54,8 @@ from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.base import PlanStatus
 from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
-from planner.methods.nlp.exact import certified, exact_result, feasible_exact
+from planner.methods.nlp.exact import (certified, certifying_bound, exact_result,
+                                       feasible_exact)
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, step
 from planner.methods.nlp.pump import PumpRows
@@ -324,7 +325,8 @@ class MoveNLP:
         exact = None
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
             exact = feasible_exact(self, start, goal, lb, q_ends)
-            if self.certify and certified(exact, lb):   # nothing can be faster: no NLP
+            if self.certify and certified(exact, lb) and certified(   # nothing can be
+                    exact, certifying_bound(self.crane, start, goal, q_ends)):   # faster
                 return exact_result(exact, None, t0, _time.perf_counter())
         res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         return self._prefer_exact(res, exact, t0)

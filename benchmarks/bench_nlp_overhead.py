@@ -241,9 +241,21 @@ TRIALS = (
      "+4.9e-6 / +6.6e-5", "no (alone)"),
     ("velocity: one smooth row per check point (|q̇ − c| + gap ≤ r), ε = 1e-3", "1.56×", 24.5,
      "+2.4e-7", "no (alone)"),
-    ("one row per check point, ε = 1e-1 / 3e-2 / 1e-2", "1.51× / 1.53× / 1.51×",
-     "18.5 / 19 / 19", "+6.5e-5 / +1.7e-5 / +5.0e-6", "**yes, ε = 1e-2** (re-runs 1.61×, "
-     "1.52×)"),
+    ("one smooth row per check point, ε = 1e-1 / 3e-2 / 1e-2", "1.51× / 1.53× / 1.51×",
+     "18.5 / 19 / 19", "+6.5e-5 / +1.7e-5 / +5.0e-6", "no: ε = 1e-2 kept, but the smooth "
+     "|q̇ − c| stalled IPOPT on long s100f moves (40 random: one max_iter, 219-1000 "
+     "iterations on eight)"),
+    ("one exact row ((q̇ − c)/r)² ≤ x·|x|, x = 1 − gap/r, ε = 1e-2 (ratios in CPU time, one "
+     "interleaved run: two rows ε = 1e-2 1.71×, smooth row 1.57×)", "1.52×-1.57×", "438 in all "
+     "(two rows ε = 1e-3: 656)", "+4e-6 (40 random umea-lab), +7e-6 (s100f)", "**yes**: 40 of "
+     "40 ok on both machines, 1459 → 908 and 1475 → 1259 iterations in all"),
+    ("one duration variable instead of the per-node chain (IPOPT only)", "1.53× (same run: "
+     "1.54×)", "389 (438)", "-", "no: fewer iterations, dearer ones"),
+    ("MUMPS pivot order AMD / AMF / PORD / QAMD; no (permuting) scaling", "1.70× / 1.58× / "
+     "1.58× / 1.74×; 1.49-1.64× (same run: 1.54-1.56×)", "434-440", "-", "no: noise"),
+    ("a failed minimum-time solve tries IPOPT with mu_oracle probing (a twin built on first "
+     "use)", "-", "-", "-", "**yes**: a 9 L/min umea-lab move of tests/methods/test_ramps.py "
+     "hit max_iter (it took 227 iterations before, chaotic in round-off); probing solves it"),
     ("+ no position rows at the midpoints (an active-set candidate)", "1.45× (same load: "
      "1.52×)", 22.5, "+5.0e-6", "no: more iterations, within noise"),
     ("+ IPOPT mu_init 0.01 / bound_push = bound_frac = 1e-3", "1.80× / 1.73×", "19 / 21.5", "-",

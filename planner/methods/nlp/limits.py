@@ -20,8 +20,8 @@ and x = 1 − gap/r, ((q̇ − c)/r)² ≤ x·|x| holds exactly when |q̇ − c|
 q̇_max and q̇ − gap ≥ q̇_min (x·|x| < 0 when the gap alone exceeds r: no q̇ passes). Measured
 (issue 31): on 20 random umea-lab moves with the pump the two-row form with ε = 10⁻³ took 656
 IPOPT iterations in all, this one 438 (480 instead of 960 velocity rows at N = 40; 1.9× → 1.55×
-a plain Opti, the NLP always solved); on 40 random moves per machine 1459 → 912 (umea-lab) and
-1475 → 1253 (s100f), every solve ok, the NLP's own durations +4·10⁻⁶ and +7·10⁻⁶ (median
+a plain Opti, the NLP always solved); on 40 random moves per machine 1459 → 908 (umea-lab) and
+1475 → 1259 (s100f), every solve ok, the NLP's own durations +4·10⁻⁶ and +7·10⁻⁶ (median
 relative). A smooth |q̇ − c| ≈ √((q̇ − c)² + δ²), δ = 10⁻³·r, was as fast on umea-lab but
 stalled IPOPT on long s100f moves (219–1000 iterations: its curvature 1/δ at q̇ = c).
 

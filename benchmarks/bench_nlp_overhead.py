@@ -8,9 +8,11 @@ as benchmarks/bench_peers.py draws its tip moves); for each move, interleaved ``
 after one warm-up each:
 
 * ``nlp`` — ``MoveNLP(crane, "time", N=40, pump=True, solver="ipopt").solve(start, goal)``, the
-  whole call (first guess, IPOPT, the exact-Ruckig check), built once per machine; twice: with
-  its functions interpreted (``cache="off"``: CasADi's SX virtual machine, what bench_peers.py
-  times) and compiled (``cache="build"``: the C library a ``plan`` loads from the cache);
+  whole call (first guess, the exact-Ruckig check, IPOPT unless the exact move is certified),
+  built once per machine; three times: with its functions interpreted (``cache="off"``:
+  CasADi's SX virtual machine, what bench_peers.py times), compiled (``cache="build"``: the C
+  library a ``plan`` loads from the cache), and interpreted with the NLP always solved
+  (``certify = False``: the NLP's own overhead, also where the exact move would be certified);
 * ``opti`` — benchmarks/opti_baseline.py's ``PlainOpti`` (no pump) between the joint
   configurations at the lower bound's telescopes, built once per move, ``solve()`` timed.
 
@@ -49,6 +51,12 @@ from planner.methods.nlp import MoveNLP  # noqa: E402
 from planner.model import Crane  # noqa: E402
 
 SEED = 31
+# variant -> (cache mode, certify): the whole call (certified exact moves skip the NLP), the
+# same with the compiled functions, and the NLP always solved (its own overhead)
+VARIANTS = {"interpreted": ("off", True), "compiled": ("build", True),
+            "nlp_always": ("off", False)}
+LABELS = {"interpreted": "NLP, functions interpreted", "compiled": "NLP, functions compiled",
+          "nlp_always": "NLP always solved (no certificate), interpreted"}
 FUNCS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l")
 
 
@@ -90,14 +98,15 @@ def time_nlp(m: MoveNLP, timed: TimedSolver, a, b) -> dict:
     t0 = time.perf_counter()
     r = m.solve(a, b)
     total = time.perf_counter() - t0
-    st = m.solver.stats()
+    st = m.solver.stats() if timed.calls else {}   # certified: the NLP was not solved
     call = 1e3 * sum(timed.calls)
     return dict(total_ms=1e3 * total, call_ms=call, eval_ms=eval_ms(st),
                 hess_ms=1e3 * st.get("t_wall_nlp_hess_l", 0.0),
                 jac_ms=1e3 * st.get("t_wall_nlp_jac_g", 0.0),
                 g_ms=1e3 * st.get("t_wall_nlp_g", 0.0),
                 python_ms=1e3 * total - call, iterations=int(st.get("iter_count", 0)),
-                ok=r.ok, duration_s=r.duration_s, own_s=r.stats.get("nlp_duration_s"))
+                ok=r.ok, duration_s=r.duration_s, own_s=r.stats.get("nlp_duration_s"),
+                certified=float(bool(r.stats.get("certified"))))
 
 
 def time_opti(o: PlainOpti) -> dict:
@@ -131,9 +140,10 @@ def med_dict(rows: list) -> dict:
 def machine_rows(cid: str, n: int, rounds: int) -> dict:
     crane = Crane.from_id(cid)
     nlps = {}
-    for variant, cache in (("interpreted", "off"), ("compiled", "build")):
+    for variant, (cache, certify) in VARIANTS.items():
         t0 = time.perf_counter()
         m = MoveNLP(crane, "time", N=40, pump=True, solver="ipopt", cache=cache)
+        m.certify = certify
         m.solver = timed = TimedSolver(m.solver)
         nlps[variant] = (m, timed, dict(cache=m.cache_status, setup_s=time.perf_counter() - t0))
     rows = []
@@ -167,16 +177,21 @@ def summary(res: dict) -> dict:
     for mres in res["machines"]:
         rows = mres["moves"]
         s = {}
-        for v in ("interpreted", "compiled"):
+        for v in VARIANTS:
             ratios = sorted(r["nlp"][v]["ratio"] for r in rows)
             parts = {k: statistics.median(r["nlp"][v][k] for r in rows)
-                     for k in ("total_ms", "call_ms", "eval_ms", "hess_ms", "jac_ms", "g_ms",
-                               "python_ms", "iterations")}
-            parts["ipopt_own_ms"] = statistics.median(
-                r["nlp"][v]["call_ms"] - r["nlp"][v]["eval_ms"] for r in rows)
+                     for k in ("total_ms", "python_ms")}
+            # the solver's parts over the moves the NLP was solved on (not the certified ones)
+            solved = [r["nlp"][v] for r in rows if r["nlp"][v]["iterations"]] or [
+                dict(call_ms=0.0, eval_ms=0.0, hess_ms=0.0, jac_ms=0.0, g_ms=0.0, iterations=1)]
+            parts.update({k: statistics.median(x[k] for x in solved)
+                          for k in ("call_ms", "eval_ms", "hess_ms", "jac_ms", "g_ms",
+                                    "iterations")})
+            parts["ipopt_own_ms"] = statistics.median(x["call_ms"] - x["eval_ms"] for x in solved)
             parts["per_iteration_own_ms"] = statistics.median(
-                (r["nlp"][v]["call_ms"] - r["nlp"][v]["eval_ms"]) / r["nlp"][v]["iterations"]
-                for r in rows)
+                (x["call_ms"] - x["eval_ms"]) / x["iterations"] for x in solved)
+            parts["certified"] = sum(r["nlp"][v]["certified"] > 0.5 for r in rows)
+            parts["duration_s"] = statistics.median(r["nlp"][v]["duration_s"] for r in rows)
             s[v] = dict(ratio_median=statistics.median(ratios), ratio_p90=float(
                 np.percentile(ratios, 90)), ratio_max=ratios[-1], ratio_min=ratios[0],
                 ok=sum(r["nlp"][v]["ok"] for r in rows), **parts)
@@ -193,6 +208,83 @@ def summary(res: dict) -> dict:
     return out
 
 
+# the same command before issue 31's changes (main 6dd9805's nlp_overhead.md, 2026-11-26 09:24,
+# load 9.5-11.5), and the plans of the run after them against that run's, move by move
+BEFORE = ("Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
+          "**1.82×** compiled, the NLP solved on every move (28 iterations, 1743 rows, 7764 "
+          "Jacobian nonzeros). After (2026-11-26 13:11, load 7.0-7.6): the plans' durations "
+          "against that run's, move by move: median -2.5e-5, max +2.9e-6, min -1.1e-3 "
+          "(relative); every plan within every limit on evaluate()'s 1 kHz resampling "
+          "(tests/methods).")
+
+# The trials of issue 31 (runs of this bench's "NLP always" variant on umea-lab: 20 moves,
+# 3 interleaved rounds, interpreted, 2 shared cores under load 1.2-5.9, so ratios within ~0.1
+# of each other are noise): what was tried, the median ratio, the median IPOPT iterations, the
+# NLP's own durations against the start (median relative), kept or not.
+TRIALS = (
+    ("start: two velocity rows per check point, ε = 1e-3 (re-runs 1.95×, 1.91×)", "1.91×", 32,
+     "0", "-"),
+    ("IPOPT linear_solver spral (the only other solver in the wheel)", "9.39×", 28.5, "-",
+     "no"),
+    ("IPOPT mu_strategy monotone", "2.46×", 38, "-", "no"),
+    ("IPOPT hessian_approximation limited-memory", "3.78×", 35, "-", "no"),
+    ("IPOPT mu_oracle probing / loqo", "3.36× / 3.20×", "43 / 65", "-", "no"),
+    ("IPOPT mu_init 0.01", "1.90×", 32, "-", "no"),
+    ("IPOPT bound_push = bound_frac = 1e-4", "2.31×", 27, "-", "no"),
+    ("IPOPT nlp_scaling_method none", "1.91×", 32, "-", "no"),
+    ("no velocity rows between the nodes (what they cost; infeasible between nodes)", "1.28×",
+     17.5, "-2.0e-4", "no: every solution overshot between nodes; slowing it to the exact "
+     "peak cost +0.3 to +0.86 % (an active-set first pass would need the full solve again)"),
+    ("velocity: node rows merged (gap of both intervals), two check points per interval",
+     "3.00×", 36.5, "+3.0e-5", "no"),
+    ("velocity: ε = 1e-2 / 1e-1 (two rows)", "1.74× / 1.71×", "21 / 19.5",
+     "+4.9e-6 / +6.6e-5", "no (alone)"),
+    ("velocity: one smooth row per check point (|q̇ − c| + gap ≤ r), ε = 1e-3", "1.56×", 24.5,
+     "+2.4e-7", "no (alone)"),
+    ("one smooth row per check point, ε = 1e-1 / 3e-2 / 1e-2", "1.51× / 1.53× / 1.51×",
+     "18.5 / 19 / 19", "+6.5e-5 / +1.7e-5 / +5.0e-6", "no: ε = 1e-2 kept, but the smooth "
+     "|q̇ − c| stalled IPOPT on long s100f moves (40 random: one max_iter, 219-1000 "
+     "iterations on eight)"),
+    ("one exact row ((q̇ − c)/r)² ≤ x·|x|, x = 1 − gap/r, ε = 1e-2 (ratios in CPU time, one "
+     "interleaved run: two rows ε = 1e-2 1.71×, smooth row 1.57×)", "1.52×-1.57×", "438 in all "
+     "(two rows ε = 1e-3: 656)", "+4e-6 (40 random umea-lab), +7e-6 (s100f)", "**yes**: 40 of "
+     "40 ok on both machines, 1459 → 908 and 1475 → 1259 iterations in all"),
+    ("one duration variable instead of the per-node chain (IPOPT only)", "1.53× (same run: "
+     "1.54×)", "389 (438)", "-", "no: fewer iterations, dearer ones"),
+    ("MUMPS pivot order AMD / AMF / PORD / QAMD; no (permuting) scaling", "1.70× / 1.58× / "
+     "1.58× / 1.74×; 1.49-1.64× (same run: 1.54-1.56×)", "434-440", "-", "no: noise"),
+    ("a failed minimum-time solve tries IPOPT with mu_oracle probing (a twin built on first "
+     "use)", "-", "-", "-", "**yes**: a 9 L/min umea-lab move of tests/methods/test_ramps.py "
+     "hit max_iter (it took 227 iterations before, chaotic in round-off); probing solves it"),
+    ("+ no position rows at the midpoints (an active-set candidate)", "1.45× (same load: "
+     "1.52×)", 22.5, "+5.0e-6", "no: more iterations, within noise"),
+    ("+ IPOPT mu_init 0.01 / bound_push = bound_frac = 1e-3", "1.80× / 1.73×", "19 / 21.5", "-",
+     "no"),
+    ("the exact move's check rejects at its switch times first (evaluate at rate ~0)",
+     "-", "-", "0", "yes: 0.6 ms instead of ~4 ms where the pump rejects it"),
+    ("certificate: the feasible Ruckig move that lasts the guess's (coarse) lower bound, "
+     "without the NLP (whole call)", "0.31×", "0 (15 of 20 moves)", "0 (the same plans)",
+     "no: on one of 40 other umea-lab moves the coarse search missed a basin (0.28 % above "
+     "the fine bound) and the plan came out 0.065 % slower than the NLP's"),
+    ("certificate against the fine telescope search (lower_bound's default grid, 1e-4)",
+     "0.65× / 0.60× compiled (final run)", "0 (14 of 20 moves)", "max +2.9e-6 (plans)",
+     "**yes** (the fine bound costs ~20 ms of the certified call)"),
+)
+
+
+def trials_table() -> list:
+    """The trials of issue 31 as a markdown table (:data:`TRIALS`)."""
+    L = ["### Trials (issue 31: toward ≤ 1.5× with the NLP solved)", "",
+         "20 umea-lab moves, 3 interleaved rounds, the NLP always solved, functions "
+         "interpreted; one change at a time on top of the kept ones. Durations: the NLP's own "
+         "solution against the start (median relative); the plans returned were the same "
+         "within 3e-6 in every kept trial.", "",
+         "| trial | ratio (median) | iterations | NLP's own duration | kept |",
+         "| --- | --- | --- | --- | --- |"]
+    L += [f"| {a} | {b} | {c} | {d} | {e} |" for a, b, c, d, e in TRIALS]
+    return L + [""]
+
+
 def report(res: dict) -> str:
     m = res["meta"]
     f1 = lambda v: f"{v:.1f}"  # noqa: E731
@@ -205,7 +297,9 @@ def report(res: dict) -> str:
          "rounds each, medians per move, then over the moves. NLP: `MoveNLP(crane, 'time', "
          "N=40, pump=True, solver='ipopt').solve(start, goal)`, the whole call; Opti: "
          "`PlainOpti` (no pump) between the same ends, `solve()`. Split from IPOPT's own "
-         "statistics (`t_wall_nlp_*`) and a wall clock around the solver call.", ""]
+         "statistics (`t_wall_nlp_*`) and a wall clock around the solver call; iterations, "
+         "functions and IPOPT's own work are medians over the moves the NLP was solved on "
+         "(certified moves skip it).", "", BEFORE, ""]
     for cid, s in res["summary"].items():
         nz = s["size"]["nonzeros"]
         L += [f"## {cid}", "",
@@ -217,9 +311,10 @@ def report(res: dict) -> str:
               "| | whole call ms | ratio to Opti (median, p90, max) | iterations | functions ms "
               "(Hessian, Jacobian, g) | IPOPT's own ms (per iteration) | Python around ms |",
               "| --- | ---: | --- | ---: | --- | --- | ---: |"]
-        for v in ("interpreted", "compiled"):
+        for v in VARIANTS:
             x = s[v]
-            L.append(f"| NLP, functions {v} ({x['ok']} ok) | {f1(x['total_ms'])} | "
+            L.append(f"| {LABELS[v]} ({x['ok']} ok, {x['certified']} certified) | "
+                     f"{f1(x['total_ms'])} | "
                      f"**{x['ratio_median']:.2f}×**, {x['ratio_p90']:.2f}×, "
                      f"{x['ratio_max']:.2f}× | {x['iterations']:.0f} | {f1(x['eval_ms'])} "
                      f"({f1(x['hess_ms'])}, {f1(x['jac_ms'])}, {f1(x['g_ms'])}) | "
@@ -229,11 +324,12 @@ def report(res: dict) -> str:
         L += [f"| plain Opti | {f1(o['total_ms'])} | 1 | {o['iterations']:.0f} | "
               f"{f1(o['eval_ms'])} ({f1(o['hess_ms'])}, {f1(o['jac_ms'])}, {f1(o['g_ms'])}) | "
               f"{f1(o['ipopt_own_ms'])} ({o['per_iteration_own_ms']:.2f}) | - |", ""]
-        x = s["interpreted"]
+        x = s["nlp_always"]
         extra = x["total_ms"] - o["total_ms"]
         own = x["ipopt_own_ms"] - o["ipopt_own_ms"]
         fun = x["eval_ms"] - o["eval_ms"]
-        L += [f"Where the NLP's extra {f1(extra)} ms (interpreted, medians) go: IPOPT's own "
+        L += [f"Where the NLP's extra {f1(extra)} ms (NLP always solved, medians) go: "
+              "IPOPT's own "
               f"work {f1(own)} ms ({100 * own / extra:.0f} %: "
               f"{x['per_iteration_own_ms'] / o['per_iteration_own_ms']:.2f}× per iteration, "
               f"the KKT system has {nz['nlp']['jacobian'] / nz['opti']['jacobian']:.1f}× the "
@@ -243,9 +339,14 @@ def report(res: dict) -> str:
               f"{f1(fun)} ms ({100 * fun / extra:.0f} %, the exact Hessian "
               f"{f1(x['hess_ms'])} ms of them); the Python around the solver call "
               f"{f1(x['python_ms'])} ms ({100 * x['python_ms'] / extra:.0f} %: lower bound, "
-              "Ruckig guess, exact-Ruckig check). Compiling the functions (the cache's C "
-              f"library, built with -O0) gives {f1(s['compiled']['eval_ms'])} ms in them "
-              f"against {f1(x['eval_ms'])} ms interpreted.", ""]
+              "Ruckig guess, exact-Ruckig check). With the certificate "
+              f"{s['interpreted']['certified']} of {m['moves']} moves skip the NLP (their "
+              "Ruckig move is feasible and lasts the lower bound). Compiling the functions (the "
+              f"cache's C library, built with -O0) gives {f1(s['compiled']['eval_ms'])} ms in "
+              f"them against {f1(s['interpreted']['eval_ms'])} ms interpreted. Median plan "
+              f"duration {s['interpreted']['duration_s']:.4f} s (NLP always: "
+              f"{x['duration_s']:.4f} s).", ""]
+        L += trials_table()
     return "\n".join(L)
 
 

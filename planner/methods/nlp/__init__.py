@@ -4,7 +4,9 @@
 - :mod:`~planner.methods.nlp.transcription`: the variable/constraint/parameter layout
   (:class:`Layout`) and IPOPT's status as a result code;
 - :mod:`~planner.methods.nlp.move`: :class:`MoveNLP` (minimum time, least energy or a blend;
-  free path, tip line or a curve; obstacles; the exact-Ruckig swap-in);
+  free path, tip line or a curve; obstacles); :mod:`~planner.methods.nlp.exact`: the
+  exact-Ruckig move it returns when feasible and faster, without solving the NLP when that move
+  lasts the lower bound;
 - :mod:`~planner.methods.nlp.limits`: its velocity check with each interval's own jerk and
   the smooth conservative pump draw; :mod:`~planner.methods.nlp.tip`: its tip constraints
   (obstacles, line, curve); :mod:`~planner.methods.nlp.stagewise`: the FATROP solver on the

@@ -35,7 +35,9 @@ matters: a 4.56 s move at N = 60 came out as a 20.8 s detour at N = 40 from a po
 Minimum time on a free path is never slower than the jerk-limited Ruckig rest-to-rest move the
 guess comes from when that move is feasible (pump, obstacles): equal intervals cannot place a
 long move's jerk switches exactly (measured: up to 2.5 % lost at N = 40 on slew-dominated
-forwarder moves), so the exact move is returned when faster (``stats["winner"] == "ruckig"``).
+forwarder moves), so the exact move is returned when faster (``stats["winner"] == "ruckig"``);
+when it is feasible and lasts the lower bound itself, the NLP is not solved at all
+(``stats["certified"]``, :mod:`planner.methods.nlp.exact`).
 """
 from __future__ import annotations
 
@@ -52,6 +54,8 @@ from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.base import PlanStatus
 from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
+from planner.methods.nlp.exact import (certified, certifying_bound, exact_result,
+                                       feasible_exact)
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, step
 from planner.methods.nlp.pump import PumpRows
@@ -60,7 +64,7 @@ from planner.methods.nlp.tip import CHECKS, add_curve, add_line, add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code, nlp_result
 from planner.methods.nlp.twins import SolverTwins, warm_rounds
 from planner.model.flows import actuator_table
-from planner.trajectory import Trajectory, evaluate
+from planner.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -91,7 +95,13 @@ class MoveNLP:
     (:class:`~planner.methods.nlp.guess.Guesses`), ``activity`` (the load-sensing mask,
     :class:`~planner.methods.nlp.activity.Activity`), ``twins`` (the same formulation under
     other solver settings, :class:`~planner.methods.nlp.twins.SolverTwins`); the pump rows
-    are written by :class:`~planner.methods.nlp.pump.PumpRows` while it is built."""
+    are written by :class:`~planner.methods.nlp.pump.PumpRows` while it is built.
+    ``certify`` (default True): a free-path minimum-time solve returns the feasible exact
+    Ruckig move without solving the NLP when that move attains the lower bound
+    (:func:`~planner.methods.nlp.exact.certified`); False always solves the NLP (benchmarks
+    timing the NLP itself)."""
+
+    certify = True
 
     def __init__(self, crane: Crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float | None = None,
@@ -273,36 +283,14 @@ class MoveNLP:
         n = self.crane.n
         return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
 
-    def _prefer_exact(self, res, start, goal, lb, t0, q_ends=(None, None)):
-        """Minimum time, free path: the jerk-limited rest-to-rest move (Ruckig) the guess comes
-        from, when it is faster than the NLP's solution and itself feasible — every limit of
-        the NLP (the pump too) on a 1 kHz resampling, clear of the obstacles. N equal intervals
-        cannot put the jerk switches of a long, one-joint-dominated move where they belong (up
-        to about one interval is lost); Ruckig's switch times are exact. The move is kept at
-        its switch times only: between them every joint is a cubic, which the quintic
-        interpolation reproduces exactly."""
-        try:
-            exact = self.guesses.plain_traj(start, goal, lb, q_ends)[1]
-        except ValueError:
+    def _prefer_exact(self, res, exact, t0):
+        """Minimum time, free path: the feasible jerk-limited rest-to-rest move ``exact`` (or
+        None) when it is faster than the NLP's result ``res``. N equal intervals cannot put the
+        jerk switches of a long, one-joint-dominated move where they belong (up to about one
+        interval is lost); Ruckig's switch times are exact."""
+        if exact is None or (res.ok and exact.duration >= res.duration_s * (1 - 1e-6)):
             return res
-        if res.ok and exact.duration >= res.duration_s * (1 - 1e-6):
-            return res
-        ts = np.asarray(exact.meta["switch_times"])
-        q, qd, qdd, _ = exact.sample(ts)
-        kinds = ("position", "velocity", "acceleration", "jerk") + (
-            ("pump_flow",) if self.pump else ())
-        tr = Trajectory(ts, q, qd, qdd, joint_names=tuple(self.crane.names), method="nlp",
-                        objective="time", limits=kinds,
-                        meta=dict(N=self.N, path="free", winner="rest-to-rest (Ruckig)",
-                                  nlp=(f"{res.duration_s:.4f} s" if res.ok else res.status)))
-        ev = evaluate(self.crane, tr, kinds=kinds)
-        if ev.max_limit_violation > 1e-4 or (self.obstacles and not self.clears(tr)):
-            return res
-        return nlp_result(PlanStatus.OK, trajectory=tr, duration_s=tr.duration,
-                          iterations=res.iterations, ipopt_status=res.ipopt_status,
-                          stats=dict(winner="ruckig", solver=res.stats.get("solver"),
-                                     nlp_duration_s=res.duration_s if res.ok else float("nan")),
-                          solve_time_s=_time.perf_counter() - t0)
+        return exact_result(exact, res, t0, _time.perf_counter())
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
@@ -334,10 +322,14 @@ class MoveNLP:
         except ValueError as e:  # unreachable end
             return nlp_result(PlanStatus.UNREACHABLE, str(e),
                               solve_time_s=_time.perf_counter() - t0)
-        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
+        exact = None
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
-            res = self._prefer_exact(res, start, goal, lb, t0, q_ends)
-        return res
+            exact = feasible_exact(self, start, goal, lb, q_ends)
+            if self.certify and certified(exact, lb) and certified(   # nothing can be
+                    exact, certifying_bound(self.crane, start, goal, q_ends)):   # faster
+                return exact_result(exact, None, t0, _time.perf_counter())
+        res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
+        return self._prefer_exact(res, exact, t0)
 
     def _joint_end(self, q, name):
         """A joint end as an array inside the position limits, else ValueError naming it."""
@@ -361,6 +353,10 @@ class MoveNLP:
         except ValueError as e:
             return nlp_result(PlanStatus.UNREACHABLE, str(e),
                               solve_time_s=_time.perf_counter() - t0)
+        exact = (feasible_exact(self, start, goal, lb) if self._exact_applies(T_max, lam, payload)
+                 else None)
+        if self.certify and certified(exact, lb):
+            return exact_result(exact, None, t0, _time.perf_counter())
         res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
         good = [r for r in res if r.ok and self.clears(r.trajectory)]
         if good:
@@ -371,8 +367,7 @@ class MoveNLP:
                 best = nlp_result(PlanStatus.OBSTACLE, "no solution clears every obstacle "
                                   "between the check points: raise N or the clearance",
                                   iterations=best.iterations)
-        if self._exact_applies(T_max, lam, payload):
-            best = self._prefer_exact(best, start, goal, lb, t0)
+        best = self._prefer_exact(best, exact, t0)
         best.solve_time_s = _time.perf_counter() - t0
         return best
 
@@ -428,6 +423,8 @@ class MoveNLP:
                         if _round and warm_rounds() else [])   # solvers built on first use
             attempts += [(self.twins.ipopt if twin else lambda: self.solver, {})
                          for twin in tries]
+            if self.objective == "time":   # a failed minimum-time solve: IPOPT probing
+                attempts.append((self.twins.probing, {}))
             for k, (get_solver, warm) in enumerate(attempts):
                 solver = get_solver()
                 try:

@@ -122,6 +122,8 @@ def calibrate_task(lib: str, work: str, m: dict, duration: float, iterations: in
     log_cpu = time.process_time() - c0
     fit = TwinFit(crane, [log])
     res = fit.solve(max_iterations=iterations)
+    import pickle
+    (Path(work) / f"cal-{m['name']}.pkl").write_bytes(pickle.dumps(res))   # kept first
     path = Path(work) / f"cal-{m['name']}.toml"
     atomic_write_text(path, calibrated_twin_text(crane, res, f"on the {m['name']} log"))
     return dict(machine=m["name"], status="ok", log_s=float(log.t[-1] - log.t[0]),

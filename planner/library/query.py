@@ -105,7 +105,7 @@ def index_summary(rows: list[dict]) -> dict:
 
 def library_crane(spec_toml: str) -> Crane:
     """The crane of a library, from the spec TOML embedded in the file."""
-    return Crane(parse_spec(tomllib.loads(spec_toml), "<library spec>"))
+    return Crane(parse_spec(tomllib.loads(spec_toml), "<library spec>", spec_toml))
 
 
 def join_from(crane: Crane, q, traj: Trajectory,

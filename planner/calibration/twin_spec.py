@@ -28,7 +28,11 @@ def _comment(res: TwinFitResult, name: str, unit: str) -> str:
     lo, hi = res.interval[name]
     flag = "" if res.identified[name] else "; not identified by the logs"
     return (f"# calibrated (spec's {res.nominal[name]:.4g}); 95 % interval "
-            f"{lo:.4g} … {hi:.4g} {res.units.get(name, unit)}{flag}".rstrip())
+            f"{lo:.4g} … {hi:.4g} {_unit(res.units.get(name, unit))}{flag}".rstrip())
+
+
+def _unit(u: str) -> str:
+    return "" if u == "1" else u      # a share: no unit written
 
 
 def calibrated_twin_text(crane: Crane, res: TwinFitResult, source: str = "") -> str:

@@ -55,8 +55,10 @@ def cmd_calibrate(args):
         print(f"{'parameter':24s} {'spec':>10s} {'fitted':>10s}  95 % interval")
         for k, v in res.values.items():
             lo, hi = res.interval[k]
-            print(f"{k:24s} {res.nominal[k]:10.4g} {v:10.4g}  {lo:.4g} … {hi:.4g} "
-                  f"{res.units.get(k, '')}" + ("" if res.identified[k] else
+            unit = res.units.get(k, "")
+            print(f"{k:24s} {res.nominal[k]:10.4g} {v:10.4g}  {lo:.4g} … {hi:.4g}"
+                  + (f" {unit}" if unit not in ("", "1") else "")
+                  + ("" if res.identified[k] else
                                                "  (not identified by these logs)"))
         rb, ra = res.rms_before, res.rms_after
         print(f"misfit (RMS, noise units): positions {rb['positions']:.2f} -> "

@@ -156,3 +156,42 @@ def test_fitting_the_design_recovers_a_hidden_hose_at_least_as_well_as_plain(lab
     err_d = [_fit_error(lab, d.plan, d.ff, truth, names, s) for s in (1, 2)]
     err_p = [_fit_error(lab, p0, f0, truth, names, s) for s in (1, 2)]
     assert max(err_d) <= max(max(err_p), 0.02)
+
+
+def test_cli_refuses_bad_input_in_one_line(tmp_path, capsys):
+    from planner.cli import main
+    out = tmp_path / "exc.csv"
+    cases = [(["--duration", "5"], "--duration 5: allowed 10 ... 600 s"),
+             (["--parameters", "oils"], "'oils' unknown; allowed: all, groups oil"),
+             (["--separate", "leakage@boom,viscous_friction@boom"],
+              "--separate is for --for effects"),
+             (["--candidates", "21"], "--candidates 21: allowed 0 ... 20")]
+    for extra, msg in cases:
+        capsys.readouterr()
+        rc = main(["excite", "umea-lab", "--for", "dynamics", "--out", str(out)] + extra)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and msg in err[0], (extra, err)
+        assert not out.exists()
+    rc = main(["excite", "umea-lab", "--compare", "--separate", "a,b", "--out", str(out)])
+    assert rc == 2 and "--compare is for --for dynamics" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_cli_design_is_replayed_by_simulate_and_read_by_calibrate(lab, tmp_path, capsys):
+    """`excite --for dynamics` writes the trajectory CSV that `simulate` replays; the log it
+    makes is what `calibrate` reads (the twin plant stands in for the machine here)."""
+    from planner.cli import main
+    exc, js, log = tmp_path / "exc.csv", tmp_path / "exc.json", tmp_path / "log.csv"
+    assert main(["excite", "umea-lab", "--for", "dynamics", "--duration", "12",
+                 "--candidates", "0", "--parameters", "bulk_modulus", "--out", str(exc),
+                 "--json", str(js), "--seed", "5"]) == 0
+    r = json.loads(js.read_text())
+    assert r["mode"] == "dynamics" and r["parameters"] == ["bulk_modulus"]
+    assert r["duration_s"] >= 12.0 and r["needed_duration_s"] is not None
+    assert r["sd_scaled"]["bulk_modulus"] < UNIDENTIFIED
+    assert main(["simulate", "umea-lab", "--trajectory", str(exc), "--plant", "twin",
+                 "--noise", "--out", str(log)]) == 0
+    cal = tmp_path / "cal.toml"
+    assert main(["calibrate", "umea-lab", "--measured", str(log), "--parameters", "oil",
+                 "--iterations", "3", "--out", str(cal)]) == 0
+    assert cal.exists()

@@ -9,14 +9,15 @@ visible:
 
 - *hard stop* (every joint together, toward the far ends of the ranges, and toward the near
   ends; and each joint alone): full speed, stopped at the jerk limit, then a hold under load of
-  1.5–3 s — the hydraulic mode rings (bulk modulus and hose volumes: its frequency goes as
+  1.2–2 s — the hydraulic mode rings (bulk modulus and hose volumes: its frequency goes as
   sqrt(β/V), and V changes with the stroke, which the two ends and the single joints vary),
   and the hold shows the trapped pressure settling and leaking away (leakage, on a joint that
   holds load); the way back home is at full speed too, every joint at once: the pump at its
   flow limit (the regulator's lag);
 - *reversals*: four moves about the home pose, each joint its own way, at 60–100 % speed and
-  without a stop between them — the spools cross their dead bands and friction changes sign at
-  speed (Coulomb against viscous);
+  without a hold between them (each turn a stop at the jerk limit), then home at full speed —
+  the spools cross their dead bands and friction changes sign, at several speeds (Coulomb
+  against viscous);
 - *creep*: a short move at 6–15 % speed out and back — small commands, where the dead band and
   Coulomb friction are a large share of what the valve does — with a hold under load between;
 - *random* blocks (``candidates`` of them, seeded): a pose anywhere in the ranges at a random
@@ -26,7 +27,7 @@ Every move is a Ruckig rest-to-rest move (every position, speed, acceleration an
 holds by construction); a move whose feed-forward would ask more than a valve can open or the
 pump can give, or whose pressures would exceed the relief (limits Ruckig does not see), is
 slowed until :func:`planner.trajectory.evaluate` passes it and no valve saturates, and the
-assembled sequence is checked again. Every block ends with a hold of at least 0.7 s at home,
+assembled sequence is checked again. Every block ends with a hold of at least 0.6 s at home,
 where the calibration cuts its segments (:func:`planner.calibration.twin_fit.segments`).
 
 **Criterion and choice** (D-optimal over the pool). Each block's Fisher information JᵀJ at the
@@ -96,8 +97,8 @@ class BlockPool:
     1 s hold at home."""
 
     MARGIN = 0.08            # share of each joint's range kept clear of its ends
-    HOLD_LOAD = (1.5, 3.0)   # [s]
-    HOLD_SHORT = (0.7, 1.0)  # [s]
+    HOLD_LOAD = (1.2, 2.0)   # [s]
+    HOLD_SHORT = (0.6, 0.8)  # [s]
     REVERSAL = (0.6, 1.0)    # speed fraction
     REVERSALS = 4            # moves without a stop between them
     CREEP = (0.06, 0.15)     # speed fraction
@@ -271,13 +272,16 @@ class DynamicsDesign:
 def why_unidentified(info: Information, A) -> dict:
     """name -> why, for every parameter whose predicted scaled sd exceeds
     :data:`UNIDENTIFIED` under the information ``A`` (module doc)."""
-    sd, alone = info.sd(A), info.alone(A)
+    sd, alone, vis = info.sd(A), info.alone(A), info.visible()
     out = {}
     for i, p in enumerate(info.params):
         if sd[i] <= UNIDENTIFIED:
             continue
         where = f" of {p.joint}" if p.joint else ""
-        if alone[i] > UNIDENTIFIED:
+        if not vis[i]:
+            out[p.name] = ("no signal: the twin's positions and pressures on this sequence do "
+                           "not depend on it" + _vented(info, p) + "; no length identifies it")
+        elif alone[i] > UNIDENTIFIED:
             out[p.name] = (f"too little signal: sd {sd[i]:.3g} (alone {alone[i]:.3g}); it "
                            f"needs {_NEEDS.get(p.kind, 'motion that excites it')}{where}")
         else:
@@ -287,18 +291,30 @@ def why_unidentified(info: Information, A) -> dict:
     return out
 
 
+def _vented(info: Information, p) -> str:
+    crane = getattr(info, "crane", None)
+    if crane is None or p.kind != "hose_b":
+        return ""
+    a = crane.spec.joints[crane.names.index(p.joint)].actuator
+    return (f" ({p.joint} is single-acting: its rod side is vented to tank)"
+            if getattr(a, "acting", "double") == "single" else "")
+
+
 def needed_duration(info: Information, cycle: Information | None = None,
                     limit: float = MAX_NEEDED_S) -> tuple[float | None, np.ndarray]:
     """(the shortest prefix length [s] at which every parameter's predicted scaled sd is at
-    most :data:`UNIDENTIFIED`, its information matrix), past ``info``'s end adding ``cycle``'s
+    most :data:`UNIDENTIFIED` (every :meth:`Information.visible` one: a parameter the
+    sequence carries no signal of is reported, not waited for), its information matrix), past
+    ``info``'s end adding ``cycle``'s
     information (the sequence repeated: ``info`` itself) once per repetition (module doc);
     (None, the information at ``limit``) when no length up to ``limit`` does."""
     A = np.zeros_like(info.blocks[0])
+    vis = info.visible()
     for t, B in zip(info.t_end, info.blocks):
         A = A + B
         if t > limit:
             break
-        if np.all(info.sd(A) <= UNIDENTIFIED):
+        if np.all(info.sd(A)[vis] <= UNIDENTIFIED):
             return float(t), A
     T = info.duration
     if cycle is None or cycle.duration <= 0.0:
@@ -307,7 +323,7 @@ def needed_duration(info: Information, cycle: Information | None = None,
     reps = int(math.floor((limit - T) / cycle.duration))
     for m in range(1, reps + 1):
         A = A + C
-        if np.all(info.sd(A) <= UNIDENTIFIED):
+        if np.all(info.sd(A)[vis] <= UNIDENTIFIED):
             return float(T + m * cycle.duration), A
     return None, A
 

@@ -48,7 +48,7 @@ if TYPE_CHECKING:
 __all__ = ["Information", "information", "twin_log", "FD_STEP", "RIDGE"]
 
 FD_STEP = 0.01          # central-difference step in the scaled parameters (module doc)
-RIDGE = 1e-9            # relative floor of JᵀJ's eigenvalues (a null direction: sd ≈ 3e4 × …)
+RIDGE = 1e-12           # relative floor of JᵀJ's eigenvalues (numerically null directions)
 
 
 def twin_log(crane: Crane, plan, ff, step: float = 2e-3) -> Recording:
@@ -67,13 +67,14 @@ class Information:
     """The Fisher information of ``params`` (the twin's :class:`TwinParameter` list) in a
     recording of one sequence, per segment of the calibration: ``t_end`` (k,) the time each
     segment ends [s from the sequence's start], ``blocks`` (k, p, p) each segment's JᵀJ,
-    ``runs`` twin runs and ``runtime_s`` it took. Any prefix ending at a segment's end (a hold)
-    has the sum of its segments' blocks (module doc)."""
+    ``runs`` twin runs and ``runtime_s`` it took, ``crane`` the machine. Any prefix ending at a
+    segment's end (a hold) has the sum of its segments' blocks (module doc)."""
     params: list
     t_end: np.ndarray
     blocks: np.ndarray
     runs: int = 0
     runtime_s: float = 0.0
+    crane: object = None
 
     @property
     def names(self) -> list[str]:
@@ -88,19 +89,35 @@ class Information:
         keep = slice(None) if upto is None else self.t_end <= upto + 1e-9
         return self.blocks[keep].sum(axis=0)
 
+    def visible(self) -> np.ndarray:
+        """Which parameters the sequence's residuals depend on at all (JᵀJ's diagonal above
+        10⁻¹² of its largest): the others (e.g. the hose of a vented rod side) carry no
+        information on any length of it and are left out of the criterion."""
+        d = np.diag(self.matrix())
+        return d > 1e-12 * max(float(d.max()), 1e-300)
+
     def logdet(self, A=None) -> float:
-        """The D-criterion ln det(JᵀJ) (of ``A``, default the whole sequence's), its
-        eigenvalues floored at :data:`RIDGE` × the largest (a null direction costs a large
-        finite amount instead of −∞, so two poor designs still compare)."""
-        lam = _eig(self.matrix() if A is None else A)
-        return float(np.sum(np.log(lam)))
+        """The D-criterion ln det(JᵀJ) (of ``A``, default the whole sequence's) over the
+        :meth:`visible` parameters, its eigenvalues floored at :data:`RIDGE` × the largest (a
+        null direction costs a large finite amount instead of −∞, so two poor designs still
+        compare)."""
+        v = self.visible()
+        A = self.matrix() if A is None else A
+        return float(np.sum(np.log(_eig(A[np.ix_(v, v)]))))
 
     def sd(self, A=None) -> np.ndarray:
-        """The predicted scaled standard deviations sqrt(diag((JᵀJ)⁻¹)) (module doc)."""
+        """The predicted scaled standard deviations sqrt(diag((JᵀJ)⁻¹)) (module doc); ∞ for a
+        parameter without information in ``A`` (or not :meth:`visible`)."""
         A = self.matrix() if A is None else A
-        lam, V = np.linalg.eigh(0.5 * (A + A.T))
-        lam = np.maximum(lam, RIDGE * max(float(lam.max()), 1e-300))
-        return np.sqrt((V ** 2) @ (1.0 / lam))
+        d = np.diag(A)
+        v = self.visible() & (d > 1e-12 * max(float(d.max()), 1e-300))
+        out = np.full(len(d), np.inf)
+        if v.any():
+            S = A[np.ix_(v, v)]
+            lam, V = np.linalg.eigh(0.5 * (S + S.T))
+            lam = np.maximum(lam, RIDGE * max(float(lam.max()), 1e-300))
+            out[v] = np.sqrt((V ** 2) @ (1.0 / lam))
+        return out
 
     def alone(self, A=None) -> np.ndarray:
         """Each parameter's scaled sd were it the only one fitted, 1/sqrt((JᵀJ)ᵢᵢ): how much
@@ -120,6 +137,8 @@ class Information:
         return self.names[k], float(c[k])
 
     def identified(self, A=None) -> np.ndarray:
+        """Every :meth:`visible` parameter's predicted sd at most UNIDENTIFIED (the others
+        False)."""
         return self.sd(A) <= UNIDENTIFIED
 
 
@@ -187,4 +206,4 @@ def information(crane: Crane, plan, ff, parameters=None, noise=True, step: float
     t0 = float(rec.t[0])
     t_end = np.array([float(rec.t[s.k1]) - t0 for s in fit.segs])
     return Information(list(fit.params), t_end, blocks, runs=fit.runs + 1,
-                       runtime_s=time.perf_counter() - wall0)
+                       runtime_s=time.perf_counter() - wall0, crane=crane)

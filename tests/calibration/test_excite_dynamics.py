@@ -3,9 +3,10 @@ keep every limit (the independent evaluator at 1 kHz is the oracle) and are the 
 seed; the information is the calibration's own (a prefix's equals the information of the
 prefix alone, sd scales with the sensor noise); the predicted sd falls with the recording's
 length and the needed duration is where every parameter first reaches the threshold; the
-design beats the trials' plain excitation of the same length on the D-criterion, and —
-independently of the criterion — a fit of a twin log of it recovers a hidden parameter at
-least as well as a fit of the plain excitation's log."""
+design beats the trials' plain excitation of the same length on the D-criterion; the CLI
+writes what `simulate` replays and `calibrate` reads. (Fitting hidden parameters on twin logs
+of the design and of the plain excitation is benchmarks/bench_excite_dynamics_fit.py: on the
+ringing-rich design the fit can stop in a local minimum of the ringing's phase.)"""
 from __future__ import annotations
 
 import json
@@ -17,10 +18,7 @@ from planner import Crane, evaluate
 from planner.calibration.excite_dynamics import (BlockPool, choose, design_dynamics,
                                                  needed_duration)
 from planner.calibration.excite_information import Information, information, twin_log
-from planner.calibration.trials import excitation
-from planner.calibration.twin_fit import UNIDENTIFIED, TwinFit, segments
-from planner.calibration.twin_params import machine_of
-from planner.model.twin import Twin
+from planner.calibration.twin_fit import UNIDENTIFIED, segments
 from planner.simulation.recording import NOISE_DEFAULTS, Recording
 
 PARAMS = ["bulk_modulus", "hose_b.boom", "deadband.tele"]
@@ -127,40 +125,6 @@ def test_design_beats_the_plain_excitation_on_the_d_criterion(lab):
     js = d.to_dict()
     assert js["needed_duration_s"] == d.needed_s and js["order"] == d.order
     json.dumps(js)                                                  # JSON-ready
-
-
-def _fit_error(crane, plan, ff, truth, names, seed):
-    """|ln(fitted / true)| of each of ``names`` fitted to a log (seed 001's noise) of the
-    twin with the parameters ``truth``, replaying ``ff``."""
-    dyn, db = machine_of(crane, truth)
-    run = Twin(crane, dynamics=dyn, deadband=db).simulate(ff.t, ff.u, plan.q[0],
-                                                          t_end=ff.t[-1])
-    q, pa, pb, u = run.sample(ff.t)
-    rec = Recording(ff.t, u, q, pa, pb).with_noise(crane, True, seed=seed)
-    res = TwinFit(crane, [rec], parameters=names).solve(max_iterations=6)
-    return np.array([abs(np.log(res.values[k] / truth[k])) for k in names])
-
-
-@pytest.mark.slow
-def test_fitting_the_design_recovers_the_hidden_oil_at_least_as_well_as_plain(lab):
-    """The independent check: a twin with the oil × 0.8 and the boom's piston-side hose × 0.7,
-    recorded (seed 001's noise) on the design for those two and on the plain excitation of
-    the same length, both fitted by the calibration: the design's bulk modulus is at least as
-    close to the truth. (The hose is not asserted: on the design's log the fit stops in a
-    local minimum of the ringing's phase at ×1.8–2.0 of the true hose, 140 σ² above the
-    truth's misfit — a limit of the fit's start, not of the information; plain: within 4 %.)"""
-    boom = lab.names[1]
-    names = ["bulk_modulus", f"hose_a.{boom}"]
-    truth = {"bulk_modulus": 0.8 * lab.spec.dynamics.bulk_modulus,
-             f"hose_a.{boom}": 0.7 * lab.spec.dynamics.joints[boom].hose_volume[0]}
-    d = design_dynamics(lab, duration=20.0, seed=2, candidates=0, parameters=names,
-                        compare=True)
-    p0, f0 = excitation(lab, 20.0, seed=2)
-    assert d.logdet > d.plain["logdet"]
-    assert d.sd["bulk_modulus"] < d.plain["sd_scaled"]["bulk_modulus"]
-    err_d = _fit_error(lab, d.plan, d.ff, truth, names, 1)
-    err_p = _fit_error(lab, p0, f0, truth, names, 1)
-    assert err_d[0] <= max(err_p[0], 1e-3), (err_d, err_p)
 
 
 def test_cli_refuses_bad_input_in_one_line(tmp_path, capsys):

@@ -65,9 +65,10 @@ def _integral(t, y):
     return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)))
 
 
-def entry_gap(crane, plant, traj, seed=None):
+def entry_gap(crane, plant, traj, seed=None, keep=False):
     """The gap of one plan (module doc), in J (``seed``: the crane under the seed pricing,
-    whose figure is added as ``w_qs_seed_J``)."""
+    whose figure is added as ``w_qs_seed_J``; ``keep``: return (row, evaluation, Exudyn run),
+    the last two None when the replay failed)."""
     ev = evaluate(crane, traj)
     h = ev.hyd
     w_qs = _integral(ev.t, h["p_pump"] * h["q_pump"])
@@ -75,7 +76,8 @@ def entry_gap(crane, plant, traj, seed=None):
     t_u, u = stored_commands(traj)
     m, run, _ = replay_move(crane, traj, t_u=t_u, u=u, settle=3.0, plant=plant, keep_runs=True)
     if m.status != "ok":
-        return dict(status=m.status, reason=m.reason)
+        row = dict(status=m.status, reason=m.reason)
+        return (row, None, None) if keep else row
     b = energy_balance(plant, run)
     mech = b["kinetic_J"] + b["potential_J"] + b.get("grapple_swing_J", 0.0)
     pe = crane.potential_energy(traj.q[[0, -1]])
@@ -96,7 +98,7 @@ def entry_gap(crane, plant, traj, seed=None):
         row["w_qs_seed_J"] = _integral(es.t, es.hyd["p_pump"] * es.hyd["q_pump"])
     row["gap_J"] = row["w_exudyn_J"] - w_qs
     row["closure_J"] = row["gap_J"] - sum(row[k] for k in COLUMNS)   # 0 by construction
-    return row
+    return (row, ev, run) if keep else row
 
 
 def main(argv=None):

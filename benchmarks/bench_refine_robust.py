@@ -157,8 +157,8 @@ def draw_machines(dyn, n_machines: int, seed: int, spread: float):
     return out
 
 
-def machine_plant(crane, m: dict):
-    """The Exudyn plant of machine ``m`` (a :func:`draw_machines` dict)."""
+def machine_plant(crane, m: dict, effects=()):
+    """The Exudyn plant of machine ``m`` (a :func:`draw_machines` dict), with ``effects``."""
     from dataclasses import replace
 
     from planner.simulation.dynamic.exudyn_plant import ExudynPlant
@@ -170,7 +170,7 @@ def machine_plant(crane, m: dict):
                   spool_time_constant=m["spool_time_constant"],
                   pump_time_constant=m["pump_time_constant"], joints=joints)
     law = None if m["bulk_law"] is None else PressureBulk(**m["bulk_law"])
-    plant = ExudynPlant(crane, dynamics=dyn, bulk=law)
+    plant = ExudynPlant(crane, list(effects), dynamics=dyn, bulk=law)
     db = [m["joints"][k]["deadband"] for k in crane.names]
     if all(v is not None for v in db):
         plant.circuit = replace(plant.circuit, deadband=np.asarray(db, float))

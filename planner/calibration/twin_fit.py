@@ -9,8 +9,13 @@ ill-conditioned. The log is therefore cut at its holds — every stretch of at l
 that follows, the next hold) is simulated from the state measured at its start: the logged
 positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the
 spools closed, the pump line at its rest pressure. A hold's trapped pressures are thus taken
-as they were, not as the quasi-static holding pressures. A log without pressures starts each
-segment from the model's holding pressures. A log without holds is one segment.
+as they were, not as the quasi-static holding pressures. A hold does not always mean rest: a
+lightly damped mode (the slew's trapped oil, 0.7 Hz on s100f) still rings through a short
+hold, and its average over the window is not its state. So a chamber whose pressure spreads
+over more than twice its noise in the window keeps the twin's own state, carried from the
+previous segment (its pressures, velocities, pump and spools), and only the positions are
+re-anchored. A log without pressures starts each segment from the model's holding pressures
+(or the carried state). A log without holds is one segment.
 
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
@@ -57,13 +62,16 @@ _Z95 = 1.959964
 @dataclass
 class Segment:
     """Samples ``k0 … k1`` (inclusive) of recording ``rec`` simulated from the state measured
-    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None)."""
+    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None, their spreads ``sd_a``,
+    ``sd_b`` over the anchor window)."""
     rec: int
     k0: int
     k1: int
     q0: np.ndarray
     p_a0: np.ndarray | None
     p_b0: np.ndarray | None
+    sd_a: np.ndarray | None = None     # spread of the pressures over the anchor window
+    sd_b: np.ndarray | None = None
 
 
 def segments(rec: Recording, index: int = 0, hold: float = 0.5,
@@ -93,9 +101,11 @@ def segments(rec: Recording, index: int = 0, hold: float = 0.5,
             continue
         a = max(s, int(np.searchsorted(t, t[e] - anchor)))
         q0 = rec.q[a:e + 1].mean(axis=0)
-        pa = None if rec.p_a is None else rec.p_a[a:e + 1].mean(axis=0)
-        pb = None if rec.p_b is None else rec.p_b[a:e + 1].mean(axis=0)
-        out.append(Segment(index, e, k1, q0, pa, pb))
+        pa = pb = sa = sb = None
+        if rec.p_a is not None:
+            pa, sa = rec.p_a[a:e + 1].mean(axis=0), rec.p_a[a:e + 1].std(axis=0)
+            pb, sb = rec.p_b[a:e + 1].mean(axis=0), rec.p_b[a:e + 1].std(axis=0)
+        out.append(Segment(index, e, k1, q0, pa, pb, sa, sb))
     return out
 
 
@@ -159,7 +169,7 @@ class TwinFit:
     SCAN = np.geomspace(0.5, 2.0, 25)
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
-                 step: float = 2e-3, pressures: bool = True):
+                 step: float = 2e-3, pressures: bool = True, workers: int = 1):
         self.crane = crane
         self.recs = list(recordings)
         if not self.recs:
@@ -175,6 +185,10 @@ class TwinFit:
         self.sig = [_noise(crane, r) for r in self.recs]
         self.runs = 0
         self.smooth = 0.0
+        self.workers = int(workers)
+        self._pool = None
+        if self.workers < 1:
+            raise ValueError(f"workers: {workers!r}; allowed: an integer >= 1")
 
     # ----------------------------------------------------------------- the model
     def twin(self, values: dict) -> Twin:
@@ -186,8 +200,16 @@ class TwinFit:
         return {p.name: p.to_value(float(v)) for p, v in zip(self.params, z)}
 
     def z0(self) -> np.ndarray:
-        return np.array([p.to_z(p.nominal) if p.log or p.nominal > 0 else 0.0
-                         for p in self.params])
+        """The start: the spec's values, moved off a bound (the trust-region method cannot
+        move a variable that sits exactly on one): a quantity the spec has at 0 starts at
+        half its typical size, one on a bound of its factor range 5 % of the range inside."""
+        out = []
+        for p in self.params:
+            lo, hi = p.z_bounds
+            z = p.to_z(p.nominal) if p.log or p.nominal > 0 else 0.5
+            inset = 0.05 * (hi - lo) if p.log else 0.0
+            out.append(float(np.clip(z, lo + inset, hi - inset)))
+        return np.array(out)
 
     def residuals(self, z, split: bool = False):
         """The scaled residual vector at ``z`` (split: (position part, pressure part))."""
@@ -195,14 +217,14 @@ class TwinFit:
         self.runs += 1
         n = self.crane.n
         rq, rp = [], []
+        carry = None
         for s in self.segs:
             r = self.recs[s.rec]
             sq, sp = self.sig[s.rec]
             t = r.t[s.k0:s.k1 + 1]
-            x0 = tw.rest_state(s.q0)
-            if self.use_p and s.p_a0 is not None:
-                x0[2 * n:3 * n], x0[3 * n:4 * n] = s.p_a0, s.p_b0
+            x0 = self.start_state(tw, s, carry)
             run = tw.simulate(t, r.u[s.k0:s.k1 + 1], s.q0, t_end=t[-1], x0=x0)
+            carry = (s.rec, s.k1, run) if run.ok else None
             ts = t[1:]
             good = ts <= run.t[-1] + 1e-9 if not run.ok else np.ones(ts.size, bool)
             q, pa, pb, _ = run.sample(np.minimum(ts, run.t[-1]))
@@ -221,6 +243,26 @@ class TwinFit:
         rq, rp = np.nan_to_num(rq, nan=DIVERGED), np.nan_to_num(rp, nan=DIVERGED)
         return (rq, rp) if split else np.concatenate([rq, rp])
 
+    def start_state(self, tw: Twin, s: Segment, carry) -> np.ndarray:
+        """A segment's start (module doc): the measured positions; the twin's own velocities,
+        pressures, pump and spools where the previous segment of the same log ran up to
+        here, else rest; the measured pressures of each chamber that was quiet over the
+        anchor window (spread under twice its noise: not ringing)."""
+        n = self.crane.n
+        x0 = tw.rest_state(s.q0)
+        if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
+            run = carry[2]
+            x0[n:2 * n] = run.qd[-1]
+            x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
+            x0[4 * n] = run.p_s[-1]
+            x0[4 * n + 1:] = run.spool[-1]
+        if self.use_p and s.p_a0 is not None:
+            sp = self.sig[s.rec][1]
+            qa, qb = s.sd_a < 2.0 * sp[:n], s.sd_b < 2.0 * sp[n:]
+            x0[2 * n:3 * n][qa] = s.p_a0[qa]
+            x0[3 * n:4 * n][qb] = s.p_b0[qb]
+        return x0
+
     def _low(self, Y, t):
         """``Y`` (samples × channels) moving-averaged over :attr:`smooth` seconds (0: as is)."""
         if self.smooth <= 0 or len(t) < 3:
@@ -231,16 +273,38 @@ class TwinFit:
 
     def jacobian(self, z, r0=None) -> np.ndarray:
         """Forward differences of :meth:`residuals` (one twin run per parameter), stepping
-        away from the nearer bound."""
+        away from the nearer bound; the runs spread over :attr:`workers` processes."""
         r0 = self.residuals(z) if r0 is None else r0
-        J = np.empty((r0.size, len(self.params)))
+        steps, zs = [], []
         for i, p in enumerate(self.params):
             lo, hi = p.z_bounds
             h = _FD_STEP if z[i] + _FD_STEP <= hi else -_FD_STEP
             zi = np.array(z, float)
             zi[i] += h
-            J[:, i] = (self.residuals(zi) - r0) / h
-        return J
+            steps.append(h)
+            zs.append(zi)
+        cols = self._map(zs)
+        return np.column_stack([(c - r0) / h for c, h in zip(cols, steps)])
+
+    def _map(self, zs) -> list:
+        """:meth:`residuals` at each of ``zs``: here, or on the worker processes (forked:
+        they inherit this problem and its compiled twin)."""
+        if self.workers <= 1 or len(zs) < 2:
+            return [self.residuals(zi) for zi in zs]
+        global _ACTIVE
+        if self._pool is None:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+            _ACTIVE = self
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("fork"))
+        self.runs += len(zs)
+        return list(self._pool.map(_residuals_in_worker, zs))
+
+    def close(self) -> None:
+        """Stop the worker processes (if any)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
 
     def rms(self, z) -> dict:
         rq, rp = self.residuals(z, split=True)
@@ -258,16 +322,24 @@ class TwinFit:
             return z
         i = names.index("bulk_modulus")
         best, best_z = None, z
+        zs = []
         for f in np.log(self.SCAN):
             zi = np.array(z, float)
             zi[i] = float(np.clip(z[i] + f, lb[i], ub[i]))
-            r = self.residuals(zi)
+            zs.append(zi)
+        for zi, r in zip(zs, self._map(zs)):
             c = float(r @ r)
             if best is None or c < best:
                 best, best_z = c, zi
         return best_z
 
     def solve(self, max_iterations: int = 12, tol: float = 1e-3) -> TwinFitResult:
+        try:
+            return self._solve(max_iterations, tol)
+        finally:
+            self.close()
+
+    def _solve(self, max_iterations: int, tol: float) -> TwinFitResult:
         from scipy.optimize import least_squares
         wall0 = time.perf_counter()
         z0 = self.z0()
@@ -329,6 +401,14 @@ class TwinFit:
 
 
 def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,
-                   hold: float = 0.5, step: float = 2e-3) -> TwinFitResult:
+                   hold: float = 0.5, step: float = 2e-3, workers: int = 1) -> TwinFitResult:
     """Fit ``parameters`` of ``crane``'s twin to ``recordings`` (module doc)."""
-    return TwinFit(crane, recordings, parameters, hold=hold, step=step).solve(max_iterations)
+    return TwinFit(crane, recordings, parameters, hold=hold, step=step,
+                   workers=workers).solve(max_iterations)
+
+
+_ACTIVE: TwinFit | None = None    # the problem the forked workers inherited
+
+
+def _residuals_in_worker(z):
+    return _ACTIVE.residuals(np.asarray(z, float))

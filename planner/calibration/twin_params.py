@@ -7,6 +7,8 @@ Every parameter is one number of the spec that the twin (:mod:`planner.model.twi
 name                        unit    where it lives
 ==========================  ======  ===========================================================
 ``bulk_modulus``            Pa      ``[dynamics] bulk_modulus`` (oil + hoses + air, effective)
+``bulk_low``, ``bulk_high`` 1       ``[dynamics]`` its pressure law's clip (1, 1: constant)
+``bulk_reference_pressure`` Pa      ``[dynamics]`` the law's pivot p_ref
 ``spool_time_constant``     s       ``[dynamics] spool_time_constant`` (every valve)
 ``pump_time_constant``      s       ``[dynamics] pump_time_constant`` (LS regulator)
 ``hose_a.<joint>``          m³      ``[dynamics.joint.<joint>] hose_volume[0]`` (piston side)
@@ -17,7 +19,8 @@ name                        unit    where it lives
 ``deadband.<joint>``        1       ``[[joint]] actuator.deadband`` (share of the command range)
 ==========================  ======  ===========================================================
 
-Groups (``--parameters`` names a group or a parameter): ``oil`` (bulk modulus), ``hoses``,
+Groups (``--parameters`` names a group or a parameter): ``oil`` (bulk modulus and its
+pressure law), ``hoses``,
 ``valves`` (spool lag and dead bands), ``pump``, ``friction``, ``leakage``; ``all``.
 
 Scaling: a quantity that is positive by nature (bulk modulus, time constants, hose volumes) is
@@ -51,7 +54,7 @@ TYPICAL_DEADBAND = 0.01
 _FRICTION_PRESSURE = 1e5
 
 GROUPS = {
-    "oil": ("bulk_modulus",),
+    "oil": ("bulk_modulus", "bulk_low", "bulk_high", "bulk_reference_pressure"),
     "hoses": ("hose_a", "hose_b"),
     "valves": ("spool_time_constant", "deadband"),
     "pump": ("pump_time_constant",),
@@ -94,6 +97,12 @@ def twin_parameters(crane: Crane, dynamics=None) -> list[TwinParameter]:
                          "missing section; calibrating the twin needs [dynamics]")
     out = [TwinParameter("bulk_modulus", "bulk_modulus", None, "Pa", dyn.bulk_modulus,
                          0.2 * dyn.bulk_modulus, min(3.0 * dyn.bulk_modulus, 5e9), True),
+           TwinParameter("bulk_low", "bulk_low", None, "1", dyn.bulk_low,
+                         min(0.2, dyn.bulk_low), 1.0, True),
+           TwinParameter("bulk_high", "bulk_high", None, "1", dyn.bulk_high, 1.0,
+                         max(3.0, dyn.bulk_high), True),
+           TwinParameter("bulk_reference_pressure", "bulk_reference_pressure", None, "Pa",
+                         dyn.bulk_reference_pressure, 1e6, 3e7, True),
            TwinParameter("spool_time_constant", "spool_time_constant", None, "s",
                          dyn.spool_time_constant, 0.2 * dyn.spool_time_constant,
                          min(5.0 * dyn.spool_time_constant, 1.0), True),
@@ -164,7 +173,8 @@ def machine_of(crane: Crane, values: dict, dynamics=None):
     if bad:
         raise ValueError(f"parameters: {bad[0]!r} unknown; allowed: {', '.join(sorted(known))}")
     top = {k: float(values[k]) for k in ("bulk_modulus", "spool_time_constant",
-                                         "pump_time_constant") if k in values}
+                                         "pump_time_constant", "bulk_low", "bulk_high",
+                                         "bulk_reference_pressure") if k in values}
     joints = {}
     for name, jd in dyn.joints.items():
         hv = (float(values.get(f"hose_a.{name}", jd.hose_volume[0])),

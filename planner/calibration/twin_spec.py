@@ -80,6 +80,10 @@ def calibrated_twin_text(crane: Crane, res: TwinFitResult, source: str = "") -> 
              + _comment(res, "spool_time_constant", "s"),
              f"pump_time_constant = {dyn.pump_time_constant!r}  "
              + _comment(res, "pump_time_constant", "s"),
+             f"bulk_low = {dyn.bulk_low!r}  " + _comment(res, "bulk_low", ""),
+             f"bulk_high = {dyn.bulk_high!r}  " + _comment(res, "bulk_high", ""),
+             f"bulk_reference_pressure = {dyn.bulk_reference_pressure!r}  "
+             + _comment(res, "bulk_reference_pressure", "Pa"),
              f"pump_line_volume = {dyn.pump_line_volume!r}  # spec's value, not fitted",
              f"compensator_dp = {dyn.compensator_dp!r}  # spec's value, not fitted",
              f"meter_out_dp = {dyn.meter_out_dp!r}  # spec's value, not fitted",

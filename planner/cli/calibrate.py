@@ -35,8 +35,10 @@ def cmd_calibrate(args):
             print(f"crane-planner: --measured {path}: no pressure columns; fitting positions "
                   "only (the oil and hoses show mostly in the pressures)", file=sys.stderr)
         recs.append(rec)
+    if not 1 <= args.workers <= 64:
+        raise CLIError(f"--workers {args.workers}: allowed 1 … 64 processes")
     fit = TwinFit(crane, recs, args.parameters, hold=args.hold,
-                  pressures=not args.positions_only)
+                  pressures=not args.positions_only, workers=args.workers)
     if args.json != "-":
         print(f"calibrating {len(fit.params)} parameters of the {crane.spec.id} twin on "
               f"{len(recs)} log(s), {len(fit.segs)} segments …", file=sys.stderr)
@@ -85,6 +87,8 @@ def add_parsers(sub) -> None:
     p.add_argument("--hold", type=float, default=0.5,
                    help="the log is cut at holds (all commands 0) at least this long [s] "
                         "(0.5)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes for the twin runs of each Jacobian (1)")
     p.add_argument("--positions-only", action="store_true",
                    help="fit to the positions only (ignore logged pressures)")
     add_json_arg(p)

@@ -12,6 +12,9 @@ pump_line_volume = 2.0e-3       # m³, oil between pump and valve block
 compensator_dp = 1.6e6          # Pa, pressure drop each valve's compensator holds
 meter_out_dp = 0.5e6            # Pa, drop at which the return-flow compensator reaches its cap
 meter_out_margin = 0.01         # the return cap over the outflow that matches the inflow
+bulk_low = 0.6                  # optional: β rises with pressure, β(p) = β·clip((p + p_atm)/
+bulk_high = 1.25                #   (p_ref + p_atm), low, high); both 1 (the default): constant
+bulk_reference_pressure = 8e6   # Pa, p_ref: where β holds (the law's pivot)
 source = "…"
 [dynamics.joint.boom]           # one table per joint
 hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
@@ -35,7 +38,9 @@ __all__ = ["JointDynamics", "GrappleLink", "DynamicsSpec", "parse_dynamics", "DY
 
 DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
                  "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
-                 "joint", "grapple"}
+                 "joint", "grapple", "bulk_low", "bulk_high", "bulk_reference_pressure"}
+#: [Pa] the atmosphere in the pressure law of the bulk modulus (pressures are gauge)
+P_ATM = 1.0e5
 _JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "leakage", "source"}
 _GRAPPLE_KEYS = {"link_length", "damping", "gyration", "source"}
 #: assumed radius of gyration [m] of grapple + load about their centre of mass: a forestry
@@ -80,6 +85,16 @@ class DynamicsSpec:
     joints: dict = field(default_factory=dict)      # joint name -> JointDynamics
     source: str = ""
     grapple: GrappleLink | None = None               # None: the load fixed at the tip
+    bulk_low: float = 1.0                   # β(p) law (module doc); 1, 1: constant β
+    bulk_high: float = 1.0
+    bulk_reference_pressure: float = 8.0e6
+
+    def bulk_factor(self, p):
+        """β(p)/β for gauge pressures ``p`` [Pa] (numpy): (p + p_atm)/(p_ref + p_atm)
+        clipped to [bulk_low, bulk_high]."""
+        import numpy as np
+        r = (np.asarray(p, float) + P_ATM) / (self.bulk_reference_pressure + P_ATM)
+        return np.clip(r, self.bulk_low, self.bulk_high)
 
 
 def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | None:
@@ -98,6 +113,10 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
         compensator_dp=R.num(tbl, "compensator_dp", w, lo=0, lo_open=True),
         meter_out_dp=R.num(tbl, "meter_out_dp", w, lo=0, lo_open=True),
         meter_out_margin=R.num(tbl, "meter_out_margin", w, lo=0.0, hi=0.5),
+        bulk_low=R.num(tbl, "bulk_low", w, default=1.0, lo=0.01, hi=1.0),
+        bulk_high=R.num(tbl, "bulk_high", w, default=1.0, lo=1.0, hi=10.0),
+        bulk_reference_pressure=R.num(tbl, "bulk_reference_pressure", w, default=8.0e6,
+                                      lo=1e5, hi=1e8),
         source=R.text(tbl, "source", w))
     if kw["bulk_modulus"] > 5e9:
         R.fail(w + "bulk_modulus", tbl["bulk_modulus"],

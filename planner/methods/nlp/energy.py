@@ -3,7 +3,8 @@
 :func:`energy_optimal` (least energy within a time budget, never above the time-optimal
 move's energy) and :func:`pareto_front` (the budgets k·T_min) judge every candidate with
 :func:`~planner.trajectory.evaluate`; :func:`stretch` (a move slowed uniformly) gives the
-always-feasible incumbents and the warm starts.
+always-feasible incumbents and the warm starts. :func:`hold_creep` re-solves the energy NLP
+with the functions its move creeps along held still (:mod:`planner.methods.nlp.idle`).
 """
 from __future__ import annotations
 
@@ -11,8 +12,11 @@ from typing import TYPE_CHECKING
 
 import time as _time
 
+import numpy as np
+
 from planner.methods.base import PlanResult, PlanStatus
 from planner.methods.nlp.guess import stretch
+from planner.methods.nlp.idle import creep_nodes, pinned
 from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import nlp_result
 from planner.trajectory import evaluate
@@ -20,7 +24,7 @@ from planner.trajectory import evaluate
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["energy_optimal", "pareto_front", "stretch"]
+__all__ = ["energy_optimal", "hold_creep", "pareto_front", "stretch"]
 
 
 def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,
@@ -64,7 +68,13 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
     judged energy within the limits wins, so the result never costs more than the time-optimal
     move. With obstacles (``energy_nlp`` built with them) every NLP result must clear them on a
     fine resampling; the incumbents inherit the time-optimal move's clearance (stretching keeps
-    the path). Returns (result, info), info["winner"] in {"nlp", "stretched", "time_optimal"}."""
+    the path). Then the creep of the NLP's move (:mod:`planner.methods.nlp.idle`: functions
+    carried along below a useful valve opening, which the machine's load-sensing pump and
+    ``evaluate()`` charge their holding pressure for) is held still and the NLP solved again
+    from that move, up to ``HOLD_ROUNDS`` times while new creep appears; the held moves compete
+    as "nlp" under the same judge. Returns (result, info), info["winner"] in {"nlp",
+    "stretched", "time_optimal"}, info["held"] the node-joints held still in the last round
+    (0: none)."""
     t0 = _time.perf_counter()
     rt = time_result or (time_nlp or MoveNLP(crane, "time", "free", N=N)).solve(start, goal)
     if not rt.ok:
@@ -94,13 +104,37 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
             elif ev.energy_J < best[0]:
                 best = (ev.energy_J, r, "nlp")
         tries.append(status)
+        return r if status == PlanStatus.OK else None
 
-    consider(en.solve(start, goal, T_max=T_max, w0=en.guess_from(inc)))
-    if tries[-1] != PlanStatus.OK:  # a second start from the independent Ruckig guess
+    moved = consider(en.solve(start, goal, T_max=T_max, w0=en.guess_from(inc)))
+    if moved is None:  # a second start from the independent Ruckig guess
         # (only when the first did not converge to a clear, within-limit move: on 36 forwarder
         # moves a converged first start that lost to the incumbents was never beaten by it)
-        consider(en.solve(start, goal, T_max=T_max))
+        moved = consider(en.solve(start, goal, T_max=T_max))
+    held = hold_creep(crane, en, moved, start, goal, T_max, consider)
     res = best[1]
     res.solve_time_s = _time.perf_counter() - t0
     return res, dict(winner=best[2], energy_J=best[0], stretched_energy_J=e_inc.energy_J,
-                     nlp_status=tries)
+                     nlp_status=tries, held=held)
+
+
+HOLD_ROUNDS = 2  # solves with the creep held still (each one from the move before)
+
+
+def hold_creep(crane: Crane, en: MoveNLP, r, start, goal, T_max: float, consider) -> int:
+    """Solve ``en`` again with the creeping joints of its move ``r`` (a result on the NLP's
+    nodes, or None) held still — the union of every round's creep, each round warm-started
+    from the move before — while new creep appears; ``consider`` (the caller's judge) takes
+    each result and returns it when usable, else None. Returns the node-joints held in the
+    last round (0: the move did not creep, or there was none)."""
+    idle = None
+    for _ in range(HOLD_ROUNDS):
+        if r is None or len(r.trajectory.t) != en.N + 1:
+            break
+        new = creep_nodes(crane, r.trajectory.q, r.trajectory.qd)
+        if not np.any(new & ~idle if idle is not None else new):
+            break
+        idle = new if idle is None else (idle | new)
+        with pinned(en, idle, en.guess_from(r.trajectory)) as w0:
+            r = consider(en.solve(start, goal, T_max=T_max, w0=w0))
+    return 0 if idle is None else int(idle.sum())

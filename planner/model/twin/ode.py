@@ -25,7 +25,10 @@ stand-in, or zero), and the parameter vector (:mod:`planner.model.twin.params`).
   (clipped to ±1) with the first-order lag ``spool_time_constant``.
 * **Chambers** ṗ = β/V·(Q_net ∓ A·ẋ), V_a = V_hose,a + A_a·(x − x_lo), V_b = V_hose,b +
   A_b·(x_hi − x) (x clipped to the ends; a motor keeps its hose volumes); a single-acting
-  cylinder's rod side stays at tank.
+  cylinder's rod side stays at tank. β may rise with pressure (``[dynamics]`` bulk_low,
+  bulk_high, bulk_reference_pressure: β(p) = β·clip((p + p_atm)/(p_ref + p_atm), low, high),
+  in every chamber and the pump line; constant when low = high = 1): aerated oil is soft at
+  low pressure, where its air is not yet dissolved or compressed.
 * **Pump** (load sensing): p_s follows max(standby, highest meter-in pressure of the drawing
   valves + margin), capped at relief, with the regulator lag ``pump_time_constant``; when the
   valves draw more than Q_max the pump line (volume V_p) loses pressure at β/V_p per unit of
@@ -43,6 +46,7 @@ import casadi as ca
 
 from planner.model.actuators import stroke_expr
 from planner.model.dynamics import rnea
+from planner.model.dynamics_spec import P_ATM
 from planner.model.twin.params import PER_ACTUATOR, SCALARS
 from planner.model.valve_physics import function as valve_function
 
@@ -105,6 +109,10 @@ def build_rhs(crane: Crane, spec=None):
     per, sc = _params(P, n)
     s = unpack(X, n)
     q, qd, pa, pb, ps, sp = s["q"], s["qd"], s["p_a"], s["p_b"], s["p_s"], s["spool"]
+    def bulk(p):
+        """β(p)/β: the [dynamics] pressure law (1 when bulk_low = bulk_high = 1)."""
+        r = (p + P_ATM) / (sc["beta_pref"] + P_ATM)
+        return ca.fmin(ca.fmax(r, sc["beta_lo"]), sc["beta_hi"])
     f_open = valve_function("valve_opening")
     f_flows = valve_function("valve_flows")
     xs, dxdq = [], []
@@ -125,8 +133,9 @@ def build_rhs(crane: Crane, spec=None):
         xc = ca.fmin(ca.fmax(x[i], g["x_lo"]), g["x_hi"])
         va = g["hose_a"] + g["swept"] * g["area_a"] * (xc - g["x_lo"])
         vb = g["hose_b"] + g["swept"] * g["area_b"] * (g["x_hi"] - xc)
-        dpa.append(sc["beta"] / va * (net_a - g["area_a"] * xd[i]))
-        dpb.append((1.0 - g["single"]) * sc["beta"] / vb * (net_b + g["area_b"] * xd[i]))
+        dpa.append(sc["beta"] * bulk(pa[i]) / va * (net_a - g["area_a"] * xd[i]))
+        dpb.append((1.0 - g["single"]) * sc["beta"] * bulk(pb[i]) / vb
+                   * (net_b + g["area_b"] * xd[i]))
         pb_eff = ca.if_else(g["single"] > 0.5, sc["p_tank"], pb[i])
         F = (pa[i] * g["area_a"] - pb_eff * g["area_b"]
              - g["coulomb"] * ca.tanh(xd[i] / g["v_smooth"]) - g["viscous"] * xd[i]
@@ -143,7 +152,7 @@ def build_rhs(crane: Crane, spec=None):
                    sc["p_relief"])
     p_set = ca.if_else(sc["load_sensing"] > 0.5, p_ls, sc["p_const"])
     excess = ca.fmax(ca.sum1(ca.vertcat(*qin)) - sc["q_max"], 0.0)
-    dps = (p_set - ps) / sc["tau_pump"] - sc["beta"] / sc["v_pump"] * excess
+    dps = (p_set - ps) / sc["tau_pump"] - sc["beta"] * bulk(ps) / sc["v_pump"] * excess
     Fv = ca.vertcat(*force)
     tau = d * Fv
     qdd_sym = ca.SX.sym("qdd", n)

@@ -14,7 +14,7 @@ fields of :data:`SCALARS`. Where they come from:
   flow gain (× the valves-stage gain factor), dead band, both areas, single-acting, the
   meter-out margin, the compensators' drops, tank pressure;
 * ``[dynamics]`` (:class:`~planner.model.dynamics_spec.DynamicsSpec`, after the dynamics-stage
-  effects): bulk modulus, hose volumes, Coulomb and viscous friction, leakage, the spool and
+  effects): bulk modulus and its pressure law, hose volumes, Coulomb and viscous friction, leakage, the spool and
   pump time constants, the pump line volume;
 * ``[pump]``: load sensing or constant pressure, maximum flow (× the valves-stage pump factor),
   LS margin, standby, set and relief pressures;
@@ -43,7 +43,8 @@ PER_ACTUATOR = ("gain", "deadband", "area_a", "area_b", "single", "leak", "hose_
                 "coulomb", "viscous", "v_smooth", "x_lo", "x_hi", "stop", "swept")
 #: machine-wide parameters, after the per-actuator block
 SCALARS = ("beta", "margin", "dp_c", "dp_out", "p_tank", "load_sensing", "q_max", "ls_margin",
-           "standby", "p_const", "p_relief", "tau_pump", "v_pump", "tau_spool", "payload")
+           "standby", "p_const", "p_relief", "tau_pump", "v_pump", "tau_spool", "payload",
+           "beta_lo", "beta_hi", "beta_pref")
 #: Coulomb friction is tanh(ẋ/v_s)-smoothed over this fraction of the full-command speed
 COULOMB_SMOOTHING = 0.01
 
@@ -113,7 +114,9 @@ def twin_params(crane: Crane, dynamics, payload: float, gain_scale=1.0, deadband
                   standby=pump.standby, p_const=pump.pressure,
                   p_relief=min(pump.max_pressure, 1e9),
                   tau_pump=dynamics.pump_time_constant, v_pump=dynamics.pump_line_volume,
-                  tau_spool=dynamics.spool_time_constant, payload=float(payload))
+                  tau_spool=dynamics.spool_time_constant, payload=float(payload),
+                  beta_lo=dynamics.bulk_low, beta_hi=dynamics.bulk_high,
+                  beta_pref=dynamics.bulk_reference_pressure)
     for k, v in list(per.items()):
         per[k] = np.broadcast_to(np.asarray(v, float), (n,)).copy()
     return TwinParams(n=n, per=per, scalar=scalar)

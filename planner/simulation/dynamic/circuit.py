@@ -27,8 +27,9 @@ Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
   the full-command speed), plus stiff end stops at the strokes of the joint limits (their
   damping ramped in over the first millimetre, so the force is continuous at contact).
 
-**Pressure-dependent bulk modulus** (opt-in, :class:`PressureBulk`; off by default, and never in
-the twin): β(p) = β₀·clip((p + p_a)/(p_ref + p_a), lo, hi) in every chamber and the pump line —
+**Pressure-dependent bulk modulus** (opt-in, :class:`PressureBulk`, or a spec's ``[dynamics]``
+bulk_low / bulk_high / bulk_reference_pressure; off by default; the twin has its own version):
+β(p) = β₀·clip((p + p_a)/(p_ref + p_a), lo, hi) in every chamber and the pump line —
 oil with entrained air is softer at low pressure (the air is compressed) and stiffer at high. In
 a closed chamber (Q = 0) compressed from V₀ to V, within the unclipped range,
 (p + p_a) = (p₀ + p_a)·(V₀/V)^(β₀/(p_ref + p_a)). The energy balance

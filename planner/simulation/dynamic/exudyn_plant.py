@@ -152,6 +152,11 @@ class ExudynPlant(BasePlant):
                                                   np.array([d.leakage for d in jd])),
                                coulomb=np.array([d.coulomb for d in jd]),
                                viscous=np.array([d.viscous for d in jd]))
+        if bulk is None and (dyn.bulk_low != 1.0 or dyn.bulk_high != 1.0):
+            # the spec's own [dynamics] pressure law (a calibrated machine's), in this plant's
+            # own circuit code
+            bulk = PressureBulk(p_ref=dyn.bulk_reference_pressure, p_abs=1.0e5,
+                                lo=dyn.bulk_low, hi=dyn.bulk_high)
         if bulk is not None:
             if not isinstance(bulk, PressureBulk):
                 raise ValueError(f"ExudynPlant: bulk = {bulk!r}; allowed: None or a "

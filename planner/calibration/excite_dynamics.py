@@ -20,8 +20,9 @@ visible:
   against viscous);
 - *creep*: a short move at 6–15 % speed out and back — small commands, where the dead band and
   Coulomb friction are a large share of what the valve does — with a hold under load between;
-- *random* blocks (``candidates`` of them, seeded): a pose anywhere in the ranges at a random
-  speed, as the trials' plain excitation moves.
+- *tours* (``candidates`` of them, seeded): three poses anywhere in the ranges, each at a
+  random speed (30–100 %) with a short hold, then home at full speed — as the trials' plain
+  excitation moves, so that the choice is never poorer than it per second.
 
 Every move is a Ruckig rest-to-rest move (every position, speed, acceleration and jerk limit
 holds by construction); a move whose feed-forward would ask more than a valve can open or the
@@ -102,6 +103,7 @@ class BlockPool:
     REVERSAL = (0.6, 1.0)    # speed fraction
     REVERSALS = 4            # moves without a stop between them
     CREEP = (0.06, 0.15)     # speed fraction
+    TOUR = 3                 # poses of a random tour
 
     def __init__(self, crane: Crane, seed: int = 0, rate: float = 50.0, candidates: int = 2):
         if not 5.0 <= rate <= 1000.0:
@@ -149,9 +151,13 @@ class BlockPool:
             goal[j] = h[j] + rng.uniform(0.85, 1.0) * (far[j] - h[j])
             out.append((f"{name} alone", out_back(goal, 1.0, 1.0, "hard stop")))
         for k in range(candidates):
-            s = rng.uniform(0.3, 1.0)
-            out.append((f"random {k}", out_back(rng.uniform(lo, hi), s, rng.uniform(0.3, 1.0),
-                                                "random")))
+            steps = []
+            for _ in range(self.TOUR):
+                steps += [("move", rng.uniform(lo, hi), rng.uniform(0.3, 1.0), "tour"),
+                          ("hold", rng.uniform(*self.HOLD_SHORT), "hold")]
+            steps += [("move", h, 1.0, "pump limit"),
+                      ("hold", rng.uniform(*self.HOLD_SHORT), "hold")]
+            out.append((f"tour {k}", steps))
         return out
 
     def feasible_scale(self, q0, goal, scale: float) -> float:
@@ -333,7 +339,7 @@ def design_dynamics(crane: Crane, duration: float = 120.0, seed: int = 0,
                     compare: bool = False, noise=True, blocks=None,
                     progress=None) -> DynamicsDesign:
     """The design (module doc) of about ``duration`` [s] (it ends with the block that reaches
-    it) from the pool of ``seed`` with ``candidates`` random blocks (``blocks``: only these of
+    it) from the pool of ``seed`` with ``candidates`` random tours (``blocks``: only these of
     its block names); ``parameters``: the twin's parameters to design for (names or groups;
     None: all); ``compare``: score the plain excitation of the same length too; ``progress``:
     a callable taking a line of text."""

@@ -182,7 +182,7 @@ def add_parsers(sub) -> None:
                         "recording to be told apart (default: --duration)")
     p.add_argument("--rate", type=float, default=50.0, help="command rate in Hz (50)")
     p.add_argument("--candidates", type=int, default=None,
-                   help="random starting designs (6; --for dynamics: random blocks in the "
+                   help="random starting designs (6; --for dynamics: random tours in the "
                         "pool besides the structured ones, 2)")
     p.add_argument("--budget", type=int, default=None,
                    help="Nelder-Mead evaluations of the criterion after the starts (40)")

@@ -41,7 +41,7 @@ def pool(lab):
 def test_blocks_and_design_keep_every_limit_and_repeat_for_a_seed(lab, pool):
     names = [b for b, _ in pool.blocks]
     assert names[:4] == ["hard stop far", "hard stop near", "reversals", "creep"]
-    assert f"{lab.names[1]} alone" in names and "random 0" in names
+    assert f"{lab.names[1]} alone" in names and "tour 0" in names
     plan, ff = pool.plan(names)
     ev = evaluate(lab, plan)                     # 1 kHz resampling, every limit kind
     assert ev.ok() and max(ev.violations.values()) <= 1e-3, ev.violations
@@ -49,14 +49,16 @@ def test_blocks_and_design_keep_every_limit_and_repeat_for_a_seed(lab, pool):
     L = lab.limit_arrays()
     assert np.all(plan.q >= L["q_min"]) and np.all(plan.q <= L["q_max"])
     # every block ends at rest at home, with a hold the calibration cuts its segments at
-    ends = [e for (b, k, s, e) in plan.meta["blocks"] if k == "hold"]
+    ends = [max(e for (b, _, _, e) in plan.meta["blocks"] if b == name) for name in names]
     q_end, qd_end, _, _ = plan.sample(np.array(ends))
     np.testing.assert_allclose(q_end, np.repeat(pool.home[None], len(names), 0),
                                atol=1e-9)
     assert np.max(np.abs(qd_end)) < 1e-5
     q, _, _, _ = plan.sample(ff.t)
     segs = segments(Recording(ff.t, ff.u, q), hold=0.5)
-    assert len(segs) == 2 * len(names) - names.count("reversals")
+    holds = {b: sum(1 for s in steps if s[0] == "hold") for b, steps in pool.blocks}
+    assert holds["reversals"] == 1 and holds["tour 0"] == 4 and holds["creep"] == 2
+    assert len(segs) == sum(holds.values())
     # the same seed, the same sequence; another seed, another
     again, ff2 = BlockPool(lab, seed=3, candidates=1).plan(names)
     assert np.array_equal(again.q, plan.q) and np.array_equal(ff2.u, ff.u)

@@ -118,6 +118,8 @@ def twin_parameters(crane: Crane, dynamics=None) -> list[TwinParameter]:
         v_full = a.flow_gain / area if math.isfinite(a.flow_gain) else 1.0
         f_typ = _FRICTION_PRESSURE * area
         for side, v in zip("ab", jd.hose_volume):
+            if side == "b" and a.acting == "single":
+                continue        # a single-acting cylinder's rod side is vented: no oil to fit
             out.append(TwinParameter(f"hose_{side}.{j.name}", f"hose_{side}", j.name, "m³", v,
                                      0.2 * v, 10.0 * v, True))
         fc = jd.coulomb if jd.coulomb > 0 else f_typ

@@ -48,6 +48,8 @@ CASES = {
     "discrepancy (report = crane spec)": (["discrepancy", "spec.toml", "--measured", "m.csv",
                                            "--report", "spec.toml"], "spec.toml"),
     "resample": (["resample", "m.csv", "--rate", "50", "--out", "m.csv"], "m.csv"),
+    "calibrate (out = second log)": (["calibrate", "s100f", "--measured", "t.csv",
+                                      "--measured", "m.csv", "--out", "m.csv"], "m.csv"),
     "excite": (["excite", "s100f", "--from", "r.json", "--out", "e.csv", "--json", "r.json"],
                "r.json"),
     "problems urdf": (["problems", "urdf", "spec.toml", "--out", "spec.toml"], "spec.toml"),

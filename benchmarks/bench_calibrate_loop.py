@@ -239,8 +239,10 @@ def markdown(rep) -> str:
          f"{rep['date']}, {rep['platform']}, {rep['cpus']} CPUs, load "
          f"{' '.join(f'{x:.1f}' for x in rep['load'])}. `python "
          f"benchmarks/bench_calibrate_loop.py {rep['argv']}`.", "",
-         "Judge: **the Exudyn plant** (each drawn machine, with the pressure-dependent bulk "
-         "modulus the twin does not have). The twin only fits the log and refines. Landing: "
+         "Judge: **the Exudyn plant** (each drawn machine: its own circuit code, a bulk "
+         "modulus that rises with pressure — in the calibrated family since this run's code — "
+         "and a command delay the calibrated twin has no parameter for). The twin only fits "
+         "the log and refines. Landing: "
          "rest offset ≤ 5 mm and ringing < 5 mm, valves closed "
          f"{rep['settle']:g} s after the last command. Entries: {', '.join(rep['chain'])}.",
          "", "Machines (drawn; the planner never saw them): "

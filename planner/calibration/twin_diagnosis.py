@@ -1,0 +1,523 @@
+"""The discrepancy verdict with the dynamic twin as the model (issue 28, "diagnosis with the
+twin"): the same question as :mod:`planner.calibration.discrepancy` — does the model explain
+the log, and if not, which one missing effect does — asked of the twin
+(:mod:`planner.model.twin`), which has the oil, hoses, spools, pump and seal friction the
+quasi-static model lacks, so it can name the effects only a dynamic machine has.
+
+**The model's prediction** is :class:`planner.calibration.twin_fit.TwinFit`'s: the log cut at
+its holds, each segment re-anchored at the measured positions (and quiet pressures), the
+twin driven by the logged commands. Its residual, divided by each channel's noise, is the
+residual the verdict reads; channels ``q_<joint>``, then ``p_<joint>_a``, then
+``p_<joint>_b``; the samples before the first segment (the opening hold) are left out.
+
+**Candidates** are catalogue effects written as twin parameters (one number each):
+
+=======================  ==========================================  ========================
+candidate                twin parameter                              reported as
+=======================  ==========================================  ========================
+``bulk_modulus``         ``[dynamics] bulk_modulus``                 ``scale`` (× the spec's)
+``hose_volume@j``        both hose volumes of j, one common factor  ``scale``
+``valve_deadband@j``     ``deadband.j``                              ``width`` (of the range)
+``coulomb_friction@j``   ``coulomb.j``                               ``force`` (added)
+``viscous_friction@j``   ``viscous.j``                               ``coefficient`` (added)
+``leakage@j``            ``leakage.j``                               ``coefficient`` (added)
+``spool_lag``            ``spool_time_constant``                     ``tau`` [s]
+``pump_lag``             ``pump_time_constant``                      ``tau`` [s]
+``flow_gain@j``          the twin's valve gain factor of j           ``scale``
+``payload_mass``         the twin's tip payload                      ``mass`` (added) [kg]
+``pump_flow_limit``      the twin's pump-flow factor                 ``scale``
+=======================  ==========================================  ========================
+
+**Search, in sensitivities.** One Jacobian of every candidate's parameter at the spec's
+values (forward differences of whole twin runs, :meth:`TwinFit.jacobian`), on the *training*
+rows (the even blocks of ``block_s`` s, as the quasi-static workflow); a bounded Gauss–Newton
+step per candidate ranks them by the training misfit it would remove. Only the best
+:attr:`TwinDiagnosis.fits` are fitted nonlinearly (trust-region least squares on the training
+rows, from the better of the spec's value and the Gauss–Newton step, its Jacobian again by
+twin runs; the bulk modulus and a hose volume first scanned over factors 0.25–4 on the
+moving averages, as the raw misfit has one narrow valley per ringing phase). Each fit is
+scored on the *held-out* rows exactly as the quasi-static workflow scores (score = J_nominal − J_fit − k·ln n, :attr:`threshold` 30).
+
+**Verdict**: :func:`planner.calibration.verdict.judge` with the same
+:class:`~planner.calibration.verdict.Evidence`, noise bounds, ``TIE_Z`` and credibility tests
+— unchanged; only the model that predicts differs. No second effect is tried (a single-effect
+diagnosis; a log that needs two is ``unexplained`` with its signature).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import math
+import time as _time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from planner.calibration.result import Candidate, DiscrepancyResult
+from planner.calibration.signature import signature_text
+from planner.calibration.twin_fit import TwinFit
+from planner.calibration.twin_params import TwinParameter, machine_of, twin_parameters
+from planner.calibration.verdict import Evidence, judge, smoothed_excess
+from planner.calibration.where import locate
+from planner.model.twin import Twin
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+    from planner.simulation.recording import Recording
+
+ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
+ANCHOR_S = 0.2      # [s] the window a segment's start is averaged over (TwinFit's)
+_FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's)
+
+__all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "dynamic_signature",
+           "KINDS", "MODE_BAND_HZ"]
+
+#: candidate name -> (per joint, reported parameter) (module doc)
+KINDS = {
+    "bulk_modulus": (False, "scale"), "hose_volume": (True, "scale"),
+    "valve_deadband": (True, "width"), "coulomb_friction": (True, "force"),
+    "viscous_friction": (True, "coefficient"), "leakage": (True, "coefficient"),
+    "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
+    "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
+}
+#: [Hz] where a periodic residual is read as a hydraulic mode (oil against the links: the
+#: slews' 0.7 Hz to the booms' few Hz on the machines here) by :func:`dynamic_signature`
+MODE_BAND_HZ = (0.3, 6.0)
+
+
+@dataclass(frozen=True)
+class _Par:
+    """A reported parameter's name (what :func:`planner.calibration.verdict.judge` lists)."""
+    name: str
+
+
+class TwinEffect:
+    """One candidate as a twin change: ``name`` (:data:`KINDS`), ``joint``, the twin
+    parameter ``param`` (a :class:`TwinParameter`) at scaled value ``z``; ``values`` in the
+    reported unit (module doc)."""
+
+    def __init__(self, name: str, joint, param: TwinParameter, z: float):
+        self.name, self.joint, self.param, self.z = name, joint, param, float(z)
+        v = param.to_value(self.z)
+        unit = KINDS[name][1]
+        if name == "bulk_modulus":
+            v = v / param.nominal
+        elif name in ("coulomb_friction", "viscous_friction", "leakage", "payload_mass"):
+            v = v - param.nominal
+        self.values = {unit: float(v)}
+        self.parameters = (_Par(unit),)
+
+    def at(self, z: float) -> "TwinEffect":
+        return TwinEffect(self.name, self.joint, self.param, z)
+
+    def to_dict(self) -> dict:
+        return dict(name=self.name, joint=self.joint, **self.values, model="twin")
+
+    @property
+    def key(self) -> tuple:
+        return (self.param.name, round(self.z, 12))
+
+    def __repr__(self):
+        return f"{self.name}" + (f"@{self.joint}" if self.joint else "") + f"{self.values}"
+
+
+def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
+    """The candidates (module doc) at the spec's values, per-joint ones on every joint;
+    ``names``: only these kinds (ValueError naming an unknown one and what is allowed)."""
+    names = list(KINDS) if names is None else list(names)
+    bad = [s for s in names if s not in KINDS]
+    if bad:
+        raise ValueError(f"effects: {bad[0]!r} has no twin counterpart; allowed: "
+                         f"{', '.join(KINDS)}")
+    tp = {p.name: p for p in twin_parameters(crane)}
+    m0 = crane.spec.payload.total
+    out = []
+    for name in names:
+        for j in (crane.names if KINDS[name][0] else [None]):
+            if name == "bulk_modulus":
+                p = tp["bulk_modulus"]
+            elif name == "spool_lag":
+                p = tp["spool_time_constant"]
+            elif name == "pump_lag":
+                p = tp["pump_time_constant"]
+            elif name == "hose_volume":
+                p = TwinParameter(f"hose.{j}", "hose", j, "1", 1.0, 0.2, 10.0, True)
+            elif name == "flow_gain":
+                p = TwinParameter(f"gain.{j}", "gain", j, "1", 1.0, 0.5, 1.5, True)
+            elif name == "pump_flow_limit":
+                p = TwinParameter("pump_flow", "pump_flow", None, "1", 1.0, 0.1, 1.0, True)
+            elif name == "payload_mass":
+                p = TwinParameter("payload", "payload", None, "kg", m0, max(m0 - 3000.0, 0.0),
+                                  m0 + 5000.0, False, max(m0, 50.0))
+            else:
+                kind = {"valve_deadband": "deadband", "coulomb_friction": "coulomb",
+                        "viscous_friction": "viscous", "leakage": "leakage"}[name]
+                p = tp[f"{kind}.{j}"]
+            out.append(TwinEffect(name, j, p, p.to_z(p.nominal)))
+    return out
+
+
+class _Problem(TwinFit):
+    """:class:`TwinFit` whose parameters are the candidates' (some of them the twin's own
+    inputs rather than spec numbers: hose factor, valve gain, payload, pump flow), its
+    residual optionally restricted to the rows of ``mask`` (the training blocks)."""
+
+    def __init__(self, crane, rec, params, hold, step, workers):
+        super().__init__(crane, [rec], parameters=["bulk_modulus"], hold=hold, step=step,
+                         workers=workers)
+        self.params = list(params)
+        self.mask = None        # rows the residual vector keeps (None: every row)
+        self.fit_rows = None    # rows the anchors' position errors are estimated on
+
+    def twin(self, values: dict) -> Twin:
+        crane, v = self.crane, dict(values)
+        dyn0 = crane.spec.dynamics
+        gain = np.ones(crane.n)
+        for i, j in enumerate(crane.names):
+            f = v.pop(f"hose.{j}", None)
+            if f is not None:
+                a, b = dyn0.joints[j].hose_volume
+                v[f"hose_a.{j}"], v[f"hose_b.{j}"] = a * f, b * f
+            gain[i] = v.pop(f"gain.{j}", 1.0)
+        payload = v.pop("payload", None)
+        pump = v.pop("pump_flow", 1.0)
+        dyn, db = machine_of(crane, v)
+        return Twin(crane, dynamics=dyn, deadband=db, payload=payload, gain_scale=gain,
+                    pump_scale=pump, step=self.step)
+
+    def start_state(self, tw: Twin, s, carry) -> np.ndarray:
+        """TwinFit's start, except that a quiet chamber whose anchored (measured) pressure
+        agrees with the twin's own (carried or holding) pressure within the anchor's noise
+        (3 σ/√m, m samples averaged) starts from the twin's: a noise-sized error in the
+        anchored pressure would ring the hydraulic mode through the segment — a residual of
+        the anchoring, not of the machine."""
+        x0 = TwinFit.start_state(self, tw, s, carry)
+        if not self.use_p or s.p_a0 is None:
+            return x0
+        n = self.crane.n
+        own = TwinFit.start_state(self, tw, replace(s, p_a0=None, p_b0=None), carry)
+        t = self.recs[s.rec].t
+        m = max(int(round(ANCHOR_S / float(t[1] - t[0]))), 1)
+        tol = 3.0 * self.sig[s.rec][1] / math.sqrt(m)
+        pa, pb = slice(2 * n, 3 * n), slice(3 * n, 4 * n)
+        for sl, tl in ((pa, tol[:n]), (pb, tol[n:])):
+            agree = np.abs(x0[sl] - own[sl]) <= tl
+            x0[sl][agree] = own[sl][agree]
+        return x0
+
+    def matrix(self, z) -> np.ndarray:
+        """The scaled residual (model − log) as rows × channels (module doc), each segment's
+        positions shifted by its anchor's error: the mean position residual over the
+        segment's training rows, within the anchor's noise (± 3 σ/√m) — the start pose as a
+        nuisance parameter, as in the quasi-static workflow, bounded by what noise explains."""
+        rq, rp = TwinFit.residuals(self, z, split=True)
+        n = self.crane.n
+        rq = rq.reshape(-1, n).copy()
+        if self.fit_rows is not None:
+            t = self.recs[0].t
+            m = max(int(round(ANCHOR_S / float(t[1] - t[0]))), 1)
+            lim = 3.0 / math.sqrt(m)
+            k = 0
+            for sg in self.segs:
+                rows = slice(k, k + sg.k1 - sg.k0)
+                tr = self.fit_rows[rows]
+                if tr.any():
+                    rq[rows] -= np.clip(rq[rows][tr].mean(axis=0), -lim, lim)
+                k += sg.k1 - sg.k0
+        return np.hstack([rq, rp.reshape(-1, 2 * n)]) if rp.size else rq
+
+    def residuals(self, z, split: bool = False):
+        if split or self.mask is None:
+            return TwinFit.residuals(self, z, split)
+        return self.matrix(z)[self.mask].ravel()
+
+
+class TwinDiagnosis:
+    """The verdict with the twin as the model (module doc). ``fit(recording)`` ->
+    :class:`DiscrepancyResult` (the quasi-static workflow's, ``model`` "twin" in its notes).
+
+    candidates: kinds to try (default all of :data:`KINDS`); block_s: the alternating
+    train/held-out blocks [s]; threshold: least held-out score to name (30, as the
+    quasi-static workflow); fits: how many of the best-ranked candidates are fitted
+    nonlinearly; iterations: trust-region iterations per fit; hold: the segments' least
+    hold [s]; step: the twin's step [s]; workers: processes for the Jacobian's runs."""
+
+    #: factors of the oil's stiffness and hose volume scanned before their fit (module doc)
+    SCAN = np.geomspace(0.25, 4.0, 9)
+
+    def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0,
+                 threshold: float = 30.0, fits: int = 4, iterations: int = 4,
+                 hold: float = 0.5, step: float = 2e-3, workers: int = 1):
+        if crane.spec.dynamics is None:
+            raise ValueError(f"crane '{crane.spec.id}': field 'dynamics': missing section; "
+                             "--model twin needs the machine's [dynamics]")
+        if not block_s > 0:
+            raise ValueError(f"block_s: {block_s!r}; allowed: > 0 s")
+        if int(fits) < 1:
+            raise ValueError(f"fits: {fits!r}; allowed: an integer >= 1")
+        self.crane = crane
+        self.cands = twin_candidates(crane, candidates)
+        self.block_s, self.threshold = float(block_s), float(threshold)
+        self.n_fits, self.iterations = int(fits), int(iterations)
+        self.hold, self.step, self.workers = float(hold), float(step), int(workers)
+
+    # ------------------------------------------------------------------ prediction
+    def _prepare(self, rec: Recording) -> None:
+        crane, n = self.crane, self.crane.n
+        if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
+            raise ValueError(f"recording: expected u and q of shape (N, {n})")
+        if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
+            raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
+                             f"is too short: need at least 4 blocks of {self.block_s:g} s")
+        pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold, self.step,
+                      self.workers)
+        self.pb = pb
+        rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])
+        self.rows = rows
+        self.t = rec.t[rows]
+        self.u = rec.u[rows]
+        sq, sp = pb.sig[0]
+        self.has_p = pb.use_p
+        self.sig = np.concatenate([sq, sp]) if self.has_p else np.asarray(sq, float)
+        self.cols = [f"q_{j}" for j in crane.names] + (
+            [f"p_{j}_a" for j in crane.names] + [f"p_{j}_b" for j in crane.names]
+            if self.has_p else [])
+        Y = [rec.q[rows]] + ([rec.p_a[rows], rec.p_b[rows]] if self.has_p else [])
+        self.Y = np.hstack(Y)
+        block = np.floor((self.t - rec.t[0]) / self.block_s).astype(int)
+        self.train, self.test = block % 2 == 0, block % 2 == 1
+        pb.fit_rows = self.train
+        self.z_nom = np.array([c.z for c in self.cands])
+        self._cache = {}
+
+    def predict(self, effects=()) -> np.ndarray:
+        """Twin channels (rows × channels) with ``effects`` (TwinEffects) on."""
+        key = tuple(sorted(e.key for e in effects))
+        if key not in self._cache:
+            z = self.z_nom.copy()
+            names = [c.param.name for c in self.cands]
+            for e in effects:
+                z[names.index(e.param.name)] = e.z
+            self.pb.mask = None
+            self._cache[key] = self.Y + self.pb.matrix(z) * self.sig
+        return self._cache[key]
+
+    def _J(self, Yp, mask) -> float:
+        R = (self.Y - Yp)[mask] / self.sig
+        return float(np.sum(R * R))
+
+    # ------------------------------------------------------------------ search
+    def _rank(self):
+        """Gauss–Newton gain of each candidate on the training rows (module doc): list of
+        (predicted reduction, candidate at the step, column norm), best first."""
+        pb = self.pb
+        pb.mask = self.train
+        r0 = ((self.predict(()) - self.Y) / self.sig)[self.train].ravel()
+        Jac = pb.jacobian(self.z_nom, r0)
+        out = []
+        for i, c in enumerate(self.cands):
+            g = Jac[:, i]
+            gg = float(g @ g)
+            lo, hi = c.param.z_bounds
+            if gg <= 0 or not np.isfinite(gg):
+                out.append((0.0, c, gg))
+                continue
+            z = float(np.clip(c.z - float(g @ r0) / gg, lo, hi))
+            red = float(r0 @ r0 - np.sum((r0 + g * (z - c.z)) ** 2))
+            out.append((red, c.at(z), gg))
+        out.sort(key=lambda x: -x[0])
+        return out, float(r0 @ r0)
+
+    def _fit_one(self, c: TwinEffect, z_gn: float) -> Candidate:
+        """Nonlinear fit of candidate ``c`` on the training rows (module doc)."""
+        pb = self.pb
+        i = [x.param.name for x in self.cands].index(c.param.name)
+        lo, hi = c.param.z_bounds
+        pb.mask = self.train
+        memo = {}
+
+        def fun(x):
+            zi = float(np.clip(x[0], lo, hi))
+            if zi not in memo:
+                z = self.z_nom.copy()
+                z[i] = zi
+                memo[zi] = pb.residuals(z)
+            return memo[zi]
+
+        def jac(x):          # one forward difference (this candidate's column only)
+            zi = float(x[0])
+            h = _FD_STEP if zi + _FD_STEP <= hi else -_FD_STEP
+            return ((fun([zi + h]) - fun([zi])) / h)[:, None]
+
+        def cost(zi):
+            r = fun([zi])
+            return float(r @ r)
+        starts = [c.z, z_gn]
+        if c.name in ("bulk_modulus", "hose_volume"):
+            # a coarse scan on the moving averages (the ringing's phase removed: one smooth
+            # valley; TwinFit's first stage), its best a further start on the samples
+            pb.smooth = TwinFit.SMOOTH
+            grid = [float(np.clip(c.z + math.log(f), lo, hi)) for f in self.SCAN]
+            sm = [float(np.sum(pb.residuals(self._z_with(i, g)) ** 2)) for g in grid]
+            pb.smooth = 0.0
+            starts.append(grid[int(np.argmin(sm))])
+        costs = [cost(s) for s in starts]
+        x0 = starts[int(np.argmin(costs))]
+        eps = 1e-6 * max(hi - lo, 1.0)
+        x0 = min(max(x0, lo + eps), hi - eps)
+        try:
+            sol = least_squares(fun, [x0], jac=jac, bounds=([lo], [hi]), method="trf",
+                                max_nfev=self.iterations, xtol=1e-4, ftol=1e-4)
+            z = float(np.clip(sol.x[0], lo, hi))
+        except Exception:      # a failed local fit keeps its best start
+            z = x0
+        if cost(z) > min(costs):
+            z = starts[int(np.argmin(costs))]
+        g = jac([z])[:, 0]
+        e = c.at(z)
+        Yp = self.predict((e,))
+        J_tr, J_te = self._J(Yp, self.train), self._J(Yp, self.test)
+        jj = float(g @ g)
+        unit = KINDS[c.name][1]
+        s2 = J_tr / max(g.size - 1, 1)
+        sd_z = math.sqrt(s2 / jj) if jj > 0 else math.inf
+        v1 = c.at(min(z + sd_z, hi)).values[unit] if math.isfinite(sd_z) else math.inf
+        std = {f"{c.name}.{unit}": float(abs(v1 - e.values[unit]))}
+        return Candidate((e,), 1, J_tr, J_te, std=std, cond=1.0 if jj > 0 else math.inf,
+                         excited=bool(jj > 0), nfev=len(memo))
+
+    def _z_with(self, i: int, zi: float) -> np.ndarray:
+        z = self.z_nom.copy()
+        z[i] = zi
+        return z
+
+    def fit(self, rec: Recording, progress: bool = False) -> DiscrepancyResult:
+        t0 = _time.perf_counter()
+        self._prepare(rec)
+        Y0 = self.predict(())
+        J0_te = self._J(Y0, self.test)
+        pen = math.log(max(int(self.test.sum()), 2))
+        try:
+            ranked_gn, _ = self._rank()
+            fits = []
+            todo = [x for x in ranked_gn[:self.n_fits] if x[2] > 0 and x[0] > 0]
+            # the oil always: its misfit is far from linear (one valley per ringing phase),
+            # so a Gauss-Newton step from the spec's value can rank it low when it is off
+            todo += [x for x in ranked_gn[self.n_fits:] if x[1].name in ALWAYS and x[2] > 0]
+            for red, c, gg in todo:
+                f = self._fit_one(self.cands[[x.param.name for x in self.cands]
+                                             .index(c.param.name)], c.z)
+                f.score = J0_te - f.J_test - pen * f.k
+                fits.append(f)
+                if progress:
+                    print(f"  twin fit {f.label}: held-out score {f.score:.1f}", flush=True)
+        finally:
+            self.pb.close()
+        fits.sort(key=lambda c: -c.score)
+        fitted = {f.effects[0].param.name: f for f in fits}
+        ranking = []
+        for k, (red, c, gg) in enumerate(ranked_gn):
+            f = fitted.get(c.param.name)
+            row = (dict(f.summary(), fitted=True) if f is not None else
+                   dict(model=c.name + (f"[{c.joint}]" if c.joint else ""),
+                        effects=[c.to_dict()], k=1, predicted_train_reduction=red,
+                        fitted=False, excited=bool(gg > 0)))
+            ranking.append(row)
+        ranking.sort(key=lambda r: (not r["fitted"], -r.get("score", 0.0)))
+        for i, r in enumerate(ranking):
+            r["rank"] = i + 1
+        best = fits[0] if fits else None
+        chosen = best if (best is not None and best.score > self.threshold) else None
+        conds = self._conditions()
+        ev = Evidence(self.Y, self.sig, self.test, self.t, self.cols, self.predict,
+                      self.threshold, conds, self.crane.spec.id)
+        v = judge(ev, Y0, fits, chosen, chosen)
+        if v["verdict"] == "unexplained":
+            chosen = None
+        Yf = self.predict(chosen.effects) if chosen else Y0
+        return self._report(Y0, Yf, chosen, ranking, t0, v, conds)
+
+    def _conditions(self) -> dict:
+        """joint -> extending / retracting / still (the logged commands), for where two
+        candidates' predictions differ (the quasi-static workflow's split, from commands)."""
+        return {j: {"extending": self.u[:, i] > 0, "retracting": self.u[:, i] < 0,
+                    "still": self.u[:, i] == 0} for i, j in enumerate(self.crane.names)}
+
+    def _report(self, Y0, Yf, chosen, ranking, t0, v, conds) -> DiscrepancyResult:
+        te, cols, sig = self.test, self.cols, self.sig
+        E0, E1 = (self.Y - Y0)[te], (self.Y - Yf)[te]
+        rms0, rms1 = np.sqrt(np.mean(E0 ** 2, axis=0)), np.sqrt(np.mean(E1 ** 2, axis=0))
+        var = np.maximum(np.var(self.Y[te], axis=0), 1e-300)
+        vaf0 = 100 * (1 - np.var(E0, axis=0) / var)
+        vaf1 = 100 * (1 - np.var(E1, axis=0) / var)
+        R0, R1 = (self.Y - Y0) / sig, (self.Y - Yf) / sig
+        ex0 = np.maximum(smoothed_excess(R0, self.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess(R1, self.t, te)[0], 0.0)
+        tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
+        gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
+        per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
+               for c, a, b in zip(cols, ex0, ex1)}
+        eff = joint = None
+        params, unc = {}, {}
+        if chosen is not None:
+            e = chosen.effects[0]
+            eff, joint = e.name, e.joint
+            params = dict(e.values, **({"joint": joint} if joint else {}))
+            unc = {p.name: chosen.std.get(f"{e.name}.{p.name}") for p in e.parameters}
+        on = (lambda j: f" on {j}" if j else "")
+        if v["verdict"] == "unexplained":
+            sg = v["signature"][0] if v["signature"] else None
+            msg = ("unexplained (twin): " + (signature_text(sg) if sg else
+                                             "; ".join(v["reasons"][:2]))
+                   + (f"; best fit {v['not_credible']['model']} is not credible ("
+                      f"{v['not_credible']['why'][:160]})" if v["not_credible"] else ""))
+        elif eff is None:
+            msg = ("none: the twin at the spec's values explains the data within noise"
+                   + (f" (best candidate {ranking[0]['model']})" if ranking else ""))
+        elif v["verdict"] == "ambiguous":
+            msg = ("ambiguous (twin): the data cannot tell apart " + " | ".join(
+                f"{c['effect']}{on(c['joint'])} (score {c['score']:.1f})"
+                for c in v["candidates"]) + f"; the best is {eff}{on(joint)}")
+        else:
+            msg = (f"{eff}{on(joint)}: " + ", ".join(f"{k} = {x:.4g}" for k, x in
+                                                      params.items() if k != "joint")
+                   + f" (twin); {100 * gap:.0f} % of the above-noise held-out residual removed")
+        where = locate(self.crane, self.t, R0, cols, conds, self.has_p)
+        series = dict(t=self.t, Y=self.Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
+                      threshold=self.threshold)
+        notes = [f"model: the dynamic twin (segments at holds: {len(self.pb.segs)}; "
+                 f"{self.pb.runs} twin runs)"]
+        return DiscrepancyResult(
+            effect=eff, joint=joint, parameters=params, uncertainty=unc,
+            effects=chosen.effects if chosen else (), second=None,
+            rms_before=dict(zip(cols, map(float, rms0))),
+            rms_after=dict(zip(cols, map(float, rms1))),
+            vaf_before=dict(zip(cols, map(float, vaf0))),
+            vaf_after=dict(zip(cols, map(float, vaf1))),
+            noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
+            gap_reduction_channels=per, ranking=ranking, where=where,
+            identifiable=bool(chosen is None or math.isfinite(chosen.cond)), message=msg,
+            runtime_s=_time.perf_counter() - t0, series=series, verdict=v["verdict"],
+            confidence=v["confidence"], candidates=v["candidates"], signature=v["signature"],
+            not_credible=v["not_credible"], reasons=v["reasons"], notes=notes,
+            suggest=v["suggest"], analysis={})
+
+
+def dynamic_signature(result) -> str | None:
+    """A quasi-static ``unexplained`` verdict whose residual looks like the machine's
+    dynamics — a periodic residual on a pressure channel within :data:`MODE_BAND_HZ` (a
+    hydraulic mode: oil against the links), or a step on a pressure channel (trapped pressure
+    after a hold) — described in one line; else None."""
+    if result.verdict != "unexplained":
+        return None
+    for s in result.signature:
+        ch = s.get("channel", "")
+        if not ch.startswith("p_"):
+            continue
+        f = s.get("frequency_hz")
+        if s.get("kind") == "periodic" and f and MODE_BAND_HZ[0] <= f <= MODE_BAND_HZ[1]:
+            return f"a periodic residual at {f:.2f} Hz on {ch} (a hydraulic mode's band)"
+        if s.get("kind") == "step":
+            return f"a step on {ch} (trapped pressure the quasi-static model cannot hold)"
+    return None

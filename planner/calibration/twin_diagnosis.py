@@ -29,7 +29,7 @@ candidate                twin parameter                              reported as
 =======================  ==========================================  ========================
 
 **Search, in sensitivities.** One Jacobian of every candidate's parameter at the spec's
-values (forward differences of whole twin runs, :meth:`TwinFit.jacobian`), on the *training*
+values (secants over one typical change, a whole twin run each), on the *training*
 rows (the even blocks of ``block_s`` s, as the quasi-static workflow); a bounded Gauss–Newton
 step per candidate ranks them by the training misfit it would remove. Only the best
 :attr:`TwinDiagnosis.fits` are fitted nonlinearly (trust-region least squares on the training
@@ -66,12 +66,13 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.simulation.recording import Recording
 
+#: the ranking's secant step in the scaled parameter: (linear: one typical size, log: ×1.2)
+SECANT = {False: 1.0, True: 0.2}
 ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
 ANCHOR_S = 0.2      # [s] the window a segment's start is averaged over (TwinFit's)
 _FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's)
 
-__all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "dynamic_signature",
-           "KINDS", "MODE_BAND_HZ"]
+__all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "KINDS"]
 
 #: candidate name -> (per joint, reported parameter) (module doc)
 KINDS = {
@@ -81,9 +82,6 @@ KINDS = {
     "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
     "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
 }
-#: [Hz] where a periodic residual is read as a hydraulic mode (oil against the links: the
-#: slews' 0.7 Hz to the booms' few Hz on the machines here) by :func:`dynamic_signature`
-MODE_BAND_HZ = (0.3, 6.0)
 
 
 @dataclass(frozen=True)
@@ -247,7 +245,7 @@ class TwinDiagnosis:
     SCAN = np.geomspace(0.25, 4.0, 9)
 
     def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0,
-                 threshold: float = 30.0, fits: int = 4, iterations: int = 4,
+                 threshold: float = 30.0, fits: int = 4, iterations: int = 6,
                  hold: float = 0.5, step: float = 2e-3, workers: int = 1):
         if crane.spec.dynamics is None:
             raise ValueError(f"crane '{crane.spec.id}': field 'dynamics': missing section; "
@@ -309,15 +307,23 @@ class TwinDiagnosis:
 
     # ------------------------------------------------------------------ search
     def _rank(self):
-        """Gauss–Newton gain of each candidate on the training rows (module doc): list of
-        (predicted reduction, candidate at the step, column norm), best first."""
+        """Gauss–Newton gain of each candidate on the training rows (module doc), its slope a
+        secant over one typical change (:data:`SECANT`: friction, dead band and leakage act
+        past a threshold, so the tangent at the spec's value understates them): list of
+        (predicted reduction, candidate at the step, slope norm²), best first."""
         pb = self.pb
         pb.mask = self.train
         r0 = ((self.predict(()) - self.Y) / self.sig)[self.train].ravel()
-        Jac = pb.jacobian(self.z_nom, r0)
-        out = []
+        steps, zs = [], []
         for i, c in enumerate(self.cands):
-            g = Jac[:, i]
+            lo, hi = c.param.z_bounds
+            h = SECANT[c.param.log]
+            h = h if c.z + h <= hi else -h
+            steps.append(h)
+            zs.append(self._z_with(i, c.z + h))
+        out = []
+        for c, h, r in zip(self.cands, steps, pb._map(zs)):
+            g = (r - r0) / h
             gg = float(g @ g)
             lo, hi = c.param.z_bounds
             if gg <= 0 or not np.isfinite(gg):
@@ -502,22 +508,3 @@ class TwinDiagnosis:
             confidence=v["confidence"], candidates=v["candidates"], signature=v["signature"],
             not_credible=v["not_credible"], reasons=v["reasons"], notes=notes,
             suggest=v["suggest"], analysis={})
-
-
-def dynamic_signature(result) -> str | None:
-    """A quasi-static ``unexplained`` verdict whose residual looks like the machine's
-    dynamics — a periodic residual on a pressure channel within :data:`MODE_BAND_HZ` (a
-    hydraulic mode: oil against the links), or a step on a pressure channel (trapped pressure
-    after a hold) — described in one line; else None."""
-    if result.verdict != "unexplained":
-        return None
-    for s in result.signature:
-        ch = s.get("channel", "")
-        if not ch.startswith("p_"):
-            continue
-        f = s.get("frequency_hz")
-        if s.get("kind") == "periodic" and f and MODE_BAND_HZ[0] <= f <= MODE_BAND_HZ[1]:
-            return f"a periodic residual at {f:.2f} Hz on {ch} (a hydraulic mode's band)"
-        if s.get("kind") == "step":
-            return f"a step on {ch} (trapped pressure the quasi-static model cannot hold)"
-    return None

@@ -7,8 +7,8 @@ quasi-static model lacks, so it can name the effects only a dynamic machine has.
 **The model's prediction** is :class:`planner.calibration.twin_fit.TwinFit`'s: the log cut at
 its holds, each segment re-anchored at the measured positions (and quiet pressures), the
 twin driven by the logged commands. Its residual, divided by each channel's noise, is the
-residual the verdict reads; channels ``q_<joint>``, then ``p_<joint>_a``, then
-``p_<joint>_b``; the samples before the first segment (the opening hold) are left out.
+residual the verdict reads; channels ``q_<joint>``, then ``p_<joint>_a``, ``p_<joint>_b``
+per joint (the quasi-static workflow's order); the samples before the first segment (the opening hold) are left out.
 
 **Candidates** are catalogue effects written as twin parameters (one number each):
 
@@ -85,8 +85,7 @@ KINDS = {
 
 
 @dataclass(frozen=True)
-class _Par:
-    """A reported parameter's name (what :func:`planner.calibration.verdict.judge` lists)."""
+class _Par:      # a reported parameter's name (what verdict.judge lists)
     name: str
 
 
@@ -116,9 +115,6 @@ class TwinEffect:
     def key(self) -> tuple:
         return (self.param.name, round(self.z, 12))
 
-    def __repr__(self):
-        return f"{self.name}" + (f"@{self.joint}" if self.joint else "") + f"{self.values}"
-
 
 def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
     """The candidates (module doc) at the spec's values, per-joint ones on every joint;
@@ -131,15 +127,12 @@ def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
     tp = {p.name: p for p in twin_parameters(crane)}
     m0 = crane.spec.payload.total
     out = []
+    own = {"spool_lag": "spool_time_constant", "pump_lag": "pump_time_constant",
+           "valve_deadband": "deadband.{}", "coulomb_friction": "coulomb.{}",
+           "viscous_friction": "viscous.{}", "leakage": "leakage.{}"}
     for name in names:
         for j in (crane.names if KINDS[name][0] else [None]):
-            if name == "bulk_modulus":
-                p = tp["bulk_modulus"]
-            elif name == "spool_lag":
-                p = tp["spool_time_constant"]
-            elif name == "pump_lag":
-                p = tp["pump_time_constant"]
-            elif name == "hose_volume":
+            if name == "hose_volume":
                 p = TwinParameter(f"hose.{j}", "hose", j, "1", 1.0, 0.2, 10.0, True)
             elif name == "flow_gain":
                 p = TwinParameter(f"gain.{j}", "gain", j, "1", 1.0, 0.5, 1.5, True)
@@ -149,9 +142,7 @@ def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
                 p = TwinParameter("payload", "payload", None, "kg", m0, max(m0 - 3000.0, 0.0),
                                   m0 + 5000.0, False, max(m0, 50.0))
             else:
-                kind = {"valve_deadband": "deadband", "coulomb_friction": "coulomb",
-                        "viscous_friction": "viscous", "leakage": "leakage"}[name]
-                p = tp[f"{kind}.{j}"]
+                p = tp[own.get(name, name).format(j)]
             out.append(TwinEffect(name, j, p, p.to_z(p.nominal)))
     return out
 
@@ -161,7 +152,7 @@ class _Problem(TwinFit):
     inputs rather than spec numbers: hose factor, valve gain, payload, pump flow), its
     residual optionally restricted to the rows of ``mask`` (the training blocks)."""
 
-    def __init__(self, crane, rec, params, hold, step, workers):
+    def __init__(self, crane: Crane, rec, params, hold, step, workers):
         super().__init__(crane, [rec], parameters=["bulk_modulus"], hold=hold, step=step,
                          workers=workers)
         self.params = list(params)
@@ -223,7 +214,10 @@ class _Problem(TwinFit):
                 if tr.any():
                     rq[rows] -= np.clip(rq[rows][tr].mean(axis=0), -lim, lim)
                 k += sg.k1 - sg.k0
-        return np.hstack([rq, rp.reshape(-1, 2 * n)]) if rp.size else rq
+        if not rp.size:
+            return rq
+        P = rp.reshape(-1, 2 * n)     # p_a of every joint, then p_b: interleaved per joint
+        return np.hstack([rq, np.stack([P[:, :n], P[:, n:]], axis=2).reshape(len(P), -1)])
 
     def residuals(self, z, split: bool = False):
         if split or self.mask is None:
@@ -268,20 +262,20 @@ class TwinDiagnosis:
         if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
             raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
                              f"is too short: need at least 4 blocks of {self.block_s:g} s")
-        pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold, self.step,
-                      self.workers)
-        self.pb = pb
+        self.pb = pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold,
+                                self.step, self.workers)
         rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])
         self.rows = rows
         self.t = rec.t[rows]
         self.u = rec.u[rows]
         sq, sp = pb.sig[0]
         self.has_p = pb.use_p
-        self.sig = np.concatenate([sq, sp]) if self.has_p else np.asarray(sq, float)
+        self.sig = np.concatenate([sq, np.ravel(np.column_stack([sp[:n], sp[n:]]))]) \
+            if self.has_p else np.asarray(sq, float)
         self.cols = [f"q_{j}" for j in crane.names] + (
-            [f"p_{j}_a" for j in crane.names] + [f"p_{j}_b" for j in crane.names]
-            if self.has_p else [])
-        Y = [rec.q[rows]] + ([rec.p_a[rows], rec.p_b[rows]] if self.has_p else [])
+            [f"p_{j}_{s}" for j in crane.names for s in "ab"] if self.has_p else [])
+        Y = [rec.q[rows]] + ([np.stack([rec.p_a[rows], rec.p_b[rows]], axis=2)
+                              .reshape(len(rows), -1)] if self.has_p else [])
         self.Y = np.hstack(Y)
         block = np.floor((self.t - rec.t[0]) / self.block_s).astype(int)
         self.train, self.test = block % 2 == 0, block % 2 == 1
@@ -346,9 +340,7 @@ class TwinDiagnosis:
         def fun(x):
             zi = float(np.clip(x[0], lo, hi))
             if zi not in memo:
-                z = self.z_nom.copy()
-                z[i] = zi
-                memo[zi] = pb.residuals(z)
+                memo[zi] = pb.residuals(self._z_with(i, zi))
             return memo[zi]
 
         def jac(x):          # one forward difference (this candidate's column only)
@@ -411,9 +403,9 @@ class TwinDiagnosis:
             # the oil always: its misfit is far from linear (one valley per ringing phase),
             # so a Gauss-Newton step from the spec's value can rank it low when it is off
             todo += [x for x in ranked_gn[self.n_fits:] if x[1].name in ALWAYS and x[2] > 0]
+            names = [x.param.name for x in self.cands]
             for red, c, gg in todo:
-                f = self._fit_one(self.cands[[x.param.name for x in self.cands]
-                                             .index(c.param.name)], c.z)
+                f = self._fit_one(self.cands[names.index(c.param.name)], c.z)
                 f.score = J0_te - f.J_test - pen * f.k
                 fits.append(f)
                 if progress:
@@ -422,14 +414,11 @@ class TwinDiagnosis:
             self.pb.close()
         fits.sort(key=lambda c: -c.score)
         fitted = {f.effects[0].param.name: f for f in fits}
-        ranking = []
-        for k, (red, c, gg) in enumerate(ranked_gn):
-            f = fitted.get(c.param.name)
-            row = (dict(f.summary(), fitted=True) if f is not None else
-                   dict(model=c.name + (f"[{c.joint}]" if c.joint else ""),
-                        effects=[c.to_dict()], k=1, predicted_train_reduction=red,
-                        fitted=False, excited=bool(gg > 0)))
-            ranking.append(row)
+        ranking = [dict(fitted[c.param.name].summary(), fitted=True)
+                   if c.param.name in fitted else
+                   dict(model=c.name + (f"[{c.joint}]" if c.joint else ""), effects=[
+                       c.to_dict()], k=1, predicted_train_reduction=red, fitted=False,
+                        excited=bool(gg > 0)) for red, c, gg in ranked_gn]
         ranking.sort(key=lambda r: (not r["fitted"], -r.get("score", 0.0)))
         for i, r in enumerate(ranking):
             r["rank"] = i + 1

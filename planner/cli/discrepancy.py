@@ -89,8 +89,8 @@ def cmd_discrepancy(args):
             cmd = (f"crane-planner discrepancy {args.crane} --measured {args.measured}"
                    + (f" --trajectory {args.trajectory}" if args.trajectory else "")
                    + " --model twin")
-            res.notes.append(f"the residual looks like the machine's dynamics ({dyn}), "
-                             f"which the quasi-static model lacks; ask the dynamic twin: {cmd}")
+            res.notes.append(f"the residual looks like the machine's dynamics, which the "
+                             f"quasi-static model lacks: {dyn}; ask the dynamic twin: {cmd}")
     closed = None
     if plan is not None and res.effects and not twin:
         closed = closed_loop(crane, plan, res.effects)

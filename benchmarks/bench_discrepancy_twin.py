@@ -72,7 +72,7 @@ def run_case(case):
              message=res.message[:240], fit_s=time.perf_counter() - t1,
              log_s=float(rec.t[-1] - rec.t[0]))
     r["ok"] = success(r, out["truth"]) if truth else r["verdict"] == "explained"
-    return dict(out, **r)
+    return dict(out, hidden=case["effect"], **r)   # "effect": the one the twin named
 
 
 def main():
@@ -101,7 +101,8 @@ def main():
     with ProcessPoolExecutor(args.workers) as ex:
         for r in ex.map(run_case, cases):
             rows.append(r)
-            print(r["machine"], r["seed"], r["effect"], r["verdict"], r.get("effect"),
+            print(r["machine"], r["seed"], (r.get("truth") or {}).get("effect"), r["verdict"],
+                  r.get("effect"),
                   r.get("joint"), r.get("ok"), f"sim {r['sim_s']:.0f} s fit "
                   f"{r.get('fit_s', 0):.0f} s", flush=True)
     rep = dict(date=datetime.datetime.now().isoformat(timespec="seconds"),
@@ -131,8 +132,8 @@ def _cell(r):
 
 def markdown(rep) -> list:
     rows, a = rep["rows"], rep["args"]
-    hid = [r for r in rows if r["effect"]]
-    cln = [r for r in rows if not r["effect"]]
+    hid = [r for r in rows if r.get("truth")]
+    cln = [r for r in rows if not r.get("truth")]
     ok = sum(bool(r.get("ok")) for r in hid)
     wrong = sum(r["verdict"] == "named" and not r.get("ok") for r in hid)
     n_m = len(set(r["machine"] for r in rows))

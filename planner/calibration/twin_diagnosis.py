@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 
 import math
 import time as _time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -176,23 +176,17 @@ class _Problem(TwinFit):
                     pump_scale=pump, step=self.step)
 
     def start_state(self, tw: Twin, s, carry) -> np.ndarray:
-        """TwinFit's start, except that a quiet chamber whose anchored (measured) pressure
-        agrees with the twin's own (carried or holding) pressure within the anchor's noise
-        (3 σ/√m, m samples averaged) starts from the twin's: a noise-sized error in the
-        anchored pressure would ring the hydraulic mode through the segment — a residual of
-        the anchoring, not of the machine."""
+        """TwinFit's start, except that a joint with a chamber still ringing through the
+        hold (TwinFit's test: a pressure spread over twice its noise) keeps the twin's own
+        carried position too, not only its pressures and velocity: the joint is not at rest,
+        so the hold's average position is not its state at the cut."""
         x0 = TwinFit.start_state(self, tw, s, carry)
-        if not self.use_p or s.p_a0 is None:
+        if (s.sd_a is None or carry is None or carry[0] != s.rec or carry[1] != s.k0
+                or not self.use_p):
             return x0
-        n = self.crane.n
-        own = TwinFit.start_state(self, tw, replace(s, p_a0=None, p_b0=None), carry)
-        t = self.recs[s.rec].t
-        m = max(int(round(ANCHOR_S / float(t[1] - t[0]))), 1)
-        tol = 3.0 * self.sig[s.rec][1] / math.sqrt(m)
-        pa, pb = slice(2 * n, 3 * n), slice(3 * n, 4 * n)
-        for sl, tl in ((pa, tol[:n]), (pb, tol[n:])):
-            agree = np.abs(x0[sl] - own[sl]) <= tl
-            x0[sl][agree] = own[sl][agree]
+        n, sp = self.crane.n, self.sig[s.rec][1]
+        ring = (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])
+        x0[:n][ring] = carry[2].q[-1][ring]
         return x0
 
     def matrix(self, z) -> np.ndarray:

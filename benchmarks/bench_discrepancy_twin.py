@@ -130,6 +130,19 @@ def _cell(r):
     return str(v)
 
 
+def _best_is_truth(r) -> bool:
+    """The best single-effect fit (named, first candidate, or the one judged not credible)
+    is the hidden effect on its joint."""
+    tr = r.get("truth")
+    if not tr:
+        return False
+    want = tr["effect"] + (f"[{tr['joint']}]" if tr["joint"] else "")
+    if r["verdict"] in ("named", "ambiguous"):
+        return success(r, tr) if r["verdict"] == "named" else \
+            tuple(r["candidates"][0]) == (tr["effect"], tr["joint"])
+    return r.get("not_credible") == want
+
+
 def markdown(rep) -> list:
     rows, a = rep["rows"], rep["args"]
     hid = [r for r in rows if r.get("truth")]
@@ -149,6 +162,8 @@ def markdown(rep) -> list:
          "| measure | result | target (issue 28) |", "| --- | ---: | ---: |",
          f"| hidden effect: named right or a tie with it | {ok} of {len(hid)} | ≥ 90 % |",
          f"| hidden effect: confidently wrong (named another) | {wrong} of {len(hid)} | ≤ 3 % |",
+         f"| hidden effect: the twin's best fit is the truth (whatever the verdict) | "
+         f"{sum(_best_is_truth(r) for r in hid)} of {len(hid)} | |",
          f"| clean recording: explained | {sum(r['verdict'] == 'explained' for r in cln)} of "
          f"{len(cln)} | ≥ 95 % |"]
     for v in ("named", "ambiguous", "unexplained", "plant-failed"):

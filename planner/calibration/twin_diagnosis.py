@@ -109,7 +109,7 @@ class TwinEffect:
         return TwinEffect(self.name, self.joint, self.param, z)
 
     def to_dict(self) -> dict:
-        return dict(name=self.name, joint=self.joint, **self.values, model="twin")
+        return dict(name=self.name, joint=self.joint, **self.values)
 
     @property
     def key(self) -> tuple:
@@ -408,14 +408,11 @@ class TwinDiagnosis:
             self.pb.close()
         fits.sort(key=lambda c: -c.score)
         fitted = {f.effects[0].param.name: f for f in fits}
-        ranking = [dict(fitted[c.param.name].summary(), fitted=True)
-                   if c.param.name in fitted else
-                   dict(model=c.name + (f"[{c.joint}]" if c.joint else ""), effects=[
-                       c.to_dict()], k=1, predicted_train_reduction=red, fitted=False,
-                        excited=bool(gg > 0)) for red, c, gg in ranked_gn]
-        ranking.sort(key=lambda r: (not r["fitted"], -r.get("score", 0.0)))
-        for i, r in enumerate(ranking):
-            r["rank"] = i + 1
+        gain = {c.param.name: red for red, c, gg in ranked_gn}
+        ranking = [dict(f.summary(), rank=i + 1, predicted_train_reduction=gain[
+            f.effects[0].param.name]) for i, f in enumerate(fits)]
+        self._others = [f"{c.name}" + (f"@{c.joint}" if c.joint else "") + f" {red:.0f}"
+                        for red, c, gg in ranked_gn if c.param.name not in fitted][:6]
         best = fits[0] if fits else None
         chosen = best if (best is not None and best.score > self.threshold) else None
         conds = self._conditions()
@@ -476,7 +473,9 @@ class TwinDiagnosis:
         series = dict(t=self.t, Y=self.Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
                       threshold=self.threshold)
         notes = [f"model: the dynamic twin (segments at holds: {len(self.pb.segs)}; "
-                 f"{self.pb.runs} twin runs)"]
+                 f"{self.pb.runs} twin runs); {len(ranking)} of {len(self.cands)} candidates "
+                 "fitted, the next by the training misfit a Gauss-Newton step would remove: "
+                 + ", ".join(self._others)]
         return DiscrepancyResult(
             effect=eff, joint=joint, parameters=params, uncertainty=unc,
             effects=chosen.effects if chosen else (), second=None,

@@ -82,8 +82,9 @@ def test_clean_twin_log_is_explained_through_the_cli(lab, tmp_path, capsys):
     out = tmp_path / "r.json"
     rc = main(["discrepancy", "umea-lab", "--measured", str(tmp_path / "log.csv"),
                "--model", "twin", "--effects", "valve_deadband,coulomb_friction,bulk_modulus",
-               "--json", str(out)])
+               "--json", str(out), "--report", str(tmp_path / "rep")])
     assert rc == 0
+    assert "**Verdict**: explained" in (tmp_path / "rep" / "report.md").read_text()
     js = json.loads(out.read_text())
     assert js["model"] == "twin" and js["verdict"] == "explained", js["message"]
     assert js["effect"] is None and js["effects"] == []
@@ -98,6 +99,10 @@ def test_bad_model_and_effect_are_one_line_errors(lab, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
     assert "--model 'exudyn'" in err[0] and "quasi-static, twin" in err[0]
+    rc = main(["discrepancy", "umea-lab", "--measured", str(tmp_path / "x.csv"),
+               "--model", "twin", "--save-model", str(tmp_path / "m.toml")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "calibrate" in err[0]
     with pytest.raises(ValueError, match="'sensor_drift' has no twin counterpart; allowed"):
         twin_candidates(lab, ["sensor_drift"])
 

@@ -86,6 +86,8 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--from-json", action="store_true", help="rewrite the markdown only")
+    ap.add_argument("--append", action="store_true",
+                    help="add these cases to the results JSON's (another machine, seeds)")
     args = ap.parse_args()
     out = Path(args.out)
     from planner.io import atomic_write_text
@@ -109,7 +111,15 @@ def main():
     rep = dict(date=datetime.datetime.now().isoformat(timespec="seconds"),
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                             load=os.getloadavg()),
-               args=vars(args), wall_s=time.perf_counter() - t0, rows=rows)
+               args=vars(args), wall_s=time.perf_counter() - t0, rows=rows, runs=[])
+    if args.append and (out / "discrepancy_twin.json").exists():
+        old = json.loads((out / "discrepancy_twin.json").read_text())
+        rep["runs"] = old.get("runs") or [dict(args=old["args"], wall_s=old["wall_s"],
+                                               date=old["date"])]
+        rep["rows"] = old["rows"] + rows
+        rep["wall_s"] += old["wall_s"]
+    rep["runs"].append(dict(args=vars(args), wall_s=time.perf_counter() - t0,
+                            date=rep["date"]))
     atomic_write_text(out / "discrepancy_twin.json", json.dumps(rep, indent=1, default=str))
     atomic_write_text(out / "discrepancy_twin.md", "\n".join(markdown(rep)))
     print("\n".join(markdown(rep)))
@@ -151,11 +161,14 @@ def markdown(rep) -> list:
     ok = sum(bool(r.get("ok")) for r in hid)
     wrong = sum(r["verdict"] == "named" and not r.get("ok") for r in hid)
     n_m = len(set(r["machine"] for r in rows))
+    cmds = "; ".join(
+        f"`python benchmarks/bench_discrepancy_twin.py --machines {x['machines']} --seeds "
+        f"{x['seeds']} --first-seed {x['first_seed']} --duration {x['duration']:g} --effects "
+        f"{x['effects']}" + (" --append" if x.get("append") else "") + "`"
+        for x in [r["args"] for r in rep.get("runs") or [dict(args=a)]])
     L = ["# Recordings made by Exudyn, diagnosed by the twin", "",
          f"{rep['date']}, {rep['machine']['platform']}, {rep['machine']['cpus']} CPUs (shared), "
-         f"load {rep['machine']['load'][0]:.1f}. `python benchmarks/bench_discrepancy_twin.py "
-         f"--machines {a['machines']} --seeds {a['seeds']} --first-seed {a['first_seed']} "
-         f"--duration {a['duration']:g} --effects {a['effects']}` ({len(rows)} cases on "
+         f"load {rep['machine']['load'][0]:.1f}. {cmds} ({len(rows)} cases on "
          f"{n_m} machines, {rep['wall_s'] / 60:.1f} min). The truth: the Exudyn plant replaying "
          "the trials' test sequence open loop, seed 001's sensor noise; the diagnosis: "
          "`discrepancy --model twin` (planner/calibration/twin_diagnosis.py), the quasi-static "

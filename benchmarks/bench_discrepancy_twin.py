@@ -187,9 +187,9 @@ def markdown(rep) -> list:
     near = sum(r["verdict"] == "unexplained" and _best_is_truth(r) for r in hid)
     L += ["", "## Reading", "",
           f"The twin finds the hidden effect: its best single-effect fit is the truth on its "
-          f"joint in {best} of {len(hid)} hidden cases, with the value recovered (e.g. a dead "
-          f"band 0.191 for 0.192, the oil × 0.580 for × 0.580 on s100f), and it names no wrong "
-          f"effect ({wrong} of {len(hid)}). But {near} of those right fits are judged `not "
+          f"joint in {best} of {len(hid)} hidden cases, with the value recovered (s100f, seed "
+          f"1000: a dead band 0.191 for 0.192, the oil × 0.580 for × 0.580), and it names no "
+          f"wrong effect ({wrong} of {len(hid)}). But {near} of those right fits are judged `not "
           "credible` by the unchanged rules, because the residual left after them is not noise: "
           "it is the twin's own gap to the Exudyn plant, which the clean recordings show "
           "directly (`unexplained` or a small named `spool_lag`: slew pressures at 1.2–1.4 σ "

@@ -8,7 +8,8 @@ quasi-static model lacks, so it can name the effects only a dynamic machine has.
 its holds, each segment re-anchored at the measured positions (and quiet pressures), the
 twin driven by the logged commands. Its residual, divided by each channel's noise, is the
 residual the verdict reads; channels ``q_<joint>``, then ``p_<joint>_a``, ``p_<joint>_b``
-per joint (the quasi-static workflow's order); the samples before the first segment (the opening hold) are left out.
+per joint (the quasi-static workflow's order); the samples before the first segment (the
+opening hold) are left out.
 
 **Candidates** are catalogue effects written as twin parameters (one number each):
 
@@ -261,8 +262,7 @@ class TwinDiagnosis:
                                 self.step, self.workers)
         rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])
         self.rows = rows
-        self.t = rec.t[rows]
-        self.u = rec.u[rows]
+        self.t, self.u = rec.t[rows], rec.u[rows]
         sq, sp = pb.sig[0]
         self.has_p = pb.use_p
         self.sig = np.concatenate([sq, np.ravel(np.column_stack([sp[:n], sp[n:]]))]) \

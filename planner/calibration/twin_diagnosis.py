@@ -239,7 +239,7 @@ class TwinDiagnosis:
                  hold: float = 0.5, step: float = 2e-3, workers: int = 1):
         if crane.spec.dynamics is None:
             raise ValueError(f"crane '{crane.spec.id}': field 'dynamics': missing section; "
-                             "--model twin needs the machine's [dynamics]")
+                             "the twin diagnosis needs the machine's [dynamics]")
         if not block_s > 0:
             raise ValueError(f"block_s: {block_s!r}; allowed: > 0 s")
         if int(fits) < 1:

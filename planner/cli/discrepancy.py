@@ -1,5 +1,8 @@
 """``discrepancy CRANE --measured …``: measured vs simulated, the missing effect named, the
-calibrated model written and the feed-forward re-planned on it."""
+calibrated model written and the feed-forward re-planned on it. ``--model twin`` asks the same
+question of the dynamic twin (:mod:`planner.calibration.twin_diagnosis`); a quasi-static
+``unexplained`` whose residual looks like the machine's dynamics says so and gives that
+command (:func:`dynamic_signature`)."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -11,6 +14,29 @@ from planner.cli.common import CLIError, add_json_arg, emit, read_trajectory
 
 if TYPE_CHECKING:
     from planner.model import Crane
+
+MODELS = ("quasi-static", "twin")
+#: [Hz] where a periodic pressure residual is read as a hydraulic mode (the oil against the
+#: links: the slews' 0.7 Hz to the booms' few Hz on the machines here)
+MODE_BAND_HZ = (0.3, 6.0)
+
+
+def dynamic_signature(result) -> str | None:
+    """A quasi-static ``unexplained`` verdict whose residual looks like the machine's
+    dynamics — a periodic residual on a pressure channel within :data:`MODE_BAND_HZ` (a
+    hydraulic mode), or a step on a pressure channel (trapped pressure after a hold) — in
+    one line; else None."""
+    if result.verdict != "unexplained":
+        return None
+    for s in result.signature:
+        ch, f = s.get("channel", ""), s.get("frequency_hz")
+        if not ch.startswith("p_"):
+            continue
+        if s.get("kind") == "periodic" and f and MODE_BAND_HZ[0] <= f <= MODE_BAND_HZ[1]:
+            return f"a periodic residual at {f:.2f} Hz on {ch} (a hydraulic mode's band)"
+        if s.get("kind") == "step":
+            return f"a step on {ch} (trapped pressure the quasi-static model does not hold)"
+    return None
 
 
 def read_recording(args, crane: Crane, plan):
@@ -38,6 +64,12 @@ def cmd_discrepancy(args):
     from planner.io import atomic_write_text
     from planner.model import Crane
     from planner.model.spec import parse_spec
+    if args.model not in MODELS:
+        raise CLIError(f"--model {args.model!r}: unknown; allowed: {', '.join(MODELS)}")
+    twin = args.model == "twin"
+    if twin and args.save_model:
+        raise CLIError("--save-model with --model twin: not written (a twin diagnosis names "
+                       "a twin parameter; calibrate the twin with crane-planner calibrate)")
     crane = Crane.from_id(args.crane)
     plan = read_trajectory(crane, args.trajectory) if args.trajectory else None
     rec = read_recording(args, crane, plan)
@@ -45,10 +77,22 @@ def cmd_discrepancy(args):
         names = [x.strip() for x in args.effects.split(",") if x.strip()]
     else:
         names = None
-    res = Discrepancy(crane, candidates=names, threshold=args.threshold).fit(
-        rec, progress=not (args.json == "-"))
+    if twin:
+        from planner.calibration.twin_diagnosis import TwinDiagnosis
+        res = TwinDiagnosis(crane, candidates=names, threshold=args.threshold).fit(
+            rec, progress=not (args.json == "-"))
+    else:
+        res = Discrepancy(crane, candidates=names, threshold=args.threshold).fit(
+            rec, progress=not (args.json == "-"))
+        dyn = dynamic_signature(res)
+        if dyn and crane.spec.dynamics is not None:
+            cmd = (f"crane-planner discrepancy {args.crane} --measured {args.measured}"
+                   + (f" --trajectory {args.trajectory}" if args.trajectory else "")
+                   + " --model twin")
+            res.notes.append(f"the residual looks like the machine's dynamics, which the "
+                             f"quasi-static model lacks: {dyn}; ask the dynamic twin: {cmd}")
     closed = None
-    if plan is not None and res.effects:
+    if plan is not None and res.effects and not twin:
         closed = closed_loop(crane, plan, res.effects)
     # everything computed: now write (nothing is written when anything above failed)
     if args.save_model:
@@ -58,6 +102,7 @@ def cmd_discrepancy(args):
     if args.report:
         write_report(res, args.report, crane=crane, measured=args.measured, closed=closed)
     js = res.to_json()
+    js["model"] = args.model
     if res.verdict == "ambiguous" and args.json not in (None, "-"):
         # the design at the values the candidates were fitted to: this file is its input
         js["suggest_from"] = (f"crane-planner excite {args.crane} --from {args.json} "
@@ -113,5 +158,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--report", metavar="DIR", help="markdown report, result.json, figures")
     p.add_argument("--save-model", metavar="FILE.toml",
                    help="the calibrated machine spec (spec + [[effects]])")
+    p.add_argument("--model", default="quasi-static", metavar="|".join(MODELS),
+                   help="the diagnosing model: the fast quasi-static one (default) or the "
+                        "dynamic twin (oil, hoses, spools, pump: names bulk_modulus, "
+                        "hose_volume, spool_lag, ... too; needs the spec's [dynamics])")
     add_json_arg(p)
     p.set_defaults(func=cmd_discrepancy)

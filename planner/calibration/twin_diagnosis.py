@@ -1,0 +1,500 @@
+"""The discrepancy verdict with the dynamic twin as the model (issue 28, "diagnosis with the
+twin"): the same question as :mod:`planner.calibration.discrepancy` — does the model explain
+the log, and if not, which one missing effect does — asked of the twin
+(:mod:`planner.model.twin`), which has the oil, hoses, spools, pump and seal friction the
+quasi-static model lacks, so it can name the effects only a dynamic machine has.
+
+**The model's prediction** is :class:`planner.calibration.twin_fit.TwinFit`'s: the log cut at
+its holds, each segment re-anchored at the measured positions (and quiet pressures), the
+twin driven by the logged commands. Its residual, divided by each channel's noise, is the
+residual the verdict reads; channels ``q_<joint>``, then ``p_<joint>_a``, ``p_<joint>_b``
+per joint (the quasi-static workflow's order); the samples before the first segment (the
+opening hold) are left out.
+
+**Candidates** are catalogue effects written as twin parameters (one number each):
+
+=======================  ==========================================  ========================
+candidate                twin parameter                              reported as
+=======================  ==========================================  ========================
+``bulk_modulus``         ``[dynamics] bulk_modulus``                 ``scale`` (× the spec's)
+``hose_volume@j``        both hose volumes of j, one common factor  ``scale``
+``valve_deadband@j``     ``deadband.j``                              ``width`` (of the range)
+``coulomb_friction@j``   ``coulomb.j``                               ``force`` (added)
+``viscous_friction@j``   ``viscous.j``                               ``coefficient`` (added)
+``leakage@j``            ``leakage.j``                               ``coefficient`` (added)
+``spool_lag``            ``spool_time_constant``                     ``tau`` [s]
+``pump_lag``             ``pump_time_constant``                      ``tau`` [s]
+``flow_gain@j``          the twin's valve gain factor of j           ``scale``
+``payload_mass``         the twin's tip payload                      ``mass`` (added) [kg]
+``pump_flow_limit``      the twin's pump-flow factor                 ``scale``
+=======================  ==========================================  ========================
+
+**Search, in sensitivities.** One Jacobian of every candidate's parameter at the spec's
+values (secants over one typical change, a whole twin run each), on the *training*
+rows (the even blocks of ``block_s`` s, as the quasi-static workflow); a bounded Gauss–Newton
+step per candidate ranks them by the training misfit it would remove. Only the best
+:attr:`TwinDiagnosis.fits` (and the oil) are fitted nonlinearly on the training rows: a
+scan of the parameter's range with the spec's value and the Gauss–Newton step, then a bounded
+scalar search between the best point's neighbours (the bulk modulus and a hose volume first on
+the moving averages, then within ±10 % on the samples, as the raw misfit has one narrow valley
+per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
+workflow scores (score = J_nominal − J_fit − k·ln n, :attr:`threshold` 30).
+
+**Verdict**: :func:`planner.calibration.verdict.judge` with the same
+:class:`~planner.calibration.verdict.Evidence`, noise bounds, ``TIE_Z`` and credibility tests
+— unchanged; only the model that predicts differs. No second effect is tried (a single-effect
+diagnosis; a log that needs two is ``unexplained`` with its signature).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from planner.calibration.result import Candidate, DiscrepancyResult
+from planner.calibration.signature import signature_text
+from planner.calibration.twin_fit import TwinFit
+from planner.calibration.twin_params import TwinParameter, machine_of, twin_parameters
+from planner.calibration.verdict import Evidence, judge, smoothed_excess
+from planner.calibration.where import locate
+from planner.model.twin import Twin
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+    from planner.simulation.recording import Recording
+
+#: the ranking's secant step in the scaled parameter: (linear: one typical size, log: ×1.2)
+SECANT = {False: 1.0, True: 0.2}
+ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
+ANCHOR_S = 0.2      # [s] the window a segment's start is averaged over (TwinFit's)
+_FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's)
+
+__all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "KINDS"]
+
+#: candidate name -> (per joint, reported parameter) (module doc)
+KINDS = {
+    "bulk_modulus": (False, "scale"), "hose_volume": (True, "scale"),
+    "valve_deadband": (True, "width"), "coulomb_friction": (True, "force"),
+    "viscous_friction": (True, "coefficient"), "leakage": (True, "coefficient"),
+    "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
+    "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
+}
+
+
+@dataclass(frozen=True)
+class _Par:      # a reported parameter's name (what verdict.judge lists)
+    name: str
+
+
+class TwinEffect:
+    """One candidate as a twin change: ``name`` (:data:`KINDS`), ``joint``, the twin
+    parameter ``param`` (a :class:`TwinParameter`) at scaled value ``z``; ``values`` in the
+    reported unit (module doc)."""
+
+    def __init__(self, name: str, joint, param: TwinParameter, z: float):
+        self.name, self.joint, self.param, self.z = name, joint, param, float(z)
+        v = param.to_value(self.z)
+        unit = KINDS[name][1]
+        if name == "bulk_modulus":
+            v = v / param.nominal
+        elif name in ("coulomb_friction", "viscous_friction", "leakage", "payload_mass"):
+            v = v - param.nominal
+        self.values = {unit: float(v)}
+        self.parameters = (_Par(unit),)
+
+    def at(self, z: float) -> "TwinEffect":
+        return TwinEffect(self.name, self.joint, self.param, z)
+
+    def to_dict(self) -> dict:
+        return dict(name=self.name, joint=self.joint, **self.values)
+
+    @property
+    def key(self) -> tuple:
+        return (self.param.name, round(self.z, 12))
+
+
+def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
+    """The candidates (module doc) at the spec's values, per-joint ones on every joint;
+    ``names``: only these kinds (ValueError naming an unknown one and what is allowed)."""
+    names = list(KINDS) if names is None else list(names)
+    bad = [s for s in names if s not in KINDS]
+    if bad:
+        raise ValueError(f"effects: {bad[0]!r} has no twin counterpart; allowed: "
+                         f"{', '.join(KINDS)}")
+    tp = {p.name: p for p in twin_parameters(crane)}
+    m0 = crane.spec.payload.total
+    out = []
+    own = {"spool_lag": "spool_time_constant", "pump_lag": "pump_time_constant",
+           "valve_deadband": "deadband.{}", "coulomb_friction": "coulomb.{}",
+           "viscous_friction": "viscous.{}", "leakage": "leakage.{}"}
+    for name in names:
+        for j in (crane.names if KINDS[name][0] else [None]):
+            if name == "hose_volume":
+                p = TwinParameter(f"hose.{j}", "hose", j, "1", 1.0, 0.2, 10.0, True)
+            elif name == "flow_gain":
+                p = TwinParameter(f"gain.{j}", "gain", j, "1", 1.0, 0.5, 1.5, True)
+            elif name == "pump_flow_limit":
+                p = TwinParameter("pump_flow", "pump_flow", None, "1", 1.0, 0.1, 1.0, True)
+            elif name == "payload_mass":
+                p = TwinParameter("payload", "payload", None, "kg", m0, max(m0 - 3000.0, 0.0),
+                                  m0 + 5000.0, False, max(m0, 50.0))
+            else:
+                p = tp[own.get(name, name).format(j)]
+            out.append(TwinEffect(name, j, p, p.to_z(p.nominal)))
+    return out
+
+
+class _Problem(TwinFit):
+    """:class:`TwinFit` whose parameters are the candidates' (some of them the twin's own
+    inputs rather than spec numbers: hose factor, valve gain, payload, pump flow), its
+    residual optionally restricted to the rows of ``mask`` (the training blocks)."""
+
+    def __init__(self, crane: Crane, rec, params, hold, step, workers):
+        super().__init__(crane, [rec], parameters=["bulk_modulus"], hold=hold, step=step,
+                         workers=workers)
+        self.params = list(params)
+        self.mask = None        # rows the residual vector keeps (None: every row)
+        self.fit_rows = None    # rows the anchors' position errors are estimated on
+
+    def twin(self, values: dict) -> Twin:
+        crane, v = self.crane, dict(values)
+        dyn0 = crane.spec.dynamics
+        gain = np.ones(crane.n)
+        for i, j in enumerate(crane.names):
+            f = v.pop(f"hose.{j}", None)
+            if f is not None:
+                a, b = dyn0.joints[j].hose_volume
+                v[f"hose_a.{j}"], v[f"hose_b.{j}"] = a * f, b * f
+            gain[i] = v.pop(f"gain.{j}", 1.0)
+        payload = v.pop("payload", None)
+        pump = v.pop("pump_flow", 1.0)
+        dyn, db = machine_of(crane, v)
+        return Twin(crane, dynamics=dyn, deadband=db, payload=payload, gain_scale=gain,
+                    pump_scale=pump, step=self.step)
+
+    def start_state(self, tw: Twin, s, carry) -> np.ndarray:
+        """TwinFit's start, except that a joint with a chamber still ringing through the
+        hold (TwinFit's test: a pressure spread over twice its noise) keeps the twin's own
+        carried position too, not only its pressures and velocity: the joint is not at rest,
+        so the hold's average position is not its state at the cut."""
+        x0 = TwinFit.start_state(self, tw, s, carry)
+        if (s.sd_a is None or carry is None or carry[0] != s.rec or carry[1] != s.k0
+                or not self.use_p):
+            return x0
+        n, sp = self.crane.n, self.sig[s.rec][1]
+        ring = (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])
+        x0[:n][ring] = carry[2].q[-1][ring]
+        return x0
+
+    def matrix(self, z) -> np.ndarray:
+        """The scaled residual (model − log) as rows × channels (module doc), each segment's
+        positions shifted by its anchor's error: the mean position residual over the
+        segment's training rows, within the anchor's noise (± 3 σ/√m) — the start pose as a
+        nuisance parameter, as in the quasi-static workflow, bounded by what noise explains."""
+        rq, rp = TwinFit.residuals(self, z, split=True)
+        n = self.crane.n
+        rq = rq.reshape(-1, n).copy()
+        if self.fit_rows is not None:
+            t = self.recs[0].t
+            m = max(int(round(ANCHOR_S / float(t[1] - t[0]))), 1)
+            lim = 3.0 / math.sqrt(m)
+            k = 0
+            for sg in self.segs:
+                rows = slice(k, k + sg.k1 - sg.k0)
+                tr = self.fit_rows[rows]
+                if tr.any():
+                    rq[rows] -= np.clip(rq[rows][tr].mean(axis=0), -lim, lim)
+                k += sg.k1 - sg.k0
+        if not rp.size:
+            return rq
+        P = rp.reshape(-1, 2 * n)     # p_a of every joint, then p_b: interleaved per joint
+        return np.hstack([rq, np.stack([P[:, :n], P[:, n:]], axis=2).reshape(len(P), -1)])
+
+    def residuals(self, z, split: bool = False):
+        if split or self.mask is None:
+            return TwinFit.residuals(self, z, split)
+        return self.matrix(z)[self.mask].ravel()
+
+
+class TwinDiagnosis:
+    """The verdict with the twin as the model (module doc). ``fit(recording)`` ->
+    :class:`DiscrepancyResult` (the quasi-static workflow's, ``model`` "twin" in its notes).
+
+    candidates: kinds to try (default all of :data:`KINDS`); block_s: the alternating
+    train/held-out blocks [s]; threshold: least held-out score to name (30, as the
+    quasi-static workflow); fits: how many of the best-ranked candidates are fitted
+    nonlinearly; iterations: the scalar search's iterations per fit; hold: the segments' least
+    hold [s]; step: the twin's step [s]; workers: processes for the Jacobian's runs."""
+
+    #: factors of the oil's stiffness and hose volume scanned before their fit (module doc)
+    SCAN = np.geomspace(0.25, 4.0, 9)
+
+    def __init__(self, crane: Crane, candidates=None, block_s: float = 1.0,
+                 threshold: float = 30.0, fits: int = 3, iterations: int = 10,
+                 hold: float = 0.5, step: float = 2e-3, workers: int = 1):
+        if crane.spec.dynamics is None:
+            raise ValueError(f"crane '{crane.spec.id}': field 'dynamics': missing section; "
+                             "the twin diagnosis needs the machine's [dynamics]")
+        if not block_s > 0:
+            raise ValueError(f"block_s: {block_s!r}; allowed: > 0 s")
+        if int(fits) < 1:
+            raise ValueError(f"fits: {fits!r}; allowed: an integer >= 1")
+        self.crane = crane
+        self.cands = twin_candidates(crane, candidates)
+        self.block_s, self.threshold = float(block_s), float(threshold)
+        self.n_fits, self.iterations = int(fits), int(iterations)
+        self.hold, self.step, self.workers = float(hold), float(step), int(workers)
+
+    # ------------------------------------------------------------------ prediction
+    def _prepare(self, rec: Recording) -> None:
+        crane, n = self.crane, self.crane.n
+        if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
+            raise ValueError(f"recording: expected u and q of shape (N, {n})")
+        if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
+            raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
+                             f"is too short: need at least 4 blocks of {self.block_s:g} s")
+        self.pb = pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold,
+                                self.step, self.workers)
+        rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])
+        self.rows = rows
+        self.t, self.u = rec.t[rows], rec.u[rows]
+        sq, sp = pb.sig[0]
+        self.has_p = pb.use_p
+        self.sig = np.concatenate([sq, np.ravel(np.column_stack([sp[:n], sp[n:]]))]) \
+            if self.has_p else np.asarray(sq, float)
+        self.cols = [f"q_{j}" for j in crane.names] + (
+            [f"p_{j}_{s}" for j in crane.names for s in "ab"] if self.has_p else [])
+        Y = [rec.q[rows]] + ([np.stack([rec.p_a[rows], rec.p_b[rows]], axis=2)
+                              .reshape(len(rows), -1)] if self.has_p else [])
+        self.Y = np.hstack(Y)
+        block = np.floor((self.t - rec.t[0]) / self.block_s).astype(int)
+        self.train, self.test = block % 2 == 0, block % 2 == 1
+        pb.fit_rows = self.train
+        self.z_nom = np.array([c.z for c in self.cands])
+        self._cache = {}
+
+    def predict(self, effects=()) -> np.ndarray:
+        """Twin channels (rows × channels) with ``effects`` (TwinEffects) on."""
+        key = tuple(sorted(e.key for e in effects))
+        if key not in self._cache:
+            z = self.z_nom.copy()
+            names = [c.param.name for c in self.cands]
+            for e in effects:
+                z[names.index(e.param.name)] = e.z
+            self.pb.mask = None
+            self._cache[key] = self.Y + self.pb.matrix(z) * self.sig
+        return self._cache[key]
+
+    def _J(self, Yp, mask) -> float:
+        R = (self.Y - Yp)[mask] / self.sig
+        return float(np.sum(R * R))
+
+    # ------------------------------------------------------------------ search
+    def _rank(self):
+        """Gauss–Newton gain of each candidate on the training rows (module doc), its slope a
+        secant over one typical change (:data:`SECANT`: friction, dead band and leakage act
+        past a threshold, so the tangent at the spec's value understates them): list of
+        (predicted reduction, candidate at the step, slope norm²), best first."""
+        pb = self.pb
+        pb.mask = self.train
+        r0 = ((self.predict(()) - self.Y) / self.sig)[self.train].ravel()
+        steps, zs = [], []
+        for i, c in enumerate(self.cands):
+            lo, hi = c.param.z_bounds
+            h = SECANT[c.param.log]
+            h = h if c.z + h <= hi else -h
+            steps.append(h)
+            zs.append(self._z_with(i, c.z + h))
+        out = []
+        for c, h, r in zip(self.cands, steps, pb._map(zs)):
+            g = (r - r0) / h
+            gg = float(g @ g)
+            lo, hi = c.param.z_bounds
+            if gg <= 0 or not np.isfinite(gg):
+                out.append((0.0, c, gg))
+                continue
+            z = float(np.clip(c.z - float(g @ r0) / gg, lo, hi))
+            red = float(r0 @ r0 - np.sum((r0 + g * (z - c.z)) ** 2))
+            out.append((red, c.at(z), gg))
+        out.sort(key=lambda x: -x[0])
+        return out, float(r0 @ r0)
+
+    def _fit_one(self, c: TwinEffect, z_gn: float) -> Candidate:
+        """Nonlinear fit of candidate ``c`` on the training rows (module doc)."""
+        pb = self.pb
+        i = [x.param.name for x in self.cands].index(c.param.name)
+        lo, hi = c.param.z_bounds
+        pb.mask = self.train
+        memo = {}
+
+        def fun(x):
+            zi = float(np.clip(x[0], lo, hi))
+            if zi not in memo:
+                memo[zi] = pb.residuals(self._z_with(i, zi))
+            return memo[zi]
+
+        def jac(x):          # one forward difference (this candidate's column only)
+            zi = float(x[0])
+            h = _FD_STEP if zi + _FD_STEP <= hi else -_FD_STEP
+            return ((fun([zi + h]) - fun([zi])) / h)[:, None]
+
+        def cost(zi, smooth=0.0):
+            if smooth == 0.0:
+                r = fun([zi])
+                return float(r @ r)
+            pb.smooth = smooth
+            try:
+                return float(np.sum(pb.residuals(self._z_with(i, zi)) ** 2))
+            finally:
+                pb.smooth = 0.0
+
+        def brent(a, b, smooth=0.0):
+            sol = minimize_scalar(lambda x: cost(float(x), smooth), bounds=(a, b),
+                                  method="bounded",
+                                  options=dict(maxiter=self.iterations, xatol=1e-3))
+            return float(sol.x)
+        # a scan (log: factors 0.25-4, linear: the whole range) with the spec's value and
+        # the Gauss-Newton step, then a bounded scalar search between the best point's
+        # neighbours; the oil and the hoses on the moving averages first (the ringing's
+        # phase removed: one smooth valley, TwinFit's first stage), then on the samples
+        # within ±10 % of it (the raw misfit's valley of this ringing phase)
+        sm = TwinFit.SMOOTH if c.name in ("bulk_modulus", "hose_volume") else 0.0
+        grid = ([c.z + math.log(f) for f in self.SCAN] if c.param.log
+                else list(np.linspace(lo, hi, len(self.SCAN))))
+        pts = sorted({float(np.clip(g, lo, hi)) for g in grid + [c.z, z_gn]})
+        cs = [cost(g, sm) for g in pts]
+        b = int(np.argmin(cs))
+        z = brent(pts[max(b - 1, 0)], pts[min(b + 1, len(pts) - 1)], sm)
+        if sm:
+            z = brent(max(z - 0.1, lo), min(z + 0.1, hi))
+        best = min([c.z, z_gn, z], key=cost)
+        z = best
+        g = jac([z])[:, 0]
+        e = c.at(z)
+        Yp = self.predict((e,))
+        J_tr, J_te = self._J(Yp, self.train), self._J(Yp, self.test)
+        jj = float(g @ g)
+        unit = KINDS[c.name][1]
+        s2 = J_tr / max(g.size - 1, 1)
+        sd_z = math.sqrt(s2 / jj) if jj > 0 else math.inf
+        v1 = c.at(min(z + sd_z, hi)).values[unit] if math.isfinite(sd_z) else math.inf
+        std = {f"{c.name}.{unit}": float(abs(v1 - e.values[unit]))}
+        return Candidate((e,), 1, J_tr, J_te, std=std, cond=1.0 if jj > 0 else math.inf,
+                         excited=bool(jj > 0), nfev=len(memo))
+
+    def _z_with(self, i: int, zi: float) -> np.ndarray:
+        z = self.z_nom.copy()
+        z[i] = zi
+        return z
+
+    def fit(self, rec: Recording, progress: bool = False) -> DiscrepancyResult:
+        t0 = _time.perf_counter()
+        self._prepare(rec)
+        Y0 = self.predict(())
+        J0_te = self._J(Y0, self.test)
+        pen = math.log(max(int(self.test.sum()), 2))
+        try:
+            ranked_gn, _ = self._rank()
+            fits = []
+            todo = [x for x in ranked_gn[:self.n_fits] if x[2] > 0 and x[0] > 0]
+            # the oil always: its misfit is far from linear (one valley per ringing phase),
+            # so a Gauss-Newton step from the spec's value can rank it low when it is off
+            todo += [x for x in ranked_gn[self.n_fits:] if x[1].name in ALWAYS and x[2] > 0]
+            names = [x.param.name for x in self.cands]
+            for red, c, gg in todo:
+                f = self._fit_one(self.cands[names.index(c.param.name)], c.z)
+                f.score = J0_te - f.J_test - pen * f.k
+                fits.append(f)
+                if progress:
+                    print(f"  twin fit {f.label}: held-out score {f.score:.1f}", flush=True)
+        finally:
+            self.pb.close()
+        fits.sort(key=lambda c: -c.score)
+        fitted = {f.effects[0].param.name: f for f in fits}
+        gain = {c.param.name: red for red, c, gg in ranked_gn}
+        ranking = [dict(f.summary(), rank=i + 1, predicted_train_reduction=gain[
+            f.effects[0].param.name]) for i, f in enumerate(fits)]
+        self._others = [f"{c.name}" + (f"@{c.joint}" if c.joint else "") + f" {red:.0f}"
+                        for red, c, gg in ranked_gn if c.param.name not in fitted][:6]
+        best = fits[0] if fits else None
+        chosen = best if (best is not None and best.score > self.threshold) else None
+        conds = self._conditions()
+        ev = Evidence(self.Y, self.sig, self.test, self.t, self.cols, self.predict,
+                      self.threshold, conds, self.crane.spec.id)
+        v = judge(ev, Y0, fits, chosen, chosen)
+        if v["verdict"] == "unexplained":
+            chosen = None
+        Yf = self.predict(chosen.effects) if chosen else Y0
+        return self._report(Y0, Yf, chosen, ranking, t0, v, conds)
+
+    def _conditions(self) -> dict:
+        """joint -> extending / retracting / still (the logged commands), for where two
+        candidates' predictions differ (the quasi-static workflow's split, from commands)."""
+        return {j: {"extending": self.u[:, i] > 0, "retracting": self.u[:, i] < 0,
+                    "still": self.u[:, i] == 0} for i, j in enumerate(self.crane.names)}
+
+    def _report(self, Y0, Yf, chosen, ranking, t0, v, conds) -> DiscrepancyResult:
+        te, cols, sig = self.test, self.cols, self.sig
+        E0, E1 = (self.Y - Y0)[te], (self.Y - Yf)[te]
+        rms0, rms1 = np.sqrt(np.mean(E0 ** 2, axis=0)), np.sqrt(np.mean(E1 ** 2, axis=0))
+        var = np.maximum(np.var(self.Y[te], axis=0), 1e-300)
+        vaf0 = 100 * (1 - np.var(E0, axis=0) / var)
+        vaf1 = 100 * (1 - np.var(E1, axis=0) / var)
+        R0, R1 = (self.Y - Y0) / sig, (self.Y - Yf) / sig
+        ex0 = np.maximum(smoothed_excess(R0, self.t, te)[0], 0.0)
+        ex1 = np.maximum(smoothed_excess(R1, self.t, te)[0], 0.0)
+        tot0, tot1 = math.sqrt(ex0.sum()), math.sqrt(ex1.sum())
+        gap = 1.0 - tot1 / tot0 if tot0 > 0 else 0.0
+        per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
+               for c, a, b in zip(cols, ex0, ex1)}
+        eff = joint = None
+        params, unc = {}, {}
+        if chosen is not None:
+            e = chosen.effects[0]
+            eff, joint = e.name, e.joint
+            params = dict(e.values, **({"joint": joint} if joint else {}))
+            unc = {p.name: chosen.std.get(f"{e.name}.{p.name}") for p in e.parameters}
+        on = (lambda j: f" on {j}" if j else "")
+        if v["verdict"] == "unexplained":
+            sg = v["signature"][0] if v["signature"] else None
+            msg = ("unexplained (twin): " + (signature_text(sg) if sg else
+                                             "; ".join(v["reasons"][:2]))
+                   + (f"; best fit {v['not_credible']['model']} is not credible ("
+                      f"{v['not_credible']['why'][:160]})" if v["not_credible"] else ""))
+        elif eff is None:
+            msg = ("none: the twin at the spec's values explains the data within noise"
+                   + (f" (best candidate {ranking[0]['model']})" if ranking else ""))
+        elif v["verdict"] == "ambiguous":
+            msg = ("ambiguous (twin): the data cannot tell apart " + " | ".join(
+                f"{c['effect']}{on(c['joint'])} (score {c['score']:.1f})"
+                for c in v["candidates"]) + f"; the best is {eff}{on(joint)}")
+        else:
+            msg = (f"{eff}{on(joint)}: " + ", ".join(f"{k} = {x:.4g}" for k, x in
+                                                      params.items() if k != "joint")
+                   + f" (twin); {100 * gap:.0f} % of the above-noise held-out residual removed")
+        where = locate(self.crane, self.t, R0, cols, conds, self.has_p)
+        series = dict(t=self.t, Y=self.Y, Y0=Y0, Yf=Yf, test=te, columns=cols, sigma=sig,
+                      threshold=self.threshold)
+        notes = [f"model: the dynamic twin (segments at holds: {len(self.pb.segs)}; "
+                 f"{self.pb.runs} twin runs); {len(ranking)} of {len(self.cands)} candidates "
+                 "fitted, the next by the training misfit a Gauss-Newton step would remove: "
+                 + ", ".join(self._others)]
+        return DiscrepancyResult(
+            effect=eff, joint=joint, parameters=params, uncertainty=unc,
+            effects=chosen.effects if chosen else (), second=None,
+            rms_before=dict(zip(cols, map(float, rms0))),
+            rms_after=dict(zip(cols, map(float, rms1))),
+            vaf_before=dict(zip(cols, map(float, vaf0))),
+            vaf_after=dict(zip(cols, map(float, vaf1))),
+            noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
+            gap_reduction_channels=per, ranking=ranking, where=where,
+            identifiable=bool(chosen is None or math.isfinite(chosen.cond)), message=msg,
+            runtime_s=_time.perf_counter() - t0, series=series, verdict=v["verdict"],
+            confidence=v["confidence"], candidates=v["candidates"], signature=v["signature"],
+            not_credible=v["not_credible"], reasons=v["reasons"], notes=notes,
+            suggest=v["suggest"], analysis={})

@@ -45,6 +45,7 @@ def test_clean_recording_through_a_stroke_end_is_explained(umea_lab, sequence):
     assert res.verdict == "explained", res.message
 
 
+@pytest.mark.slow   # 7.5 s; the clean stroke-end case stays in the default run
 def test_an_effect_hidden_in_it_is_named(umea_lab, sequence):
     plan, ff = sequence
     # valves 12 % stronger on the telescope: the machine itself runs into its end and is held

@@ -196,6 +196,7 @@ def test_noise_at_jittered_times_is_the_sensor_noise():
     assert np.all(noise_floor(Yr) < 0.95 * sig)
 
 
+@pytest.mark.slow   # 10 s; the noise estimate at any stamps is tested on its own in the default run
 def test_jittered_log_noise_is_estimated_on_the_logged_samples(cat, clean, tmp_path):
     rec, tj, _ = _jittered(cat, clean, tmp_path / "j.csv", 5, 0.1)
     assert rec.logged is not None and np.allclose(rec.logged.t, tj, rtol=0, atol=1e-8)

@@ -85,6 +85,7 @@ def test_energy_optimal_saves_energy_and_the_front_is_monotone():
         assert evaluate(s100f, r.trajectory).max_limit_violation <= 1e-3
 
 
+@pytest.mark.slow   # 17 s; tests/methods/test_obstacles.py clears the headboard in the default run
 def test_headboard_wall_is_cleared(s100f):
     from planner.methods.nlp import Wall
     a, b = (6.0, -1.0, 0.0), (1.2, 0.8, 0.0)       # ground pick-up -> over the bunk

@@ -102,9 +102,10 @@ def test_check_flags_a_stale_notebook_and_sync_rewrites_it(tmp_path):
     assert run.main(["--check"]) == 0                        # the repository's own pairs
 
 
-# the calibration notebook (16 s) runs with the slow studies: its workflow is what
-# tests/calibration covers in the default run
-RUN = [pytest.param(n, marks=pytest.mark.slow) if n == "d_calibration" else n for n in NAMES]
+# the calibration notebook (16 s) and the energy one (9 s) run with the slow studies: their
+# workflows are what tests/calibration and tests/methods cover in the default run
+RUN = [pytest.param(n, marks=pytest.mark.slow) if n in ("d_calibration", "b_energy") else n
+       for n in NAMES]
 
 
 @pytest.mark.parametrize("name", RUN)

@@ -53,7 +53,8 @@ from scipy.optimize import least_squares, minimize_scalar
 from planner.calibration.ends import near_stroke_end
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
 from planner.calibration.rate import analysis_note, analysis_rate
-from planner.calibration.result import Candidate, DiscrepancyResult
+from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
+                                        verdict_fields)
 from planner.calibration.calibrated import calibrated_spec_text  # re-exported
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
@@ -420,16 +421,10 @@ class Discrepancy:
         return DiscrepancyResult(
             effect=eff, joint=joint, parameters=params, uncertainty=unc,
             effects=final.effects if final else (), second=sec,
-            rms_before=dict(zip(cols, map(float, rms0))),
-            rms_after=dict(zip(cols, map(float, rms1))),
-            vaf_before=dict(zip(cols, map(float, vaf0))),
-            vaf_after=dict(zip(cols, map(float, vaf1))),
-            noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
+            **channel_fields(cols, rms0, rms1, vaf0, vaf1, sig), gap_reduction=float(gap),
             gap_reduction_channels=per, ranking=ranking, where=where, identifiable=ident,
             message=msg, runtime_s=_time.perf_counter() - t0, series=series,
-            verdict=v["verdict"], confidence=v["confidence"], candidates=v["candidates"],
-            signature=v["signature"], not_credible=v["not_credible"], reasons=v["reasons"],
-            notes=list(self._notes), suggest=v["suggest"], analysis=self._analysis)
+            **verdict_fields(v), notes=list(self._notes), analysis=self._analysis)
 
 
 def _single(cands, effect):

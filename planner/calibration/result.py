@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Candidate", "DiscrepancyResult"]
+__all__ = ["Candidate", "DiscrepancyResult", "channel_fields", "verdict_fields"]
 
 
 @dataclass
@@ -83,3 +83,19 @@ class DiscrepancyResult:
         out["effects"] = [e.to_dict() for e in self.effects]
         out["ranking"] = self.ranking
         return out
+
+
+def channel_fields(cols, rms0, rms1, vaf0, vaf1, sig) -> dict:
+    """The per-channel keys of a :class:`DiscrepancyResult` (``rms_before`` … ``noise``):
+    channel name -> float, from arrays in ``cols`` order."""
+    def d(a):
+        return dict(zip(cols, map(float, a)))
+    return dict(rms_before=d(rms0), rms_after=d(rms1), vaf_before=d(vaf0), vaf_after=d(vaf1),
+                noise=d(sig))
+
+
+def verdict_fields(v: dict) -> dict:
+    """The keys a :class:`DiscrepancyResult` takes from the verdict's dict
+    (:func:`planner.calibration.verdict.judge`)."""
+    return {k: v[k] for k in ("verdict", "confidence", "candidates", "signature",
+                              "not_credible", "reasons", "suggest")}

@@ -56,7 +56,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from planner.calibration.result import Candidate, DiscrepancyResult
+from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
+                                        verdict_fields)
 from planner.calibration.signature import signature_text
 from planner.calibration.twin_fit import TwinFit
 from planner.calibration.twin_params import TwinParameter, machine_of, twin_parameters
@@ -487,14 +488,8 @@ class TwinDiagnosis:
         return DiscrepancyResult(
             effect=eff, joint=joint, parameters=params, uncertainty=unc,
             effects=chosen.effects if chosen else (), second=None,
-            rms_before=dict(zip(cols, map(float, rms0))),
-            rms_after=dict(zip(cols, map(float, rms1))),
-            vaf_before=dict(zip(cols, map(float, vaf0))),
-            vaf_after=dict(zip(cols, map(float, vaf1))),
-            noise=dict(zip(cols, map(float, sig))), gap_reduction=float(gap),
+            **channel_fields(cols, rms0, rms1, vaf0, vaf1, sig), gap_reduction=float(gap),
             gap_reduction_channels=per, ranking=ranking, where=where,
             identifiable=bool(chosen is None or math.isfinite(chosen.cond)), message=msg,
-            runtime_s=_time.perf_counter() - t0, series=series, verdict=v["verdict"],
-            confidence=v["confidence"], candidates=v["candidates"], signature=v["signature"],
-            not_credible=v["not_credible"], reasons=v["reasons"], notes=notes,
-            suggest=v["suggest"], analysis={})
+            runtime_s=_time.perf_counter() - t0, series=series, **verdict_fields(v),
+            notes=notes, analysis={})

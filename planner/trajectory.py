@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner.io import atomic_write_text
-from planner.model.flows import actuator_table
+from planner.model.flows import actuator_table, held_hydraulics
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -341,7 +341,7 @@ def evaluate(crane: Crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
                          f"'{spec.id}' joints {crane.names}")
     t = traj.resample(rate)
     q, qd, qdd, qddd = traj.sample(t)
-    hyd = crane.hydraulics(q, qd, qdd, payload)
+    hyd = held_hydraulics(crane, t, crane.hydraulics(q, qd, qdd, payload))
     tip = crane.tip(q)
     power = hyd["power"]
     energy = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])

@@ -206,7 +206,8 @@ def ratio_table(ok, pricing) -> list:
         if not rs:
             continue
         ex = np.array([r["w_exudyn_J"] for r in rs])
-        for name, key in ((pricing, "w_qs_J"), ("seed", "w_qs_seed_J")):
+        for name, key in ((pricing, "w_qs_J"), (f"{pricing}, no held pair", "w_qs_static_J"),
+                          ("seed", "w_qs_seed_J")):
             if key != "w_qs_J" and (pricing == "seed" or key not in rs[0]):
                 continue
             qs = np.array([r[key] for r in rs])

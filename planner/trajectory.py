@@ -330,7 +330,9 @@ def evaluate(crane: Crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
 
     Returns an :class:`Evaluation`. ``kinds`` (default: ``traj.limits``) selects which limit
     kinds enter ``max_limit_violation``; all kinds are reported. ``payload`` [kg] defaults to
-    the spec's load + tool.
+    the spec's load + tool. The hydraulics are the model's at every sample with, under the
+    machine pricing, the held chamber pressures carried along the grid
+    (:func:`planner.model.flows.held_hydraulics`).
     """
     spec = crane.spec
     if traj.n != crane.n:

@@ -54,8 +54,8 @@ from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.base import PlanStatus
 from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
-from planner.methods.nlp.exact import (certified, certifying_bound, exact_result,
-                                       feasible_exact)
+from planner.methods.nlp.exact import (ExactMove, certified, certifying_bound, exact_move,
+                                       exact_result)
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.limits import add_velocity_limits, step
 from planner.methods.nlp.pump import PumpRows
@@ -284,13 +284,15 @@ class MoveNLP:
         return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
 
     def _prefer_exact(self, res, exact, t0):
-        """Minimum time, free path: the feasible jerk-limited rest-to-rest move ``exact`` (or
-        None) when it is faster than the NLP's result ``res``. N equal intervals cannot put the
-        jerk switches of a long, one-joint-dominated move where they belong (up to about one
-        interval is lost); Ruckig's switch times are exact."""
-        if exact is None or (res.ok and exact.duration >= res.duration_s * (1 - 1e-6)):
+        """Minimum time, free path: the jerk-limited rest-to-rest move ``exact`` (an
+        :class:`~planner.methods.nlp.exact.ExactMove`, or None) when it is feasible and faster
+        than the NLP's result ``res``. N equal intervals cannot put the jerk switches of a
+        long, one-joint-dominated move where they belong (up to about one interval is lost);
+        Ruckig's switch times are exact."""
+        if exact is None or exact.tr is None or (res.ok and not exact.faster_than(
+                res.duration_s)) or not exact.feasible():
             return res
-        return exact_result(exact, res, t0, _time.perf_counter())
+        return exact_result(exact.tr, res, t0, _time.perf_counter())
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
@@ -324,10 +326,12 @@ class MoveNLP:
                               solve_time_s=_time.perf_counter() - t0)
         exact = None
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
-            exact = feasible_exact(self, start, goal, lb, q_ends)
-            if self.certify and certified(exact, lb) and certified(   # nothing can be
-                    exact, certifying_bound(self.crane, start, goal, q_ends)):   # faster
-                return exact_result(exact, None, t0, _time.perf_counter())
+            # its limit check only where it decides (ExactMove): the certificate first by
+            # duration, then feasibility, then the fine bound; else after the NLP
+            exact = ExactMove(self, exact_move(self, start, goal, lb, q_ends))
+            if self.certify and certified(exact.tr, lb) and exact.feasible() and certified(
+                    exact.tr, certifying_bound(self.crane, start, goal, q_ends)):  # nothing
+                return exact_result(exact.tr, None, t0, _time.perf_counter())   # is faster
         res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         return self._prefer_exact(res, exact, t0)
 
@@ -353,10 +357,10 @@ class MoveNLP:
         except ValueError as e:
             return nlp_result(PlanStatus.UNREACHABLE, str(e),
                               solve_time_s=_time.perf_counter() - t0)
-        exact = (feasible_exact(self, start, goal, lb) if self._exact_applies(T_max, lam, payload)
-                 else None)
-        if self.certify and certified(exact, lb):
-            return exact_result(exact, None, t0, _time.perf_counter())
+        exact = (ExactMove(self, exact_move(self, start, goal, lb))
+                 if self._exact_applies(T_max, lam, payload) else None)
+        if self.certify and exact is not None and certified(exact.tr, lb) and exact.feasible():
+            return exact_result(exact.tr, None, t0, _time.perf_counter())
         res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
         good = [r for r in res if r.ok and self.clears(r.trajectory)]
         if good:
@@ -405,7 +409,9 @@ class MoveNLP:
         pars = dict(start=tip_to_xyz(np.asarray(start, float)),
                     goal=tip_to_xyz(np.asarray(goal, float)),
                     T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
-        mask = self.activity.mask(guess)
+        # the load-sensing mask enters the energy objectives only (minimum time: zeros)
+        mask = (self.activity.mask(guess) if self.objective != "time" else
+                np.zeros(mask_size(crane.n, self.acts, self.N)))
         lbw, ubw = self.lbw.copy(), self.ubw.copy()
         X0 = self.layout.slice("X").start
         for k, q in zip((0, self.N), q_ends):   # joint ends: fixed by their bounds

@@ -178,7 +178,7 @@ def summary(res: dict) -> dict:
     for mres in res["machines"]:
         rows = mres["moves"]
         s = {}
-        for v in VARIANTS:
+        for v in [v for v in VARIANTS if v in rows[0]["nlp"]]:
             ratios = sorted(r["nlp"][v]["ratio"] for r in rows)
             parts = {k: statistics.median(r["nlp"][v][k] for r in rows)
                      for k in ("total_ms", "python_ms")}
@@ -205,6 +205,7 @@ def summary(res: dict) -> dict:
             for r in rows)
         s["opti"] = o
         s["size"] = dict({k: rows[0][k] for k in ("vars", "cons")}, nonzeros=mres["nonzeros"])
+        s["variants"] = [v for v in VARIANTS if v in s]
         out[mres["machine"]] = s
     return out
 
@@ -270,6 +271,27 @@ TRIALS = (
     ("certificate against the fine telescope search (lower_bound's default grid, 1e-4)",
      "0.65× / 0.60× compiled (final run)", "0 (14 of 20 moves)", "max +2.9e-6 (plans)",
      "**yes** (the fine bound costs ~20 ms of the certified call)"),
+    # the second session on the item (branch wt-nlp6, from main f90ec7a): the Python around
+    # the solver call, then the Hessian; --variants nlp_always, plans against the start
+    ("second session, start (main f90ec7a; load 2.4-3.4; Python around the call 28.2 ms)",
+     "1.54×", 17.5, "0", "-"),
+    ("the exact move's limit check only where it decides (the certificate by duration first, "
+     "the swap only for a move faster than the NLP's) and without evaluate()'s dynamics "
+     "(kinematic limits and the pump's draw from the stroke rates: the same numbers on 120 "
+     "moves of 4 machines); no load-sensing mask for minimum time",
+     "1.48× (load 4.0-4.6)", 17.5, "0 (plans identical)",
+     "**yes**: Python around 28.2 → 23.2 ms"),
+    ("the guess's lower bound: both ends' IK in one call per level, reasons spelled out only "
+     "to raise, combined_only computing only the timing bounds (the other fields at their grid "
+     "values, as documented)", "1.56× (load 3.5-3.7, both sides faster: Opti 53 ms)", 17.5,
+     "0 (plans identical)", "**yes**: 8.4 → 6.6 ms per bound (48 moves, 4 machines, combined "
+     "bound and telescopes bit-identical); Python around 9.7 ms in that run"),
+    ("CasADi's cse on the Hessian", "-", "-", "-", "no: 121k → 111k instructions, 1.02 → 0.95 "
+     "ms per evaluation, +0.85 s build"),
+    ("the pump rows' Hessian through the stroke Jacobians (chain rule, exact: "
+     "planner/methods/nlp/hessian.py)", "1.36× (load 4.5-4.7)", 17.5, "≤ 7e-16 (plans)",
+     "**yes**: 121k → 112k instructions, 0.95 → 0.74 ms per evaluation (interleaved), the "
+     "same matrix within 3e-16 relative, the same sparsity"),
 )
 
 
@@ -303,16 +325,17 @@ def report(res: dict) -> str:
          "(certified moves skip it).", "", BEFORE, ""]
     for cid, s in res["summary"].items():
         nz = s["size"]["nonzeros"]
+        v0 = s["variants"][0]
         L += [f"## {cid}", "",
-              f"Size: NLP {s['size']['vars']['interpreted']} variables / "
-              f"{s['size']['cons']['interpreted']} constraints, {nz['nlp']['jacobian']} "
+              f"Size: NLP {s['size']['vars'][v0]} variables / "
+              f"{s['size']['cons'][v0]} constraints, {nz['nlp']['jacobian']} "
               f"Jacobian and {nz['nlp']['hessian']} Hessian nonzeros; Opti "
               f"{s['size']['vars']['opti']} / {s['size']['cons']['opti']}, "
               f"{nz['opti']['jacobian']} and {nz['opti']['hessian']}.", "",
               "| | whole call ms | ratio to Opti (median, p90, max) | iterations | functions ms "
               "(Hessian, Jacobian, g) | IPOPT's own ms (per iteration) | Python around ms |",
               "| --- | ---: | --- | ---: | --- | --- | ---: |"]
-        for v in VARIANTS:
+        for v in s["variants"]:
             x = s[v]
             L.append(f"| {LABELS[v]} ({x['ok']} ok, {x['certified']} certified) | "
                      f"{f1(x['total_ms'])} | "
@@ -325,6 +348,9 @@ def report(res: dict) -> str:
         L += [f"| plain Opti | {f1(o['total_ms'])} | 1 | {o['iterations']:.0f} | "
               f"{f1(o['eval_ms'])} ({f1(o['hess_ms'])}, {f1(o['jac_ms'])}, {f1(o['g_ms'])}) | "
               f"{f1(o['ipopt_own_ms'])} ({o['per_iteration_own_ms']:.2f}) | - |", ""]
+        if not {"nlp_always", "interpreted", "compiled"} <= set(s["variants"]):
+            L += trials_table()
+            continue
         x = s["nlp_always"]
         extra = x["total_ms"] - o["total_ms"]
         own = x["ipopt_own_ms"] - o["ipopt_own_ms"]
@@ -356,15 +382,22 @@ def main(argv=None) -> int:
     ap.add_argument("--moves", type=int, default=20)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--machines", default="umea-lab")
+    ap.add_argument("--variants", default=",".join(VARIANTS),
+                    help=f"NLP variants to time, of {', '.join(VARIANTS)}")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
+    variants = tuple(v.strip() for v in args.variants.split(","))
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or not variants:
+        ap.error(f"--variants {args.variants!r}: allowed {', '.join(VARIANTS)}")
     os.environ.setdefault("CRANE_PLANNER_CACHE", tempfile.mkdtemp(prefix="crane-nlp-ovh-"))
     load_before = [round(x, 2) for x in os.getloadavg()]
     date = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    machines = [machine_rows(c.strip(), args.moves, args.rounds)
+    machines = [machine_rows(c.strip(), args.moves, args.rounds, variants)
                 for c in args.machines.split(",")]
+    extra = "" if variants == tuple(VARIANTS) else f" --variants {','.join(variants)}"
     meta = dict(command=f"python benchmarks/bench_nlp_overhead.py --moves {args.moves} "
-                        f"--rounds {args.rounds} --machines {args.machines}",
+                        f"--rounds {args.rounds} --machines {args.machines}{extra}",
                 platform=platform.platform(), cpus=os.cpu_count(), casadi=ca.__version__,
                 date=date, load_before=load_before,
                 load_after=[round(x, 2) for x in os.getloadavg()], moves=args.moves,

@@ -17,7 +17,11 @@ and then:
   blocked intervals) the NLP is solved and the faster of the two is returned.
 
 The move is kept at its switch times only: between them every joint is a cubic, which the
-quintic interpolation reproduces exactly.
+quintic interpolation reproduces exactly. Its limit check (:func:`limit_violation`: the
+kinematic limits and the pump's draw from the stroke rates, evaluate()'s numbers without its
+inverse dynamics and pressures) runs only where it decides something (:class:`ExactMove`): for
+a certificate once the move lasts the bound, after the NLP once the move is faster than its
+result (issue 31: the Python around the solver call).
 """
 from __future__ import annotations
 
@@ -34,8 +38,8 @@ from planner.trajectory import Trajectory
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["CERTIFY_REL", "ExactMove", "exact_move", "limit_violation", "feasible", "feasible_exact",
-           "certified", "certifying_bound", "exact_result"]
+__all__ = ["CERTIFY_REL", "ExactMove", "exact_move", "limit_violation", "feasible",
+           "feasible_exact", "certified", "certifying_bound", "exact_result"]
 
 CERTIFY_REL = 1e-4   # the exact move "attains" the bound within this relative margin (the
 # fine search approaches the minimum from above by ~1e-5: planner.bounds)

@@ -212,7 +212,12 @@ def summary(res: dict) -> dict:
 
 # the same command before issue 31's changes (main 6dd9805's nlp_overhead.md, 2026-11-26 09:24,
 # load 9.5-11.5), and the plans of the run after them against that run's, move by move
-BEFORE = ("Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
+BEFORE = ("Second session (branch wt-nlp6, from main f90ec7a: the trials below from \"second "
+          "session, start\"): the NLP always solved went from 1.54× (umea-lab) and 2.90× "
+          "(s100f), trial runs of `--variants nlp_always` at load 2.4-6.8, to the table's; the "
+          "plans' durations against the start, move by move: within 7e-8 relative on both "
+          "machines. First session: "
+          "Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
           "**1.82×** compiled, the NLP solved on every move (28 iterations, 1743 rows, 7764 "
           "Jacobian nonzeros). After (2026-11-26 13:11, load 7.0-7.6): the plans' durations "
           "against that run's, move by move: median -2.5e-5, max +2.9e-6, min -1.1e-3 "
@@ -292,6 +297,17 @@ TRIALS = (
      "planner/methods/nlp/hessian.py)", "1.36× (load 4.5-4.7)", 17.5, "≤ 7e-16 (plans)",
      "**yes**: 121k → 112k instructions, 0.95 → 0.74 ms per evaluation (interleaved), the "
      "same matrix within 3e-16 relative, the same sparsity"),
+    ("IPOPT fast_step_computation yes (minimum time, free path: no residual check of the "
+     "Newton step); A/B in one process, interleaved, the NLP always solved",
+     "1.28× (load 6.0); A/B 0.94× (bench moves), 0.92× (40 other moves)", "20 (939 in all on "
+     "the 40, before 903)", "≤ 1.3e-6 (NLP's own), plans ≤ 7e-8",
+     "**yes**: s100f A/B 0.86× / 0.93× (1315 vs 1258 iterations on 40 moves); every solve ok"),
+    ("IPOPT (A/B against the kept options) max_soc 0 / mumps_pivtol 1e-8 / "
+     "first_hessian_perturbation 1e-2 / neg_curv_test_reg no / alpha_for_y primal-and-full / "
+     "recalc_y yes / mu_max 1e3 / adaptive_mu_globalization kkt-error, never-monotone-mode / "
+     "quality_function_max_section_steps 3", "1.03 / 1.09 / 1.02 / 1.03 / 1.03 / 1.03 / 1.02 / "
+     "1.07, 1.02 / 1.09 (× the reference's time)", "413-590 in all (reference 415-426)", "-",
+     "no"),
 )
 
 

@@ -390,6 +390,8 @@ def report(res: dict) -> str:
               f"duration {s['interpreted']['duration_s']:.4f} s (NLP always: "
               f"{x['duration_s']:.4f} s).", ""]
         L += trials_table()
+    L += [f"Final run: `{m['command']}`, {m['date']}, load average {m['load_before']} before, "
+          f"{m['load_after']} after (2 shared cores).", ""]
     return "\n".join(L)
 
 

@@ -104,3 +104,18 @@ def test_both_ends_ik_in_one_call_is_one_call_per_end(cid):
     with pytest.raises(UnreachableError, match="unreachable for every telescope value: out of "
                                                "reach: .* m from the boom pivot"):
         lower_bound(crane, a, (60.0, 0.0, 0.0))
+
+
+def test_stroke_derivatives_need_one_joint_per_entry():
+    """J, J′, J″ per joint of a stroke Jacobian whose entries each depend on their own joint
+    (against the derivatives written by hand); None when one depends on another joint (the
+    Hessian then stays CasADi's own)."""
+    import casadi as ca
+
+    from planner.methods.nlp.hessian import stroke_derivatives
+    own = stroke_derivatives(lambda q: ca.vertcat(ca.sin(q[0]), q[1] ** 3), 2)
+    J, d1, d2 = (np.asarray(v).ravel() for v in own(np.array([0.3, 2.0])))
+    np.testing.assert_allclose(J, [np.sin(0.3), 8.0])
+    np.testing.assert_allclose(d1, [np.cos(0.3), 12.0])
+    np.testing.assert_allclose(d2, [-np.sin(0.3), 12.0])
+    assert stroke_derivatives(lambda q: ca.vertcat(q[0] * q[1], q[1]), 2) is None

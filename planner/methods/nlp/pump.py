@@ -63,7 +63,9 @@ class PumpRows:
                 Y = ca.SX.sym("Jy", n, N + 1)
                 Ys = [Y[:, k] for k in range(N + 1)]
                 Ym = [(Ys[k] + Ys[k + 1]) / 2 for k in range(N)]
-                lifted.update(rows=np.arange(first, lay.ng), Y=Y, J=ca.horzcat(*J),
+                lifted.update(rows=np.arange(first, lay.ng), Y=Y,
+                              Q=ca.horzcat(*(q for q, _, _ in pts)),
+                              stroke=lambda q: crane.f_stroke(q)[1],
                               rows_y=ca.vertcat(*(pump_draw(Yk, v, self.acts, Qm) for Yk, (
                                   _, v, _) in zip(Ys + Ym, pts + mids))))
             return 0

@@ -297,6 +297,12 @@ TRIALS = (
      "planner/methods/nlp/hessian.py)", "1.36× (load 4.5-4.7)", 17.5, "≤ 7e-16 (plans)",
      "**yes**: 121k → 112k instructions, 0.95 → 0.74 ms per evaluation (interleaved), the "
      "same matrix within 3e-16 relative, the same sparsity"),
+    ("+ J, J′, J″ of each node from one function with common subexpressions merged, placed "
+     "by index (J″ alone: 966 → 479 instructions per node)", "1.24× (load 8.0)", 19,
+     "≤ 1.3e-14 (plans)", "**yes**: 83k instructions, 1.23 vs 1.73 ms per evaluation against "
+     "CasADi's own (interleaved, loaded)"),
+    ("the constraint Jacobian through the stroke Jacobians likewise (jac_g)", "-", "-", "-",
+     "no: 54.0k → 53.6k instructions, 0.56 → 0.50 ms (umea-lab), not worth the code"),
     ("IPOPT fast_step_computation yes (minimum time, free path: no residual check of the "
      "Newton step); A/B in one process, interleaved, the NLP always solved",
      "1.28× (load 6.0); A/B 0.94× (bench moves), 0.92× (40 other moves)", "20 (939 in all on "

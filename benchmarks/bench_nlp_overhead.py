@@ -214,9 +214,11 @@ def summary(res: dict) -> dict:
 # load 9.5-11.5), and the plans of the run after them against that run's, move by move
 BEFORE = ("Second session (branch wt-nlp6, from main f90ec7a: the trials below from \"second "
           "session, start\"): the NLP always solved went from 1.54× (umea-lab) and 2.90× "
-          "(s100f), trial runs of `--variants nlp_always` at load 2.4-6.8, to the table's; the "
-          "plans' durations against the start, move by move: within 7e-8 relative on both "
-          "machines. First session: "
+          "(s100f), trial runs of `--variants nlp_always` at load 2.4-6.8, to the table's "
+          "(umea-lab **1.23×**; a repeat with `--variants nlp_always` right after, load "
+          "8.7-9.2: **1.20×**); the plans' durations against the first session's final run "
+          "(umea-lab, all three variants) and the start's trial run (s100f), move by move: "
+          "within 7e-8 relative (median 0). First session: "
           "Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
           "**1.82×** compiled, the NLP solved on every move (28 iterations, 1743 rows, 7764 "
           "Jacobian nonzeros). After (2026-11-26 13:11, load 7.0-7.6): the plans' durations "
@@ -371,7 +373,6 @@ def report(res: dict) -> str:
               f"{f1(o['eval_ms'])} ({f1(o['hess_ms'])}, {f1(o['jac_ms'])}, {f1(o['g_ms'])}) | "
               f"{f1(o['ipopt_own_ms'])} ({o['per_iteration_own_ms']:.2f}) | - |", ""]
         if not {"nlp_always", "interpreted", "compiled"} <= set(s["variants"]):
-            L += trials_table()
             continue
         x = s["nlp_always"]
         extra = x["total_ms"] - o["total_ms"]
@@ -395,7 +396,7 @@ def report(res: dict) -> str:
               f"them against {f1(s['interpreted']['eval_ms'])} ms interpreted. Median plan "
               f"duration {s['interpreted']['duration_s']:.4f} s (NLP always: "
               f"{x['duration_s']:.4f} s).", ""]
-        L += trials_table()
+    L += trials_table()
     L += [f"Final run: `{m['command']}`, {m['date']}, load average {m['load_before']} before, "
           f"{m['load_after']} after (2 shared cores).", ""]
     return "\n".join(L)

@@ -8,7 +8,9 @@ tip path are imposed at the nodes and the interval midpoints, the velocity with 
 interval's own jerk bound and the pump as one smooth conservative inequality per check point
 (minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits` (the curve mode,
 fragile under IPOPT, keeps the earlier uniform velocity tightening and the flow slacks); the 0.5 %
-default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
+default pump margin covers the flow's nonlinearity in q between check points (IPOPT gets the
+Lagrangian's Hessian through the nodes' stroke Jacobians: :mod:`planner.methods.nlp.hessian`,
+the same matrix for less work). Ends: tip
 positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
 The duration is a state copied per node (chained equal), so every row lies inside one interval:
 the stage structure FATROP exploits (:mod:`planner.methods.nlp.stagewise`; ``solver="auto"``

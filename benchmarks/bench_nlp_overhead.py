@@ -2,6 +2,8 @@
 same size (issue 31, the "NLP pump on ≤ 1.5× a plain Opti" item).
 
     python benchmarks/bench_nlp_overhead.py [--moves 20] [--rounds 3] [--machines umea-lab]
+    python benchmarks/bench_nlp_overhead.py --ab '{}' '{"fast_step_computation": "no"}' \
+        [--seed 7] [--moves 40] [--rounds 1]       # IPOPT option sets against each other
 
 For each machine, ``--moves`` random tip moves (joint configurations drawn inside the limits,
 as benchmarks/bench_peers.py draws its tip moves); for each move, interleaved ``--rounds`` times
@@ -171,6 +173,42 @@ def machine_rows(cid: str, n: int, rounds: int, variants=tuple(VARIANTS)) -> dic
         rows.append(row)
     return dict(machine=cid, nlp_setup={v: x[2] for v, x in nlps.items()}, moves=rows,
                 nonzeros=nonzeros(next(iter(nlps.values()))[0], o))
+
+
+def ab_rows(cid: str, n: int, rounds: int, seed: int, specs: list) -> list:
+    """The NLP always solved under several IPOPT option sets ``specs`` (dicts added to
+    MoveNLP's own; the first the reference), interleaved per move (the order turned every
+    round): per set the median whole-call ms, the median per-move time ratio to the reference,
+    the iterations in all, the solves ok and the NLP's own durations against the reference's
+    (largest relative difference)."""
+    crane = Crane.from_id(cid)
+    nlps = []
+    for spec in specs:
+        m = MoveNLP(crane, "time", N=40, pump=True, solver="ipopt", cache="off",
+                    ipopt_options=spec or None)
+        m.certify = False
+        nlps.append(m)
+    got = [dict(ms=[], iters=0, ok=0, own=[]) for _ in specs]
+    for a, b in moves(crane, n, seed):
+        ts = [[] for _ in specs]
+        for i, m in enumerate(nlps):   # warm-up, and the solution compared
+            r = m.solve(a, b)
+            got[i]["iters"] += r.iterations
+            got[i]["ok"] += r.ok
+            got[i]["own"].append(r.stats.get("nlp_duration_s", r.duration_s))
+        for k in range(rounds):
+            order = range(len(nlps)) if k % 2 == 0 else reversed(range(len(nlps)))
+            for i in order:
+                t0 = time.perf_counter()
+                nlps[i].solve(a, b)
+                ts[i].append(time.perf_counter() - t0)
+        for i in range(len(specs)):
+            got[i]["ms"].append(1e3 * statistics.median(ts[i]))
+    ref = got[0]
+    return [dict(spec=spec, ms=statistics.median(g["ms"]), ratio=statistics.median(
+        x / y for x, y in zip(g["ms"], ref["ms"])), iterations=g["iters"], ok=g["ok"],
+        own_rel=max(abs(x / y - 1) for x, y in zip(g["own"], ref["own"])))
+        for spec, g in zip(specs, got)]
 
 
 def summary(res: dict) -> dict:
@@ -409,8 +447,21 @@ def main(argv=None) -> int:
     ap.add_argument("--machines", default="umea-lab")
     ap.add_argument("--variants", default=",".join(VARIANTS),
                     help=f"NLP variants to time, of {', '.join(VARIANTS)}")
+    ap.add_argument("--ab", nargs="+", metavar="OPTIONS",
+                    help="instead: A/B of IPOPT option sets (JSON objects, the first the "
+                         "reference), the NLP always solved, interleaved; printed only")
+    ap.add_argument("--seed", type=int, default=SEED, help="moves' seed (--ab)")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
+    if args.ab:
+        specs = [json.loads(x) for x in args.ab]
+        print(f"| machine | IPOPT options | ms (median) | time / reference's | iterations | ok "
+              f"| NLP's own duration vs reference (max rel.) |\n|{' --- |' * 7}")
+        for c in args.machines.split(","):
+            for r in ab_rows(c.strip(), args.moves, args.rounds, args.seed, specs):
+                print(f"| {c} | {json.dumps(r['spec'])} | {r['ms']:.1f} | {r['ratio']:.3f} | "
+                      f"{r['iterations']} | {r['ok']}/{args.moves} | {r['own_rel']:.1e} |")
+        return 0
     variants = tuple(v.strip() for v in args.variants.split(","))
     bad = [v for v in variants if v not in VARIANTS]
     if bad or not variants:

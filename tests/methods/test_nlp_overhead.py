@@ -119,3 +119,19 @@ def test_stroke_derivatives_need_one_joint_per_entry():
     np.testing.assert_allclose(d1, [np.cos(0.3), 12.0])
     np.testing.assert_allclose(d2, [-np.sin(0.3), 12.0])
     assert stroke_derivatives(lambda q: ca.vertcat(q[0] * q[1], q[1]), 2) is None
+
+
+def test_the_callers_ipopt_options_win_over_the_minimum_time_ones(umea_lab):
+    """MoveNLP adds TIME_IPOPT for minimum time on a free path; an IPOPT option the caller
+    gives for the same key replaces it (a duplicate key once raised TypeError), and both
+    solve the same move to the same duration."""
+    a, b = _moves(umea_lab, 20, 31)[3]
+    got = []
+    for opts in (None, {k: "no" for k in move.TIME_IPOPT}):
+        m = MoveNLP(umea_lab, "time", N=12, pump=True, solver="ipopt", cache="off",
+                    ipopt_options=opts)
+        m.certify = False
+        r = m.solve(a, b)
+        assert r.ok
+        got.append(r.stats.get("nlp_duration_s", r.duration_s))
+    assert got[1] == pytest.approx(got[0], rel=1e-6)

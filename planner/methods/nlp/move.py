@@ -135,7 +135,7 @@ class MoveNLP:
         self.L = crane.limit_arrays()
         self.acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
         fast = TIME_IPOPT if objective == "time" and path == "free" and not self.obstacles else {}
-        ipopt = dict(IPOPT_DEFAULTS, **fast, **(ipopt_options or {}))
+        ipopt = {**IPOPT_DEFAULTS, **fast, **(ipopt_options or {})}   # the caller's win
         t0 = _time.perf_counter()
         if solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")

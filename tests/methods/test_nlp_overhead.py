@@ -10,17 +10,10 @@ from planner.methods.nlp import MoveNLP, exact, move
 from planner.methods.nlp.exact import exact_move, feasible_exact, limit_violation
 from planner.model import Crane, UnreachableError
 from planner.trajectory import evaluate
+from tests.conftest import random_tip_moves
 
 
-def _moves(crane, n, seed):
-    """``n`` (start, goal) tip pairs from random joint configurations inside 10 % margins."""
-    rng = np.random.default_rng(seed)
-    L = crane.limit_arrays()
-    lo = L["q_min"] + 0.1 * (L["q_max"] - L["q_min"])
-    hi = L["q_max"] - 0.1 * (L["q_max"] - L["q_min"])
-    qs = lo + rng.random((2 * n, crane.n)) * (hi - lo)
-    return [tuple(tuple(float(x) for x in np.round(crane.tip(q), 3)) for q in (qs[k], qs[n + k]))
-            for k in range(n)]
+_moves = random_tip_moves
 
 
 @pytest.mark.parametrize("cid", ["umea-lab", "s100f"])

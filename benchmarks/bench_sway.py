@@ -49,6 +49,10 @@ from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
 
+#: method-name suffixes that replay the twin's refined commands instead of the nominal ones
+FF = ("ff",)
+
+
 def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
@@ -110,14 +114,19 @@ def main(argv=None):
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
     for mv in moves:
+        planned = {}                          # one plan per (method, options) and move
         for name in args.methods.split(","):
-            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1
-            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra)}
+            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1+ff
+            ff = [e for e in extra if e in FF]       # +ff / +ffs: refined on the twin
+            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra if e not in FF)}
+            key = (method, tuple(sorted(extra.items())))
             req = PlanRequest(mv.start, mv.goal, obstacles=obstacles,
                               options={} if method == "nlp" else dict(opts, **extra))
             t0 = time.perf_counter()
             try:
-                res = plan(crane, req, method)
+                if key not in planned:
+                    planned[key] = plan(crane, req, method)
+                res = planned[key]
             except Exception as e:            # a method's failure is a row, not a crash
                 rows.append(dict(method=name, move=mv.id, status="error", reason=str(e)))
                 continue
@@ -133,10 +142,10 @@ def main(argv=None):
             tr = res.trajectory
             pred = predict_swing(crane, tr, pend)
             tip_c, load_c = clearances(crane, tr, pend, obstacles)
-            if args.refine:   # the twin's feed-forward (planner.refine) instead of the nominal
-                ff = commands(crane, tr, 50.0)
-                ref = refine_commands(crane, tr, ff.t, ff.u,
-                                      options=RefineOptions(iterations=args.refine))
+            if args.refine or ff:   # the twin's feed-forward (planner.refine), not the nominal
+                nom = commands(crane, tr, 50.0)
+                ref = refine_commands(crane, tr, nom.t, nom.u,
+                                      options=RefineOptions(iterations=args.refine or 150))
                 k = int(round(args.settle * 50.0))
                 t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
                 u = np.vstack([ref.u, np.zeros((k, crane.n))])
@@ -194,7 +203,8 @@ def markdown(res) -> list:
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
          f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
-            else "nominal 50 Hz feed-forward")
+            else "nominal 50 Hz feed-forward (`+ff`: its valve commands refined on the dynamic "
+                 "twin, planner.refine, tip tracking and landing only)")
          + " replayed open loop, then the valves closed. Swing: the horizontal "
          "distance of the load's centre of mass from under the tip (the plant's tree). "
          "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",
@@ -214,8 +224,8 @@ def markdown(res) -> list:
             continue
         aft = [r["swing_after_m"] * 1e3 for r in ok]
         mod = [r["model_residual_m"] * 1e3 for r in ok]
-        ratio = [r["duration_s"] / by["nlp"][r["move"]]["duration_s"] for r in ok
-                 if "nlp" in by and r["move"] in by["nlp"]]
+        base = next((by[b] for b in ("nlp", "nlp+ff") if b in by), {})
+        ratio = [r["duration_s"] / base[r["move"]]["duration_s"] for r in ok if r["move"] in base]
         sol = [r["solve_time_s"] for r in ok]
         L.append(f"| {m} | {len(ok)} / {n_all} | {np.median([r['duration_s'] for r in ok]):.2f} "
                  f"| {np.median(ratio) if ratio else float('nan'):.2f} | "

@@ -50,7 +50,7 @@ from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
 
 #: method-name suffixes that replay the twin's refined commands instead of the nominal ones
-FF = ("ff",)
+FF = ("ff", "ffs")
 
 
 def log(*a):
@@ -75,6 +75,23 @@ def clearances(crane, traj, pend, obstacles):
     return tip, ld
 
 
+def plant_load_clearance(plant, rec, obstacles):
+    """(smallest distance minus clearance of the plant's load centre of mass from the
+    obstacles [m] on the plant's own grid, largest distance of the plant's tip frame from the
+    model's forward kinematics [m]: the check that both use one frame)."""
+    run = rec.meta.get("run")
+    if not obstacles or getattr(run, "grapple_q", None) is None:
+        return float("nan"), float("nan")
+    from planner.simulation.dynamic.grapple import link_frames
+    tree = plant.tree
+    n = tree["crane_links"]
+    _, links = link_frames(tree, np.hstack([run.q, run.grapple_q]))
+    com = (links[-1] @ np.array([tree["grapple"].length, 0.0, 0.0, 1.0]))[:, :3]
+    frame = float(np.max(np.linalg.norm(links[n][:, :3, 3] - plant.crane.fk(run.q), axis=1)))
+    cyl = xyz_to_tip(com)
+    return min(float(ob.distance(com, cyl).min() - ob.clearance) for ob in obstacles), frame
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--moves", type=int, default=12)
@@ -90,6 +107,9 @@ def main(argv=None):
     ap.add_argument("--refine", type=int, default=0, metavar="ITER",
                     help="replay the twin's refined feed-forward (planner.refine, ITER "
                          "L-BFGS-B iterations) instead of the nominal one")
+    ap.add_argument("--swing-weight", type=float, default=10.0,
+                    help="the refiner's swing weight for the +ffs methods (RefineOptions)")
+    ap.add_argument("--only", default="", help="comma-separated move ids (instead of --moves)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--tag", default="sway", help="result file name stem")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
@@ -111,6 +131,8 @@ def main(argv=None):
         ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
         want = args.moves // 2 if first == "p" else args.moves - args.moves // 2
         moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
+    if args.only:
+        moves = [m for m in suite.moves if m.id in args.only.split(",")]
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
     for mv in moves:
@@ -144,13 +166,18 @@ def main(argv=None):
             tip_c, load_c = clearances(crane, tr, pend, obstacles)
             if args.refine or ff:   # the twin's feed-forward (planner.refine), not the nominal
                 nom = commands(crane, tr, 50.0)
-                ref = refine_commands(crane, tr, nom.t, nom.u,
-                                      options=RefineOptions(iterations=args.refine or 150))
+                w = args.swing_weight if "ffs" in ff else 0.0   # +ffs: with the swing term
+                ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
+                                      options=RefineOptions(iterations=args.refine or 150,
+                                                            swing_weight=w))
                 k = int(round(args.settle * 50.0))
                 t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
                 u = np.vstack([ref.u, np.zeros((k, crane.n))])
                 row.update(refine=str(ref.status), refine_s=ref.wall_s,
-                           lengthened_s=ref.lengthened_s)
+                           lengthened_s=ref.lengthened_s,
+                           twin_swing_after_m=ref.predicted["refined"].get("swing_after_m"),
+                           twin_swing_nominal_m=ref.predicted["nominal"].get("swing_after_m"),
+                           twin_rest_offset_m=ref.predicted["refined"].get("rest_offset_m"))
             else:
                 run_tr = with_settle(crane, tr, args.settle)
                 t_u, u = run_tr.t, run_tr.u
@@ -159,6 +186,8 @@ def main(argv=None):
                        model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
                        load_clearance_m=load_c, plant=rec.status)
             if rec.ok:
+                lc, frame = plant_load_clearance(plant, rec, obstacles)
+                row.update(plant_load_clearance_m=lc, plant_frame_m=frame)
                 ts, sw = load_swing(plant, rec)
                 r = np.linalg.norm(sw, axis=1)
                 T = float(tr.duration)
@@ -187,6 +216,20 @@ def _q(v, p):
     return float(np.percentile(v, p)) if len(v) else float("nan")
 
 
+def _vals(rows, key):
+    return [r[key] * 1e3 for r in rows if r.get(key) is not None and np.isfinite(r[key])]
+
+
+def _min_mm(rows, key):
+    v = _vals(rows, key)
+    return f"{min(v):.0f}" if v else "–"
+
+
+def _med_mm(rows, key):
+    v = _vals(rows, key)
+    return f"{np.median(v):.0f}" if v else "–"
+
+
 def markdown(res) -> list:
     a, rows = res["args"], res["rows"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
@@ -204,23 +247,27 @@ def markdown(res) -> list:
          f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
             else "nominal 50 Hz feed-forward (`+ff`: its valve commands refined on the dynamic "
-                 "twin, planner.refine, tip tracking and landing only)")
+                 "twin, planner.refine, tip tracking and landing only; `+ffs`: with the swing "
+                 f"term, swing_weight {a.get('swing_weight', 10.0):g}, the twin carrying the "
+                 "pendulum)")
          + " replayed open loop, then the valves closed. Swing: the horizontal "
          "distance of the load's centre of mass from under the tip (the plant's tree). "
          "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",
          "| method | ok / moves | duration s (median) | duration ratio to nlp (median) | "
          "residual swing mm (median / p90 / max) | swing left after "
          f"{a['settle']:g} s mm (median) | model residual mm (median / p90) | swing during "
-         "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | solve s "
+         "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | load "
+         "clearance mm (min, plant) | twin swing after mm (median, +ff) | solve s "
          "(median / p90) |",
-         "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | --- |"]
+         "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: "
+         "| --- |"]
     by = {m: {r["move"]: r for r in rows if r["method"] == m and "swing_after_m" in r}
           for m in methods}
     for m in methods:
         ok = list(by[m].values())
         n_all = sum(r["method"] == m for r in rows)
         if not ok:
-            L.append(f"| {m} | 0 / {n_all} |" + " |" * 9)
+            L.append(f"| {m} | 0 / {n_all} |" + " |" * 11)
             continue
         aft = [r["swing_after_m"] * 1e3 for r in ok]
         mod = [r["model_residual_m"] * 1e3 for r in ok]
@@ -235,6 +282,8 @@ def markdown(res) -> list:
                  f"{np.median([r['swing_during_m'] for r in ok]) * 1e3:.0f} | "
                  f"{min(r['tip_clearance_m'] for r in ok) * 1e3:.0f} | "
                  f"{min(r['load_clearance_m'] for r in ok) * 1e3:.0f} | "
+                 f"{_min_mm(ok, 'plant_load_clearance_m')} | "
+                 f"{_med_mm(ok, 'twin_swing_after_m')} | "
                  f"{np.median(sol):.2f} / {_q(sol, 90):.2f} |")
     fails = [r for r in rows if "swing_after_m" not in r]
     if fails:

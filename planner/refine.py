@@ -18,6 +18,13 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   ``end_weight`` after it: landing and calm count most), plus ``smooth``·Σ|u_{k+1} − u_k|²
   (no chatter at the control rate). The reference holds the goal after the plan's end, so
   any residual motion, offset or ringing is paid for.
+* **Swing** (``swing_weight`` > 0, issue 29): the hanging load's swing on the twin's own tip
+  motion (:mod:`planner.model.twin.pendulum`, the model's pendulum) costs
+  ``swing_weight``·∫ A²(t) dt after the plan's end (the tail and the settle window), A² the
+  small-angle amplitude squared L²·(α² + β² + (α̇² + β̇²)/ω₀²) — the swing offset and rate,
+  constant along a free swing — in the same mm²·s as the tip error: the refined commands end
+  with the load at rest under the tip, not only the tip on its goal. Its gradient is the
+  swing's exact reverse derivative carried into the twin's adjoint.
 * **Gradient**: exact, by the adjoint of the twin's compiled integrator
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
@@ -59,7 +66,8 @@ class RefineOptions:
     the ``tail`` [s] the commands may run past the plan, ``settle`` [s] recorded with the
     valves closed after that, ``end_weight`` on the error after the plan's end, ``smooth``
     [1/(command step)²] on the command's steps, the control ``rate`` [Hz], the twin's ``step``
-    [s], ``rest_window`` [s] the end of the record whose mean is the rest point."""
+    [s], ``rest_window`` [s] the end of the record whose mean is the rest point,
+    ``swing_weight`` on the grapple's swing after the plan's end (0: no swing term)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -68,12 +76,14 @@ class RefineOptions:
     rate: float = 50.0
     step: float = 2e-3
     rest_window: float = 1.0
+    swing_weight: float = 0.0
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
                   ("settle", self.settle, 0.2, 60.0), ("end_weight", self.end_weight, 0.0, 1e6),
                   ("smooth", self.smooth, 0.0, 1e6), ("rate", self.rate, 1.0, 1000.0),
-                  ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0))
+                  ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0),
+                  ("swing_weight", self.swing_weight, 0.0, 1e6))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -162,8 +172,9 @@ def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 
 class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
-    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers):
-        self.sh, self.Ku, self.R, self.K = shooting, Ku, R, K
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers,
+                 swing=None):
+        self.sh, self.Ku, self.R, self.K, self.swing = shooting, Ku, R, K, swing
         n = traj.n
         h = shooting.h
         self.tk = traj.t[0] + h * np.arange(K + 1)
@@ -171,6 +182,7 @@ class _Cost:
         w_t = np.where(self.tk > traj.t[-1] + 1e-9, opts.end_weight, 1.0)
         # J in mm²·s (the scale L-BFGS-B's default tolerances suit)
         self.W = 1e6 * h * w_t[:, None] * (levers ** 2)[None, :]
+        self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
         self.smooth = 1e6 * opts.smooth
         self.x0 = shooting.twin.rest_state(traj.q[0])
         self.n, self.evaluations = n, 0
@@ -192,6 +204,8 @@ class _Cost:
         J = float(np.sum(self.W * e * e))
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
+        if self.swing is not None:
+            J += self.swing.cost(run.x, self.W_swing, dJdx)
         g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
         g = g.reshape(self.Ku, self.R, self.n).sum(axis=1)
         dU = np.diff(U, axis=0)
@@ -202,14 +216,18 @@ class _Cost:
 
 
 def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
-                    options: RefineOptions | None = None) -> Refinement:
+                    options: RefineOptions | None = None, pendulum=None) -> Refinement:
     """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
     ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
-    step) so that the twin follows ``traj`` and comes to rest at its goal (module doc).
-    Never raises for a move the twin cannot run: the status says so."""
+    step) so that the twin follows ``traj`` and comes to rest at its goal (module doc);
+    with the options' ``swing_weight`` > 0 the load hanging as ``pendulum`` (a
+    :class:`~planner.model.pendulum.Pendulum`; default the twin's, else the spec's
+    ``[dynamics.grapple]``) at rest too. Never raises for a move the twin cannot run: the
+    status says so."""
     from scipy.optimize import minimize
 
     from planner.model.twin import Twin
+    from planner.model.twin.pendulum import twin_swing
     from planner.model.twin.shooting import Shooting
     opts = options or RefineOptions()
     wall0 = time.perf_counter()
@@ -230,15 +248,17 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         raise ValueError(f"refine: twin step {twin.step:g} s does not divide the control period "
                          f"{dt:g} s")
     sh = Shooting(twin)
+    swing = (twin_swing(crane, twin, pendulum) if opts.swing_weight > 0 or pendulum is not None
+             or twin.swing is not None else None)
     Ku = t_u.size + int(round(opts.tail * opts.rate))
     K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
     levers = _levers(crane, traj.q[-1])
-    cost = _Cost(sh, traj, Ku, R, K, opts, levers)
+    cost = _Cost(sh, traj, Ku, R, K, opts, levers, swing if opts.swing_weight > 0 else None)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
-    nominal = _predict(crane, twin, traj, t_all, U0, K, opts)
+    nominal = _predict(crane, twin, traj, t_all, U0, K, opts, swing)
     if nominal is None:
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
                           wall_s=time.perf_counter() - wall0, **base)
@@ -252,7 +272,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                    bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
                    options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations)))
     U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
-    refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
+    refined = _predict(crane, twin, traj, t_all, U, K, opts, swing) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
@@ -277,10 +297,11 @@ def _scaled(cost, z, s):
 
 
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
-             opts: RefineOptions):
+             opts: RefineOptions, swing=None):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
-    in full (the integrator's recovery substeps included) over the cost's horizon; None when
-    the twin diverges."""
+    in full (the integrator's recovery substeps included) over the cost's horizon, with the
+    swing's (:meth:`planner.model.twin.pendulum.TwinSwing.measures`) when ``swing`` is given;
+    None when the twin diverges."""
     t_end = traj.t[0] + K * twin.step
     tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
     uu = np.vstack([U, np.zeros((1, crane.n))])
@@ -290,4 +311,7 @@ def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
     ts = traj.t[0] + np.arange(int(math.floor((t_end - traj.t[0]) * opts.rate + 1e-9)) + 1) \
         / opts.rate
     q = run.sample(ts)[0]
-    return landing_measures(crane, ts, q, traj, opts.rest_window)
+    out = landing_measures(crane, ts, q, traj, opts.rest_window)
+    if swing is not None:
+        out.update(swing.measures(run.t, swing.integrate(run.q, run.qd), traj.t[-1]))
+    return out

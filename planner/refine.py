@@ -18,13 +18,14 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   ``end_weight`` after it: landing and calm count most), plus ``smooth``·Σ|u_{k+1} − u_k|²
   (no chatter at the control rate). The reference holds the goal after the plan's end, so
   any residual motion, offset or ringing is paid for.
-* **Swing** (``swing_weight`` > 0, issue 29): the hanging load's swing on the twin's own tip
-  motion (:mod:`planner.model.twin.pendulum`, the model's pendulum) costs
-  ``swing_weight``·∫ A²(t) dt after the plan's end (the tail and the settle window), A² the
-  small-angle amplitude squared L²·(α² + β² + (α̇² + β̇²)/ω₀²) — the swing offset and rate,
-  constant along a free swing — in the same mm²·s as the tip error: the refined commands end
-  with the load at rest under the tip, not only the tip on its goal. Its gradient is the
-  swing's exact reverse derivative carried into the twin's adjoint.
+* **Swing** (``swing_weight`` > 0, issue 29): on the twin that carries the load on its
+  grapple link (:mod:`planner.model.twin.coupled`: the model's pendulum, driven by the twin's
+  tip and pulling on it) the swing costs ``swing_weight``·∫ A²(t) dt after the plan's end
+  (the tail and the settle window), A² the small-angle amplitude squared
+  L²·(α² + β² + (α̇² + β̇²)/ω₀²) (:func:`planner.model.twin.pendulum.amplitude2`) — the swing's
+  offset and rate, constant along a free swing — in the same mm²·s as the tip error: the
+  refined commands end with the load at rest under the tip, not only the tip on its goal.
+  The swing's states are the twin's, so the adjoint gives its gradient too.
 * **Gradient**: exact, by the adjoint of the twin's compiled integrator
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
@@ -173,8 +174,8 @@ class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
     def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers,
-                 swing=None):
-        self.sh, self.Ku, self.R, self.K, self.swing = shooting, Ku, R, K, swing
+                 pendulum=None):
+        self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n
         h = shooting.h
         self.tk = traj.t[0] + h * np.arange(K + 1)
@@ -204,8 +205,12 @@ class _Cost:
         J = float(np.sum(self.W * e * e))
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
-        if self.swing is not None:
-            J += self.swing.cost(run.x, self.W_swing, dJdx)
+        if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
+            from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
+            nb = 5 * self.n + 1
+            S = run.x[:, nb:]
+            J += float(np.sum(self.W_swing * amplitude2(self.pendulum, S)))
+            dJdx[:, nb:] += self.W_swing[:, None] * amplitude2_gradient(self.pendulum, S)
         g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
         g = g.reshape(self.Ku, self.R, self.n).sum(axis=1)
         dU = np.diff(U, axis=0)
@@ -220,14 +225,14 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
     ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
     step) so that the twin follows ``traj`` and comes to rest at its goal (module doc);
-    with the options' ``swing_weight`` > 0 the load hanging as ``pendulum`` (a
-    :class:`~planner.model.pendulum.Pendulum`; default the twin's, else the spec's
-    ``[dynamics.grapple]``) at rest too. Never raises for a move the twin cannot run: the
-    status says so."""
+    with the options' ``swing_weight`` > 0 the load at rest under the tip too, the load
+    hanging on the twin's grapple link (the twin's ``pendulum``; default twin: one with
+    ``pendulum`` — a :class:`~planner.model.pendulum.Pendulum` or a length [m] — else the
+    spec's ``[dynamics.grapple]``). Never raises for a move the twin cannot run: the status
+    says so."""
     from scipy.optimize import minimize
 
     from planner.model.twin import Twin
-    from planner.model.twin.pendulum import twin_swing
     from planner.model.twin.shooting import Shooting
     opts = options or RefineOptions()
     wall0 = time.perf_counter()
@@ -242,23 +247,27 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
             np.max(np.abs(np.diff(t_u) - dt)) > 1e-6:
         raise ValueError(f"refine: commands are not on the {opts.rate:g} Hz grid from the "
                          f"plan's start t = {traj.t[0]:g} s")
-    twin = twin or Twin(crane, step=opts.step)
+    if twin is None:
+        hang = pendulum if pendulum is not None else (True if opts.swing_weight > 0 else None)
+        twin = Twin(crane, step=opts.step, grapple=hang)
+    if opts.swing_weight > 0 and twin.pendulum is None:
+        raise ValueError(f"refine option 'swing_weight' = {opts.swing_weight!r}; allowed: 0 "
+                         "with a twin that has no grapple (Twin(..., grapple=LENGTH))")
     R = int(round(dt / twin.step))
     if abs(R * twin.step - dt) > 1e-9 * dt:
         raise ValueError(f"refine: twin step {twin.step:g} s does not divide the control period "
                          f"{dt:g} s")
     sh = Shooting(twin)
-    swing = (twin_swing(crane, twin, pendulum) if opts.swing_weight > 0 or pendulum is not None
-             or twin.swing is not None else None)
     Ku = t_u.size + int(round(opts.tail * opts.rate))
     K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
     levers = _levers(crane, traj.q[-1])
-    cost = _Cost(sh, traj, Ku, R, K, opts, levers, swing if opts.swing_weight > 0 else None)
+    cost = _Cost(sh, traj, Ku, R, K, opts, levers,
+                 twin.pendulum if opts.swing_weight > 0 else None)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
-    nominal = _predict(crane, twin, traj, t_all, U0, K, opts, swing)
+    nominal = _predict(crane, twin, traj, t_all, U0, K, opts)
     if nominal is None:
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
                           wall_s=time.perf_counter() - wall0, **base)
@@ -272,7 +281,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                    bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
                    options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations)))
     U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
-    refined = _predict(crane, twin, traj, t_all, U, K, opts, swing) if res.fun < J0 else None
+    refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
@@ -297,11 +306,11 @@ def _scaled(cost, z, s):
 
 
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
-             opts: RefineOptions, swing=None):
+             opts: RefineOptions):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
     in full (the integrator's recovery substeps included) over the cost's horizon, with the
-    swing's (:meth:`planner.model.twin.pendulum.TwinSwing.measures`) when ``swing`` is given;
-    None when the twin diverges."""
+    swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the
+    load on its link; None when the twin diverges."""
     t_end = traj.t[0] + K * twin.step
     tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
     uu = np.vstack([U, np.zeros((1, crane.n))])
@@ -312,6 +321,7 @@ def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
         / opts.rate
     q = run.sample(ts)[0]
     out = landing_measures(crane, ts, q, traj, opts.rest_window)
-    if swing is not None:
-        out.update(swing.measures(run.t, swing.integrate(run.q, run.qd), traj.t[-1]))
+    if run.swing is not None:
+        from planner.model.twin.pendulum import swing_measures
+        out.update(swing_measures(twin.pendulum, run.t, run.swing, traj.t[-1]))
     return out

@@ -123,7 +123,7 @@ def _adjoint_step(rhs, n: int, st):
     a = seed + 4.0 / 3.0 * carry[:nx] - 1.0 / 3.0 * carry[nx:]
     # in scaled states (1 rad, 1 MPa, …): the symbolic solve does not pivot, and A mixes
     # entries of 1 and 1e10 unscaled (the adjoint recursion then amplifies the rounding)
-    d = ca.DM(state_scale(n))
+    d = ca.DM(st.scale if hasattr(st, "scale") else state_scale(n))   # coupled: 4 more
     As = A * ca.mtimes(1.0 / d, d.T)             # D⁻¹·A·D
     mu = ca.solve(As.T, d * a) / d
     gu = c * ca.mtimes(ca.jacobian(f, u).T, mu)

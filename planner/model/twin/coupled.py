@@ -1,0 +1,143 @@
+"""The twin with its load hanging on the grapple link, both ways: the swing drives the boom too.
+
+:mod:`planner.model.twin.pendulum` drives the model's pendulum by the boom and stops there,
+like the planner's own swing model. On the Exudyn plant that is not enough: the swinging load
+pulls the boom tip about, the slew's trapped oil gives, and the boom's motion differs from the
+twin's by up to 0.1 m at the tip on a forwarder move with 880 kg on a 1.5 m link — enough to
+double the swing left at arrival (measured: the one-way swing on the twin 52 mm, the plant's
+113 mm, the same one-way pendulum on the plant's recorded joints 114 mm). Here the load's
+reaction acts on the boom:
+
+* **State** x = (twin state (5n + 1), α, β, α̇, β̇): the twin's state (:mod:`.ode`) and the
+  swing's four (:data:`planner.model.pendulum.STATE`).
+* **Reaction.** The twin's rigid bodies carry the payload m as a point mass at the tip, which
+  pushes on it with m·(g − a_tip). Hanging on the link, the load's centre of mass accelerates
+  with a_tip + d̈ (d the link vector, :func:`planner.model.pendulum` coordinates), so the pivot
+  carries m·(g − a_tip − d̈): the difference ΔF = −m·d̈ is the extra force on the tip (frame 0),
+  τ = J_tipᵀ·ΔF on the joints, handed to the twin's right-hand side as the actuator forces the
+  actuators work against, f_x = −τ_i / (dx_i/dq_i) (:func:`planner.model.actuators.stroke_expr`).
+  The pendulum's mass is the twin's payload (the spec's load + tool unless told otherwise).
+* **Inputs.** The link's data (length, mass, gyration, pin damping) follow the twin's
+  parameter vector, so one compiled step serves every grapple on the same rigid bodies.
+* **The algebraic loop.** d̈ depends on the tip's acceleration, which depends on ΔF. One
+  fixed-point pass: the boom's acceleration without ΔF gives a_tip,0, the swing's θ̈ and d̈ at
+  a_tip,0 give ΔF, the boom's acceleration with ΔF gives a_tip, and the swing's derivative is
+  that of ``swing_rhs`` at a_tip. The pass misses only the part of the load's reaction that
+  the load's own reaction changes (the hydraulic boom is flow-driven: its acceleration
+  hardly depends on the force), and the state at rest is still an equilibrium.
+
+The stepper is the twin's BDF2 (:class:`planner.model.twin.integrator.Stepper`) on the longer
+state, the swing's states scaled by 1 rad (:class:`CoupledStepper`); the twin's adjoint
+(:mod:`planner.model.twin.shooting`) runs on it unchanged, so :func:`planner.refine` can put a
+cost on the swing's states directly.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+
+from planner.model.actuators import stroke_expr
+from planner.model.numeric import jit_function
+from planner.model.pendulum import swing_rhs_expr, tip_motion
+from planner.model.twin.integrator import Stepper, state_scale
+from planner.model.twin.ode import build_rhs, state_size
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+
+__all__ = ["SWING_STATES", "LINK_PARAMETERS", "coupled_rhs", "CoupledStepper",
+           "coupled_stepper"]
+
+SWING_STATES = 4       # α, β, α̇, β̇
+LINK_PARAMETERS = 4    # length, mass, gyration, damping: inputs of the compiled step
+_BUILT: dict = {}
+
+
+def _link_acceleration(L, s, sdot):
+    """d̈ (3,) of the link vector d(α, β) (length ``L``) for swing state ``s`` and its
+    derivative ``sdot``."""
+    th, thd, thdd = s[:2], s[2:], sdot[2:]
+    d = ca.vertcat(ca.sin(th[1]) * L, -ca.sin(th[0]) * ca.cos(th[1]) * L,
+                   -ca.cos(th[0]) * ca.cos(th[1]) * L)
+    J = ca.jacobian(d, th)
+    return J @ thdd + ca.jacobian(J @ thd, th) @ thd
+
+
+def coupled_rhs(crane: Crane, spec) -> ca.Function:
+    """``twin_swing_rhs(x, u, f_x, P) -> ẋ`` on the state (5n + 1 + 4) of the module doc;
+    P the twin's parameter vector followed by the link's (length, mass, gyration, damping)
+    (:meth:`planner.model.pendulum.Pendulum.values`): one compiled step for every grapple."""
+    n = crane.n
+    base = build_rhs(crane, spec)["rhs"]
+    nb, npar = state_size(n), base.size1_in(3)
+    X = ca.SX.sym("x", nb + SWING_STATES)
+    U, FX = ca.SX.sym("u", n), ca.SX.sym("f_x", n)
+    P = ca.SX.sym("P", npar + LINK_PARAMETERS)
+    x, s, Pt = X[:nb], X[nb:], P[:npar]
+    L, m, k, c = (P[npar + i] for i in range(LINK_PARAMETERS))
+    q, qd = x[:n], x[n:2 * n]
+    tm = tip_motion(crane)
+
+    def f(s_, a_):
+        return swing_rhs_expr(s_, a_, L, m, k, c, spec.gravity)
+    xdot0 = base(x, U, FX, Pt)
+    a0 = tm(q, qd, xdot0[n:2 * n])[2]
+    dF = -m * _link_acceleration(L, s, f(s, a0))
+    Jt = ca.jacobian(tm(q, qd, ca.SX.zeros(n))[0], q)
+    tau = Jt.T @ dF
+    dxdq = ca.vertcat(*[ca.jacobian(stroke_expr(j, q[i]), q[i])
+                        for i, j in enumerate(spec.joints)])
+    xdot = base(x, U, FX - tau / dxdq, Pt)
+    a = tm(q, qd, xdot[n:2 * n])[2]
+    return ca.Function("twin_swing_rhs", [X, U, FX, P], [ca.vertcat(xdot, f(s, a))],
+                       ["x", "u", "f_x", "P"], ["xdot"])
+
+
+class CoupledStepper(Stepper):
+    """The twin's BDF2 stepper (same Newton, chunk and recovery substeps) on the state with
+    the swing; ``scale`` the per-state scale of its Newton check (the twin's, then 1 rad)."""
+
+    def __init__(self, rhs: ca.Function, n: int, h: float, newton: int = 3, chunk: int = 50,
+                 tol: float = 1e-2, refine: int = 4, depth: int = 2):
+        self.n, self.h, self.newton, self.chunk = n, float(h), int(newton), int(chunk)
+        self.tol, self.refine, self.depth = float(tol), int(refine), int(depth)
+        self._rhs, self._fine, self.refined = rhs, None, 0
+        self.scale = np.concatenate([state_scale(n), np.ones(SWING_STATES)])
+        nx = self.nx = self.scale.size
+        npar = self._npar = rhs.size1_in(3)
+        xk, xm, ys = ca.SX.sym("xk", nx), ca.SX.sym("xm", nx), ca.SX.sym("y", nx)
+        u, fx, P = ca.SX.sym("u", n), ca.SX.sym("f_x", n), ca.SX.sym("P", npar)
+        jac = ca.Function("twin_swing_jac", [ys, u, fx, P], [ca.jacobian(rhs(ys, u, fx, P), ys)])
+        c = 2.0 / 3.0 * self.h
+        y = 2 * xk - xm
+        J = ca.SX.eye(nx) - c * jac(y, u, fx, P)
+        b = 4.0 / 3.0 * xk - 1.0 / 3.0 * xm
+        dy = ca.SX.zeros(nx)
+        for _ in range(self.newton):
+            dy = ca.solve(J, y - b - c * rhs(y, u, fx, P))
+            y = y - dy
+        err = ca.mmax(ca.fabs(dy) * ca.DM(1.0 / self.scale))
+        self.step_sx = ca.Function("twin_swing_bdf2", [ca.vertcat(xk, xm), u, fx, P],
+                                   [ca.vertcat(y, xk), err], {"cse": True})
+        self._f = jit_function(self.step_sx.mapaccum("twin_swing_chunk", self.chunk))
+        self.compiled = self._f is not None and self._f.is_a("External")
+
+    def _refined(self, xx, u, f_x, P):
+        if self._fine is None:
+            self._fine = CoupledStepper(self._rhs, self.n, self.h / self.refine, self.newton,
+                                        self.chunk, self.tol, self.refine, self.depth - 1)
+        return super()._refined(xx, u, f_x, P)
+
+
+def coupled_stepper(crane: Crane, spec, step: float, newton: int, chunk: int):
+    """(stepper, rhs) of the coupled twin, built once per process and (bodies, step) and
+    compiled once per user (:func:`planner.model.numeric.jit_function`); the grapple's data
+    are inputs."""
+    key = (repr(spec.joints), repr(spec.gravity), step, newton, chunk)
+    got = _BUILT.get(key)
+    if got is None:
+        rhs = coupled_rhs(crane, spec)
+        got = _BUILT[key] = (CoupledStepper(rhs, crane.n, step, newton, chunk), rhs)
+    return got

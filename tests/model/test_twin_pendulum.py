@@ -103,6 +103,7 @@ def test_the_loads_pull_moves_the_boom(crane, pend, move):
     assert np.max(np.abs(still.swing)) < 1e-9 and np.max(np.abs(still.q - move.q[0])) < 1e-6
 
 
+@pytest.mark.slow   # two refinements on the coupled twin (its adjoint compiled once: minutes)
 def test_the_swing_term_leaves_less_predicted_swing_than_without_it(crane, pend, move):
     t_u, u = stored_commands(move)
     twin = Twin(crane, grapple=pend)

@@ -19,12 +19,14 @@ reaction acts on the boom:
   The pendulum's mass is the twin's payload (the spec's load + tool unless told otherwise).
 * **Inputs.** The link's data (length, mass, gyration, pin damping) follow the twin's
   parameter vector, so one compiled step serves every grapple on the same rigid bodies.
-* **The algebraic loop.** d̈ depends on the tip's acceleration, which depends on ΔF. One
-  fixed-point pass: the boom's acceleration without ΔF gives a_tip,0, the swing's θ̈ and d̈ at
-  a_tip,0 give ΔF, the boom's acceleration with ΔF gives a_tip, and the swing's derivative is
-  that of ``swing_rhs`` at a_tip. The pass misses only the part of the load's reaction that
-  the load's own reaction changes (the hydraulic boom is flow-driven: its acceleration
-  hardly depends on the force), and the state at rest is still an equilibrium.
+* **The algebraic loop.** d̈ depends on the tip's acceleration, which depends on ΔF. Both
+  are affine: the swing's θ̈ in a_tip (its Lagrange equations), the boom's q̈ in the actuator
+  forces (q̈ = q̈₀ + B·δ, B = ∂q̈/∂f_x = −M⁻¹·diag(dx/dq)), so the extra actuator force δ
+  solves one n×n linear system, (I + D⁻¹·Jtᵀ·K·Jt·B)·δ = −D⁻¹·Jtᵀ·ΔF(a₀) (K = ∂ΔF/∂a_tip,
+  a₀ the tip's acceleration with the load a point at the tip, Jt the tip's Jacobian, D the
+  stroke derivatives): exact, the load's apparent mass included (hanging on its link it
+  follows a quick horizontal push of the tip with only k²/(L² + k²) of its mass). At rest the
+  state is still an equilibrium.
 
 The stepper is the twin's BDF2 (:class:`planner.model.twin.integrator.Stepper`) on the longer
 state, the swing's states scaled by 1 rad (:class:`CoupledStepper`); the twin's adjoint
@@ -82,15 +84,24 @@ def coupled_rhs(crane: Crane, spec) -> ca.Function:
 
     def f(s_, a_):
         return swing_rhs_expr(s_, a_, L, m, k, c, spec.gravity)
-    xdot0 = base(x, U, FX, Pt)
-    a0 = tm(q, qd, xdot0[n:2 * n])[2]
-    dF = -m * _link_acceleration(L, s, f(s, a0))
+    xdot0 = base(x, U, FX, Pt)                  # the boom with the load a point at the tip
+    qdd0 = xdot0[n:2 * n]
+    B = ca.jacobian(qdd0, FX)                   # ∂q̈/∂f_x = −M⁻¹·diag(dx/dq): q̈ is affine in f_x
+    a0 = tm(q, qd, qdd0)[2]
     Jt = ca.jacobian(tm(q, qd, ca.SX.zeros(n))[0], q)
-    tau = Jt.T @ dF
+    aa = ca.SX.sym("a", 3)
+    dF = -m * _link_acceleration(L, s, f(s, aa))   # ΔF(a_tip): affine in a_tip
+    K = ca.substitute(ca.jacobian(dF, aa), aa, a0)
+    dF0 = ca.substitute(dF, aa, a0)
     dxdq = ca.vertcat(*[ca.jacobian(stroke_expr(j, q[i]), q[i])
                         for i, j in enumerate(spec.joints)])
-    xdot = base(x, U, FX - tau / dxdq, Pt)
-    a = tm(q, qd, xdot[n:2 * n])[2]
+    Dinv = ca.diag(1.0 / dxdq)
+    # δ: the extra actuator force, δ = −D⁻¹·Jtᵀ·ΔF(a0 + Jt·B·δ), solved (linear in δ)
+    A = ca.SX.eye(n) + Dinv @ Jt.T @ K @ Jt @ B
+    delta = ca.solve(A, -Dinv @ (Jt.T @ dF0))
+    qdd = qdd0 + B @ delta
+    a = a0 + Jt @ (B @ delta)
+    xdot = ca.vertcat(xdot0[:n], qdd, xdot0[2 * n:])
     return ca.Function("twin_swing_rhs", [X, U, FX, P], [ca.vertcat(xdot, f(s, a))],
                        ["x", "u", "f_x", "P"], ["xdot"])
 

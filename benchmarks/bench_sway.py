@@ -199,7 +199,10 @@ def main(argv=None):
             rows.append(row)
             log(f"{mv.id:28s} {name:9s} T={row['duration_s']:.2f} s  after "
                 f"{row.get('swing_after_m', float('nan')) * 1e3:5.0f} mm  model "
-                f"{pred.residual_m * 1e3:5.0f} mm  solve {row['solve_time_s']:.1f} s")
+                f"{pred.residual_m * 1e3:5.0f} mm  solve {row['solve_time_s']:.1f} s"
+                + (f"  twin {row['twin_swing_nominal_m'] * 1e3:.0f} -> "
+                   f"{row['twin_swing_after_m'] * 1e3:.0f} mm, refine {row['refine_s']:.0f} s"
+                   if row.get("twin_swing_after_m") is not None else ""))
     res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                             load=list(os.getloadavg())),

@@ -107,6 +107,8 @@ def main(argv=None):
     ap.add_argument("--refine", type=int, default=0, metavar="ITER",
                     help="replay the twin's refined feed-forward (planner.refine, ITER "
                          "L-BFGS-B iterations) instead of the nominal one")
+    ap.add_argument("--ff-iterations", type=int, default=150,
+                    help="L-BFGS-B iterations of the +ff / +ffs refinements")
     ap.add_argument("--swing-weight", type=float, default=10.0,
                     help="the refiner's swing weight for the +ffs methods (RefineOptions)")
     ap.add_argument("--only", default="", help="comma-separated move ids (instead of --moves)")
@@ -168,7 +170,8 @@ def main(argv=None):
                 nom = commands(crane, tr, 50.0)
                 w = args.swing_weight if "ffs" in ff else 0.0   # +ffs: with the swing term
                 ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
-                                      options=RefineOptions(iterations=args.refine or 150,
+                                      options=RefineOptions(iterations=args.refine
+                                                            or args.ff_iterations,
                                                             swing_weight=w))
                 k = int(round(args.settle * 50.0))
                 t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
@@ -251,8 +254,9 @@ def markdown(res) -> list:
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
             else "nominal 50 Hz feed-forward (`+ff`: its valve commands refined on the dynamic "
                  "twin, planner.refine, tip tracking and landing only; `+ffs`: with the swing "
-                 f"term, swing_weight {a.get('swing_weight', 10.0):g}, the twin carrying the "
-                 "pendulum)")
+                 f"term, swing_weight {a.get('swing_weight', 10.0):g}, on the twin carrying "
+                 "the load on its link; "
+                 f"{a.get('ff_iterations', 150)} L-BFGS-B iterations)")
          + " replayed open loop, then the valves closed. Swing: the horizontal "
          "distance of the load's centre of mass from under the tip (the plant's tree). "
          "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",

@@ -112,11 +112,16 @@ def main(argv=None):
     ap.add_argument("--swing-weight", type=float, default=10.0,
                     help="the refiner's swing weight for the +ffs methods (RefineOptions)")
     ap.add_argument("--only", default="", help="comma-separated move ids (instead of --moves)")
+    ap.add_argument("--merge", nargs="+", type=Path, default=None, metavar="JSON",
+                    help="write one table of these runs' rows (the same options, moves split "
+                         "between processes with --only) under --tag, and stop")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--tag", default="sway", help="result file name stem")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
                     / "crane-sway")
     args = ap.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.out, args.tag)
     t_start = time.perf_counter()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     crane = Crane.from_id("s100f")
@@ -218,6 +223,24 @@ def main(argv=None):
     log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
 
 
+def merge(paths, out: Path, tag: str) -> None:
+    """One result of several runs of the same options over different moves (``--only``,
+    parallel processes): rows and moves joined, wall times summed, the first run's date,
+    machine and options (``only`` the union)."""
+    import json
+    runs = [json.loads(Path(p).read_text()) for p in paths]
+    res = dict(runs[0])
+    res["rows"] = [r for run in runs for r in run["rows"]]
+    res["moves"] = [m for run in runs for m in run["moves"]]
+    res["wall_s"] = sum(run["wall_s"] for run in runs)
+    res["args"] = dict(res["args"], only=",".join(res["moves"]), tag=tag,
+                       processes=len(runs))
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / f"{tag}.json", dumps(res))
+    atomic_write_text(out / f"{tag}.md", "\n".join(markdown(res)) + "\n")
+    log(f"wrote {out / (tag + '.md')} ({len(res['rows'])} rows of {len(runs)} runs)")
+
+
 def _q(v, p):
     return float(np.percentile(v, p)) if len(v) else float("nan")
 
@@ -241,12 +264,19 @@ def markdown(res) -> list:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     L = ["# Sway-free moves on the Exudyn plant with the grapple (issue 29)", "",
          f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
-         f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py --moves "
-         f"{a['moves']} --length {a['length']:g} --zeta {a['zeta']:g} --settle "
+         f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py"
+         + ("" if a.get("only") else f" --moves {a['moves']}")
+         + f" --length {a['length']:g} --zeta {a['zeta']:g} --settle "
          f"{a['settle']:g} --methods {a['methods']}"
          + (f" --refine {a['refine']}" if a.get("refine") else "")
          + (f" --plant-length {a['plant_length']:g}" if a.get("plant_length") else "")
-         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min). s100f, "
+         + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
+            f"{a.get('swing_weight', 10.0):g}"
+            if "+ff" in a["methods"] else "")
+         + (f" --only {a['only']}" if a.get("only") else "")
+         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min"
+         + (f" of CPU-bound wall time summed over {a['processes']} parallel processes"
+            if a.get("processes") else "") + "). s100f, "
          f"its {res['effect'].get('length', a['length'])} m grapple link "
          + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
@@ -264,17 +294,17 @@ def markdown(res) -> list:
          "residual swing mm (median / p90 / max) | swing left after "
          f"{a['settle']:g} s mm (median) | model residual mm (median / p90) | swing during "
          "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | load "
-         "clearance mm (min, plant) | twin swing after mm (median, +ff) | solve s "
-         "(median / p90) |",
+         "clearance mm (min, plant) | twin swing after mm (median, +ff) | tip end error mm "
+         "(median, plant) | solve s (median / p90) |",
          "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: "
-         "| --- |"]
+         "| ---: | --- |"]
     by = {m: {r["move"]: r for r in rows if r["method"] == m and "swing_after_m" in r}
           for m in methods}
     for m in methods:
         ok = list(by[m].values())
         n_all = sum(r["method"] == m for r in rows)
         if not ok:
-            L.append(f"| {m} | 0 / {n_all} |" + " |" * 11)
+            L.append(f"| {m} | 0 / {n_all} |" + " |" * 12)
             continue
         aft = [r["swing_after_m"] * 1e3 for r in ok]
         mod = [r["model_residual_m"] * 1e3 for r in ok]
@@ -291,6 +321,7 @@ def markdown(res) -> list:
                  f"{min(r['load_clearance_m'] for r in ok) * 1e3:.0f} | "
                  f"{_min_mm(ok, 'plant_load_clearance_m')} | "
                  f"{_med_mm(ok, 'twin_swing_after_m')} | "
+                 f"{_med_mm(ok, 'tip_end_error_m')} | "
                  f"{np.median(sol):.2f} / {_q(sol, 90):.2f} |")
     fails = [r for r in rows if "swing_after_m" not in r]
     if fails:

@@ -3,8 +3,11 @@
 swing after arrival and the duration of the sway-blind minimum-time plan (``nlp``), its ZV and
 ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side. s100f.
 
-    python benchmarks/bench_sway.py [--moves 12] [--length 1.5] [--zeta 0.05] [--settle 6]
-                                    [--methods nlp,zv,zvd,nlp-sway] [--out benchmarks/results]
+    python benchmarks/bench_sway.py [--moves 12 | --only ID,ID] [--length 1.5] [--zeta 0.05]
+                                    [--settle 6] [--methods nlp,zv,zvd,nlp-sway,nlp-sway+ffs]
+                                    [--ff-iterations 150] [--swing-weight 10]
+                                    [--out benchmarks/results] [--tag sway]
+    python benchmarks/bench_sway.py --merge A.json B.json --tag NAME   # split runs, one table
 
 Forwarder moves over the headboard (the library subset of the shipped forwarder cycle, half
 pick-ups, half drops); every method plans with the headboard and the grapple it is told
@@ -15,7 +18,13 @@ same link, then ``--settle`` s with the valves closed. Measured from the plant's
 tip — its peak during the move, after arrival (the residual swing) and in the last second.
 Beside them: the model's prediction (:func:`planner.model.pendulum.predict_swing`), the tip's
 clearance from the headboard at 1 kHz and the load's (tip + the model's link) in the plan,
-solve times. Judge: the Exudyn plant.
+solve times. A method name may end in ``+ff`` (its commands refined on the dynamic twin,
+:func:`planner.refine.refine_commands`, tip tracking and landing only) or ``+ffs`` (refined with
+the swing term on the twin that carries the load on its link, :mod:`planner.model.twin.coupled`);
+one plan per method and move serves all its variants. Beside the plant's swing: the twin's
+predicted swing for the refined commands, the load's clearance from the headboard on the
+plant's own grid (the load's centre of mass from the plant's tree) and the tip's distance from
+the goal at the end of the record. Judge: the Exudyn plant.
 """
 from __future__ import annotations
 

@@ -57,8 +57,13 @@ if TYPE_CHECKING:
     from planner.model.twin import Twin
 
 _STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
+#: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
+#: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
+#: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
+SWING_WEIGHT = 10.0
 
-__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures"]
+__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
+           "SWING_WEIGHT"]
 
 
 @dataclass(frozen=True)

@@ -133,3 +133,24 @@ def test_a_bad_swing_weight_names_the_field(crane, move):
     with pytest.raises(ValueError, match="'swing_weight'.*grapple"):
         refine_commands(crane, move, t_u, u, twin=Twin(crane),
                         options=RefineOptions(iterations=1, swing_weight=1.0))
+
+
+@pytest.mark.slow   # a whole-process plan and a 150-iteration refinement on the coupled twin
+def test_plan_with_the_twin_feedforward_and_a_grapple_leaves_less_swing():
+    """`plan --feedforward twin --grapple L`: the refined commands are refined with the swing
+    term on the twin carrying the load, and its predicted swing after arrival is smaller than
+    the nominal commands'."""
+    import json
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-m", "planner", "plan", MACHINE, "--start",
+                        "1.2,0.5,0", "--goal", "1.8,0.8,20deg", "--method", "ruckig",
+                        "--feedforward", "twin", "--grapple", "0.5", "--json"],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    ff = json.loads(r.stdout)["feedforward"]
+    assert ff["commands"] == "refined" and ff["model"]["grapple"]["length_m"] == 0.5
+    assert ff["options"]["swing_weight"] > 0
+    nominal, refined = ff["predicted"]["nominal"], ff["predicted"]["refined"]
+    assert refined["swing_after_m"] < 0.5 * nominal["swing_after_m"]
+    assert refined["rest_offset_m"] < nominal["rest_offset_m"]

@@ -151,7 +151,24 @@ def main(argv=None):
         moves = [m for m in suite.moves if m.id in args.only.split(",")]
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
-    for mv in moves:
+    def save(done):
+        """The result of the moves ``done`` so far (written after every move)."""
+        res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                   machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
+                                load=list(os.getloadavg())),
+                   args={k: (str(v) if isinstance(v, Path) else v)
+                         for k, v in vars(args).items()},
+                   effect=dict(effect.values), pendulum_hz=pend.omega / (2 * np.pi),
+                   moves=[m.id for m in done], rows=rows,
+                   wall_s=time.perf_counter() - t_start)
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / f"{args.tag}.json", dumps(res))
+        atomic_write_text(args.out / f"{args.tag}.md", "\n".join(markdown(res)) + "\n")
+        return res
+
+    for i_mv, mv in enumerate(moves):
+        if i_mv:
+            save(moves[:i_mv])
         planned = {}                          # one plan per (method, options) and move
         for name in args.methods.split(","):
             method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1+ff
@@ -220,15 +237,7 @@ def main(argv=None):
                 + (f"  twin {row['twin_swing_nominal_m'] * 1e3:.0f} -> "
                    f"{row['twin_swing_after_m'] * 1e3:.0f} mm, refine {row['refine_s']:.0f} s"
                    if row.get("twin_swing_after_m") is not None else ""))
-    res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
-               machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
-                            load=list(os.getloadavg())),
-               args={k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-               effect=dict(effect.values), pendulum_hz=pend.omega / (2 * np.pi),
-               moves=[m.id for m in moves], rows=rows, wall_s=time.perf_counter() - t_start)
-    args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(args.out / f"{args.tag}.json", dumps(res))
-    atomic_write_text(args.out / f"{args.tag}.md", "\n".join(markdown(res)) + "\n")
+    res = save(moves)
     log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
 
 

@@ -154,3 +154,34 @@ def test_plan_with_the_twin_feedforward_and_a_grapple_leaves_less_swing():
     nominal, refined = ff["predicted"]["nominal"], ff["predicted"]["refined"]
     assert refined["swing_after_m"] < 0.5 * nominal["swing_after_m"]
     assert refined["rest_offset_m"] < nominal["rest_offset_m"]
+
+
+@pytest.mark.slow   # compiles the coupled twin's adjoint once per user (minutes when cold)
+def test_the_coupled_twins_adjoint_gradient_matches_central_differences(crane, pend, move):
+    """∂J/∂u of a cost on the swing's states and the joints, by the twin's adjoint on the
+    longer state, against central differences of the same forward runs."""
+    from planner.model.twin.shooting import Shooting
+    twin = Twin(crane, grapple=pend)
+    sh = Shooting(twin)
+    t_u, u = stored_commands(move)
+    R = int(round(0.02 / twin.step))
+    K = sh.steps(len(u) * R + 100)
+    us = np.zeros((K, crane.n))
+    us[:len(u) * R] = np.repeat(u, R, axis=0)
+    x0 = twin.rest_state(move.q[0])
+    rng = np.random.default_rng(5)
+    W = np.zeros((K + 1, sh.nx))
+    W[:, -4:] = rng.normal(size=(K + 1, 4))
+    W[:, :crane.n] = 0.1 * rng.normal(size=(K + 1, crane.n))
+
+    def J(uu):
+        return float(np.sum(W * sh.run(x0, uu).x))
+
+    g = sh.gradient(sh.run(x0, us), us, W)
+    m = len(u) * R
+    for _ in range(2):
+        d = np.zeros_like(us)
+        d[:m] = np.repeat(0.05 * rng.normal(size=(len(u), crane.n)), R, axis=0)
+        eps = 1e-4
+        fd = (J(us + eps * d) - J(us - eps * d)) / (2 * eps)
+        assert np.sum(g * d) == pytest.approx(fd, rel=5e-3, abs=1e-9)

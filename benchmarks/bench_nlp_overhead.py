@@ -2,6 +2,8 @@
 same size (issue 31, the "NLP pump on ≤ 1.5× a plain Opti" item).
 
     python benchmarks/bench_nlp_overhead.py [--moves 20] [--rounds 3] [--machines umea-lab]
+    python benchmarks/bench_nlp_overhead.py --ab '{}' '{"fast_step_computation": "no"}' \
+        [--seed 7] [--moves 40] [--rounds 1]       # IPOPT option sets against each other
 
 For each machine, ``--moves`` random tip moves (joint configurations drawn inside the limits,
 as benchmarks/bench_peers.py draws its tip moves); for each move, interleaved ``--rounds`` times
@@ -137,10 +139,11 @@ def med_dict(rows: list) -> dict:
             if isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None}
 
 
-def machine_rows(cid: str, n: int, rounds: int) -> dict:
+def machine_rows(cid: str, n: int, rounds: int, variants=tuple(VARIANTS)) -> dict:
     crane = Crane.from_id(cid)
     nlps = {}
-    for variant, (cache, certify) in VARIANTS.items():
+    for variant in variants:
+        cache, certify = VARIANTS[variant]
         t0 = time.perf_counter()
         m = MoveNLP(crane, "time", N=40, pump=True, solver="ipopt", cache=cache)
         m.certify = certify
@@ -169,7 +172,43 @@ def machine_rows(cid: str, n: int, rounds: int) -> dict:
             row["nlp"][v]["ratio"] = row["nlp"][v]["total_ms"] / row["opti"]["total_ms"]
         rows.append(row)
     return dict(machine=cid, nlp_setup={v: x[2] for v, x in nlps.items()}, moves=rows,
-                nonzeros=nonzeros(nlps["interpreted"][0], o))
+                nonzeros=nonzeros(next(iter(nlps.values()))[0], o))
+
+
+def ab_rows(cid: str, n: int, rounds: int, seed: int, specs: list) -> list:
+    """The NLP always solved under several IPOPT option sets ``specs`` (dicts added to
+    MoveNLP's own; the first the reference), interleaved per move (the order turned every
+    round): per set the median whole-call ms, the median per-move time ratio to the reference,
+    the iterations in all, the solves ok and the NLP's own durations against the reference's
+    (largest relative difference)."""
+    crane = Crane.from_id(cid)
+    nlps = []
+    for spec in specs:
+        m = MoveNLP(crane, "time", N=40, pump=True, solver="ipopt", cache="off",
+                    ipopt_options=spec or None)
+        m.certify = False
+        nlps.append(m)
+    got = [dict(ms=[], iters=0, ok=0, own=[]) for _ in specs]
+    for a, b in moves(crane, n, seed):
+        ts = [[] for _ in specs]
+        for i, m in enumerate(nlps):   # warm-up, and the solution compared
+            r = m.solve(a, b)
+            got[i]["iters"] += r.iterations
+            got[i]["ok"] += r.ok
+            got[i]["own"].append(r.stats.get("nlp_duration_s", r.duration_s))
+        for k in range(rounds):
+            order = range(len(nlps)) if k % 2 == 0 else reversed(range(len(nlps)))
+            for i in order:
+                t0 = time.perf_counter()
+                nlps[i].solve(a, b)
+                ts[i].append(time.perf_counter() - t0)
+        for i in range(len(specs)):
+            got[i]["ms"].append(1e3 * statistics.median(ts[i]))
+    ref = got[0]
+    return [dict(spec=spec, ms=statistics.median(g["ms"]), ratio=statistics.median(
+        x / y for x, y in zip(g["ms"], ref["ms"])), iterations=g["iters"], ok=g["ok"],
+        own_rel=max(abs(x / y - 1) for x, y in zip(g["own"], ref["own"])))
+        for spec, g in zip(specs, got)]
 
 
 def summary(res: dict) -> dict:
@@ -177,7 +216,7 @@ def summary(res: dict) -> dict:
     for mres in res["machines"]:
         rows = mres["moves"]
         s = {}
-        for v in VARIANTS:
+        for v in [v for v in VARIANTS if v in rows[0]["nlp"]]:
             ratios = sorted(r["nlp"][v]["ratio"] for r in rows)
             parts = {k: statistics.median(r["nlp"][v][k] for r in rows)
                      for k in ("total_ms", "python_ms")}
@@ -204,13 +243,21 @@ def summary(res: dict) -> dict:
             for r in rows)
         s["opti"] = o
         s["size"] = dict({k: rows[0][k] for k in ("vars", "cons")}, nonzeros=mres["nonzeros"])
+        s["variants"] = [v for v in VARIANTS if v in s]
         out[mres["machine"]] = s
     return out
 
 
 # the same command before issue 31's changes (main 6dd9805's nlp_overhead.md, 2026-11-26 09:24,
 # load 9.5-11.5), and the plans of the run after them against that run's, move by move
-BEFORE = ("Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
+BEFORE = ("Second session (branch wt-nlp6, from main f90ec7a: the trials below from \"second "
+          "session, start\"): the NLP always solved went from 1.54× (umea-lab) and 2.90× "
+          "(s100f), trial runs of `--variants nlp_always` at load 2.4-6.8, to the table's "
+          "(umea-lab **1.23×**; a repeat with `--variants nlp_always` right after, load "
+          "8.7-9.2: **1.20×**); the plans' durations against the first session's final run "
+          "(umea-lab, all three variants) and the start's trial run (s100f), move by move: "
+          "within 7e-8 relative (median 0). First session: "
+          "Before (the same command, main 6dd9805, load 9.5-11.5): **1.92×** interpreted, "
           "**1.82×** compiled, the NLP solved on every move (28 iterations, 1743 rows, 7764 "
           "Jacobian nonzeros). After (2026-11-26 13:11, load 7.0-7.6): the plans' durations "
           "against that run's, move by move: median -2.5e-5, max +2.9e-6, min -1.1e-3 "
@@ -269,6 +316,47 @@ TRIALS = (
     ("certificate against the fine telescope search (lower_bound's default grid, 1e-4)",
      "0.65× / 0.60× compiled (final run)", "0 (14 of 20 moves)", "max +2.9e-6 (plans)",
      "**yes** (the fine bound costs ~20 ms of the certified call)"),
+    # the second session on the item (branch wt-nlp6, from main f90ec7a): the Python around
+    # the solver call, then the Hessian; --variants nlp_always, plans against the start
+    ("second session, start (main f90ec7a; load 2.4-3.4; Python around the call 28.2 ms)",
+     "1.54×", 17.5, "0", "-"),
+    ("the exact move's limit check only where it decides (the certificate by duration first, "
+     "the swap only for a move faster than the NLP's) and without evaluate()'s dynamics "
+     "(kinematic limits and the pump's draw from the stroke rates: the same numbers on 120 "
+     "moves of 4 machines); no load-sensing mask for minimum time",
+     "1.48× (load 4.0-4.6)", 17.5, "0 (plans identical)",
+     "**yes**: Python around 28.2 → 23.2 ms"),
+    ("the guess's lower bound: both ends' IK in one call per level, reasons spelled out only "
+     "to raise, combined_only computing only the timing bounds (the other fields at their grid "
+     "values, as documented)", "1.56× (load 3.5-3.7, both sides faster: Opti 53 ms)", 17.5,
+     "0 (plans identical)", "**yes**: 8.4 → 6.6 ms per bound (48 moves, 4 machines, combined "
+     "bound and telescopes bit-identical); Python around 9.7 ms in that run"),
+    ("CasADi's cse on the Hessian", "-", "-", "-", "no: 121k → 111k instructions, 1.02 → 0.95 "
+     "ms per evaluation, +0.85 s build"),
+    ("the pump rows' Hessian through the stroke Jacobians (chain rule, exact: "
+     "planner/methods/nlp/hessian.py)", "1.36× (load 4.5-4.7)", 17.5, "≤ 7e-16 (plans)",
+     "**yes**: 121k → 112k instructions, 0.95 → 0.74 ms per evaluation (interleaved), the "
+     "same matrix within 3e-16 relative, the same sparsity"),
+    ("+ J, J′, J″ of each node from one function with common subexpressions merged, placed "
+     "by index (J″ alone: 966 → 479 instructions per node)", "1.24× (load 8.0)", 19,
+     "≤ 1.3e-14 (plans)", "**yes**: 83k instructions, 1.23 vs 1.73 ms per evaluation against "
+     "CasADi's own (interleaved, loaded)"),
+    ("the constraint Jacobian through the stroke Jacobians likewise (jac_g)", "-", "-", "-",
+     "no: 54.0k → 53.6k instructions, 0.56 → 0.50 ms (umea-lab), not worth the code"),
+    ("IPOPT fast_step_computation yes (minimum time, free path: no residual check of the "
+     "Newton step); A/B in one process, interleaved, the NLP always solved",
+     "1.28× (load 6.0); A/B 0.94× (bench moves), 0.92× (40 other moves)", "20 (939 in all on "
+     "the 40, before 903)", "≤ 1.3e-6 (NLP's own), plans ≤ 7e-8",
+     "**yes**: s100f A/B 0.86× / 0.93× (1315 vs 1258 iterations on 40 moves); every solve "
+     "ok. At the end, on top of every kept change (`--ab '{}' '{\"fast_step_computation\": "
+     "\"no\"}' --seed 7 --moves 40 --rounds 1 --machines umea-lab,s100f`, load 5.4-6.6): "
+     "without it 1.16× / 1.13× the time, 40/40 ok both ways, own durations within 1.3e-7"),
+    ("IPOPT (A/B against the kept options) max_soc 0 / mumps_pivtol 1e-8 / "
+     "first_hessian_perturbation 1e-2 / neg_curv_test_reg no / alpha_for_y primal-and-full / "
+     "recalc_y yes / mu_max 1e3 / adaptive_mu_globalization kkt-error, never-monotone-mode / "
+     "quality_function_max_section_steps 3", "1.03 / 1.09 / 1.02 / 1.03 / 1.03 / 1.03 / 1.02 / "
+     "1.07, 1.02 / 1.09 (× the reference's time)", "413-590 in all (reference 415-426)", "-",
+     "no"),
 )
 
 
@@ -302,16 +390,17 @@ def report(res: dict) -> str:
          "(certified moves skip it).", "", BEFORE, ""]
     for cid, s in res["summary"].items():
         nz = s["size"]["nonzeros"]
+        v0 = s["variants"][0]
         L += [f"## {cid}", "",
-              f"Size: NLP {s['size']['vars']['interpreted']} variables / "
-              f"{s['size']['cons']['interpreted']} constraints, {nz['nlp']['jacobian']} "
+              f"Size: NLP {s['size']['vars'][v0]} variables / "
+              f"{s['size']['cons'][v0]} constraints, {nz['nlp']['jacobian']} "
               f"Jacobian and {nz['nlp']['hessian']} Hessian nonzeros; Opti "
               f"{s['size']['vars']['opti']} / {s['size']['cons']['opti']}, "
               f"{nz['opti']['jacobian']} and {nz['opti']['hessian']}.", "",
               "| | whole call ms | ratio to Opti (median, p90, max) | iterations | functions ms "
               "(Hessian, Jacobian, g) | IPOPT's own ms (per iteration) | Python around ms |",
               "| --- | ---: | --- | ---: | --- | --- | ---: |"]
-        for v in VARIANTS:
+        for v in s["variants"]:
             x = s[v]
             L.append(f"| {LABELS[v]} ({x['ok']} ok, {x['certified']} certified) | "
                      f"{f1(x['total_ms'])} | "
@@ -324,6 +413,8 @@ def report(res: dict) -> str:
         L += [f"| plain Opti | {f1(o['total_ms'])} | 1 | {o['iterations']:.0f} | "
               f"{f1(o['eval_ms'])} ({f1(o['hess_ms'])}, {f1(o['jac_ms'])}, {f1(o['g_ms'])}) | "
               f"{f1(o['ipopt_own_ms'])} ({o['per_iteration_own_ms']:.2f}) | - |", ""]
+        if not {"nlp_always", "interpreted", "compiled"} <= set(s["variants"]):
+            continue
         x = s["nlp_always"]
         extra = x["total_ms"] - o["total_ms"]
         own = x["ipopt_own_ms"] - o["ipopt_own_ms"]
@@ -346,7 +437,9 @@ def report(res: dict) -> str:
               f"them against {f1(s['interpreted']['eval_ms'])} ms interpreted. Median plan "
               f"duration {s['interpreted']['duration_s']:.4f} s (NLP always: "
               f"{x['duration_s']:.4f} s).", ""]
-        L += trials_table()
+    L += trials_table()
+    L += [f"Final run: `{m['command']}`, {m['date']}, load average {m['load_before']} before, "
+          f"{m['load_after']} after (2 shared cores).", ""]
     return "\n".join(L)
 
 
@@ -355,15 +448,35 @@ def main(argv=None) -> int:
     ap.add_argument("--moves", type=int, default=20)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--machines", default="umea-lab")
+    ap.add_argument("--variants", default=",".join(VARIANTS),
+                    help=f"NLP variants to time, of {', '.join(VARIANTS)}")
+    ap.add_argument("--ab", nargs="+", metavar="OPTIONS",
+                    help="instead: A/B of IPOPT option sets (JSON objects, the first the "
+                         "reference), the NLP always solved, interleaved; printed only")
+    ap.add_argument("--seed", type=int, default=SEED, help="moves' seed (--ab)")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
+    if args.ab:
+        specs = [json.loads(x) for x in args.ab]
+        print(f"| machine | IPOPT options | ms (median) | time / reference's | iterations | ok "
+              f"| NLP's own duration vs reference (max rel.) |\n|{' --- |' * 7}")
+        for c in args.machines.split(","):
+            for r in ab_rows(c.strip(), args.moves, args.rounds, args.seed, specs):
+                print(f"| {c} | {json.dumps(r['spec'])} | {r['ms']:.1f} | {r['ratio']:.3f} | "
+                      f"{r['iterations']} | {r['ok']}/{args.moves} | {r['own_rel']:.1e} |")
+        return 0
+    variants = tuple(v.strip() for v in args.variants.split(","))
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or not variants:
+        ap.error(f"--variants {args.variants!r}: allowed {', '.join(VARIANTS)}")
     os.environ.setdefault("CRANE_PLANNER_CACHE", tempfile.mkdtemp(prefix="crane-nlp-ovh-"))
     load_before = [round(x, 2) for x in os.getloadavg()]
     date = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    machines = [machine_rows(c.strip(), args.moves, args.rounds)
+    machines = [machine_rows(c.strip(), args.moves, args.rounds, variants)
                 for c in args.machines.split(",")]
+    extra = "" if variants == tuple(VARIANTS) else f" --variants {','.join(variants)}"
     meta = dict(command=f"python benchmarks/bench_nlp_overhead.py --moves {args.moves} "
-                        f"--rounds {args.rounds} --machines {args.machines}",
+                        f"--rounds {args.rounds} --machines {args.machines}{extra}",
                 platform=platform.platform(), cpus=os.cpu_count(), casadi=ca.__version__,
                 date=date, load_before=load_before,
                 load_after=[round(x, 2) for x in os.getloadavg()], moves=args.moves,

@@ -30,6 +30,9 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
 * **Solver**: L-BFGS-B (scipy) from the nominal commands, at most ``iterations`` iterations.
+  A command that is exactly 0 starts at 10⁻⁶ instead: a closed valve is a kink of the flow
+  (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while the
+  others move, a telescope that creeps off its stroke end — would otherwise never be used.
 
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its
@@ -57,6 +60,7 @@ if TYPE_CHECKING:
     from planner.model.twin import Twin
 
 _STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
+_DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
 #: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
 #: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
 #: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
@@ -270,6 +274,10 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                  twin.pendulum if opts.swing_weight > 0 else None)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
+    # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
+    # a command that starts at exactly 0 (an idle joint, the tail) would never move; a
+    # hair's opening gives it a slope (the optimiser crosses zero where the other side pays)
+    U0[U0 == 0.0] = _DITHER
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
     nominal = _predict(crane, twin, traj, t_all, U0, K, opts)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner.io import atomic_write_text
-from planner.model.flows import actuator_table
+from planner.model.flows import actuator_table, held_hydraulics
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -330,7 +330,9 @@ def evaluate(crane: Crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
 
     Returns an :class:`Evaluation`. ``kinds`` (default: ``traj.limits``) selects which limit
     kinds enter ``max_limit_violation``; all kinds are reported. ``payload`` [kg] defaults to
-    the spec's load + tool.
+    the spec's load + tool. The hydraulics are the model's at every sample with, under the
+    machine pricing, the held chamber pressures carried along the grid
+    (:func:`planner.model.flows.held_hydraulics`).
     """
     spec = crane.spec
     if traj.n != crane.n:
@@ -341,7 +343,7 @@ def evaluate(crane: Crane, traj: Trajectory, rate: float = 1000.0, kinds=None,
                          f"'{spec.id}' joints {crane.names}")
     t = traj.resample(rate)
     q, qd, qdd, qddd = traj.sample(t)
-    hyd = crane.hydraulics(q, qd, qdd, payload)
+    hyd = held_hydraulics(crane, t, crane.hydraulics(q, qd, qdd, payload))
     tip = crane.tip(q)
     power = hyd["power"]
     energy = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])

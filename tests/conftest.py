@@ -51,3 +51,14 @@ def random_configs(crane, n, seed=0, margin=0.02):
     lo = L["q_min"] + margin * (L["q_max"] - L["q_min"])
     hi = L["q_max"] - margin * (L["q_max"] - L["q_min"])
     return lo + rng.random((n, crane.n)) * (hi - lo)
+
+
+def random_tip_moves(crane, n, seed):
+    """``n`` (start, goal) tip pairs from random joint configurations inside 10 % margins."""
+    rng = np.random.default_rng(seed)
+    L = crane.limit_arrays()
+    lo = L["q_min"] + 0.1 * (L["q_max"] - L["q_min"])
+    hi = L["q_max"] - 0.1 * (L["q_max"] - L["q_min"])
+    qs = lo + rng.random((2 * n, crane.n)) * (hi - lo)
+    return [tuple(tuple(float(x) for x in np.round(crane.tip(q), 3)) for q in (qs[k], qs[n + k]))
+            for k in range(n)]

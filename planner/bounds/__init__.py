@@ -60,21 +60,41 @@ class LowerBound:
 def _end_configs(crane: Crane, tip, q, tele):
     """Candidate configurations for one end: the joint vector ``q`` if given (fixed), else the
     IK of ``tip`` (r, z, slew) for each telescope value in ``tele`` (unreachable ones dropped)."""
-    if q is not None:
-        q = np.asarray(q, float)
-        if q.shape != (crane.n,):
-            raise ValueError(f"a joint configuration needs {crane.n} values, got {q.tolist()}")
-        return q[None, :], np.array([np.nan])
-    tip = np.asarray(tip, float)
-    if tip.shape != (3,):
-        raise ValueError(f"a tip is (r, z, slew), got {tip.tolist()}")
-    qq, reason = crane.ik_batch(np.tile(tip, (len(tele), 1)), tele)
-    ok = reason == ""
-    if not ok.any():
-        raise UnreachableError(f"{crane.spec.id}: tip (r={tip[0]:.3f} m, z={tip[1]:.3f} m, "
-                               f"slew={tip[2]:.3f} rad) is unreachable for every telescope "
-                               f"value: {reason[len(reason) // 2]}")
-    return qq[ok], np.asarray(tele, float)[ok]
+    return _ends_configs(crane, ((tip, q),), tele)[0]
+
+
+def _ends_configs(crane: Crane, ends, tele):
+    """:func:`_end_configs` of several ends ``ends`` ((tip, q) pairs) on one telescope grid:
+    the tips' IK in one call (it is elementwise, so the same numbers as one call per end);
+    the reasons are spelled out only for an end with no reachable point, to raise with."""
+    tele = np.asarray(tele, float)
+    out, tips = [None] * len(ends), []
+    for k, (tip, q) in enumerate(ends):
+        if q is not None:
+            q = np.asarray(q, float)
+            if q.shape != (crane.n,):
+                raise ValueError(f"a joint configuration needs {crane.n} values, got "
+                                 f"{q.tolist()}")
+            out[k] = (q[None, :], np.array([np.nan]))
+            continue
+        tip = np.asarray(tip, float)
+        if tip.shape != (3,):
+            raise ValueError(f"a tip is (r, z, slew), got {tip.tolist()}")
+        tips.append((k, tip))
+    if tips:
+        G = len(tele)
+        qq, reason = crane.ik_batch(np.repeat([t for _, t in tips], G, axis=0),
+                                    np.tile(tele, len(tips)), explain=False)
+        for m, (k, tip) in enumerate(tips):
+            ok = reason[m * G:(m + 1) * G] == ""
+            if not ok.any():
+                _, why = crane.ik_batch(np.tile(tip, (G, 1)), tele)   # explained
+                raise UnreachableError(
+                    f"{crane.spec.id}: tip (r={tip[0]:.3f} m, z={tip[1]:.3f} m, "
+                    f"slew={tip[2]:.3f} rad) is unreachable for every telescope value: "
+                    f"{why[len(why) // 2]}")
+            out[k] = (qq[m * G:(m + 1) * G][ok], tele[ok])
+    return out
 
 
 def _limits(crane: Crane, jerk: bool) -> dict:
@@ -108,23 +128,41 @@ def _end_grids(crane: Crane, tip, q, grids):
     S grids in one IK call: joints (S, G, n), telescope values (S, G) and the reachable mask;
     a fixed end (``q`` given) is the one configuration (S, 1, n). Raises like
     :func:`_end_configs` when a grid has no reachable point."""
-    S, G = grids.shape
-    if q is not None:
-        q = np.asarray(q, float)
-        return (np.broadcast_to(q, (S, 1, crane.n)), np.full((S, 1), np.nan),
-                np.ones((S, 1), bool))
-    tip = np.asarray(tip, float)
-    qq, reason = crane.ik_batch(np.tile(tip, (S * G, 1)), grids.ravel(), explain=False)
-    ok = (reason == "").reshape(S, G)
-    for s in np.flatnonzero(~ok.any(axis=1)):
-        _end_configs(crane, tip, None, grids[s])  # raises with the explained reason
-    return qq.reshape(S, G, crane.n), grids, ok
+    return _ends_grids(crane, ((tip, q, grids),))[0]
 
 
-def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
+def _ends_grids(crane: Crane, ends):
+    """:func:`_end_grids` of several ends ((tip, q, grids) triples), the tips' IK in one call
+    (elementwise: the same numbers as one call per end)."""
+    out, asks = [None] * len(ends), []
+    for k, (tip, q, grids) in enumerate(ends):
+        S = grids.shape[0]
+        if q is not None:
+            q = np.asarray(q, float)
+            out[k] = (np.broadcast_to(q, (S, 1, crane.n)), np.full((S, 1), np.nan),
+                      np.ones((S, 1), bool))
+        else:
+            asks.append((k, np.asarray(tip, float), grids))
+    if asks:
+        qq, reason = crane.ik_batch(
+            np.concatenate([np.tile(tip, (g.size, 1)) for _, tip, g in asks]),
+            np.concatenate([g.ravel() for _, _, g in asks]), explain=False)
+        off = 0
+        for k, tip, grids in asks:
+            S, G = grids.shape
+            ok = (reason[off:off + S * G] == "").reshape(S, G)
+            for s in np.flatnonzero(~ok.any(axis=1)):
+                _end_configs(crane, tip, None, grids[s])  # raises with the explained reason
+            out[k] = (qq[off:off + S * G].reshape(S, G, crane.n), grids, ok)
+            off += S * G
+    return out
+
+
+def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True, timing_only: bool = False):
     """:func:`_pair_bounds` for S grid pairs at once: ends ``A`` = (joints (S, Gs, n),
     telescopes, mask) from :func:`_end_grids` and ``B`` likewise; returns (S, Gs, Gg) arrays,
-    +inf where an end is unreachable."""
+    +inf where an end is unreachable. ``timing_only``: the rest-to-rest and pump times only
+    (velocity and energy None: what the combined bound needs)."""
     (qs, _, oks), (qg, _, okg) = A, B
     L = _limits(crane, jerk)
     spec = crane.spec
@@ -133,20 +171,24 @@ def _pair_bounds_batch(crane: Crane, A, B, jerk: bool = True):
         x = np.full(Q.shape[:2] + (crane.n,), np.nan)
         e = np.full(Q.shape[:2], np.nan)
         x[ok] = crane.stroke(Q[ok])[0]
-        e[ok] = crane.potential_energy(Q[ok])
+        if not timing_only:
+            e[ok] = crane.potential_energy(Q[ok])
         return x, e
     xs, es = per_config(qs, oks)
     xg, eg = per_config(qg, okg)
     dq = qg[:, None, :, :] - qs[:, :, None, :]
     v = np.where(dq >= 0, L["qd_max"], -L["qd_min"])
+    T_vel = E = None
     with np.errstate(invalid="ignore"):
-        T_vel = np.max(np.abs(dq) / v, axis=-1)
+        if not timing_only:
+            T_vel = np.max(np.abs(dq) / v, axis=-1)
+            E = np.maximum(eg[:, None, :] - es[:, :, None], 0) / spec.pump.efficiency
         T_r2r = np.max(rest_to_rest_time(dq, v, L["qdd_max"], L["qddd_max"]), axis=-1)
         V = swept_volume(spec, xg[:, None, :, :] - xs[:, :, None, :])
         T_pump = V.sum(axis=-1) / spec.pump.max_flow
-        E = np.maximum(eg[:, None, :] - es[:, :, None], 0) / spec.pump.efficiency
     bad = ~(oks[:, :, None] & okg[:, None, :])
-    return tuple(np.where(bad, np.inf, m) for m in (T_vel, T_r2r, T_pump, E))
+    return tuple(None if m is None else np.where(bad, np.inf, m)
+                 for m in (T_vel, T_r2r, T_pump, E))
 
 
 def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=None,
@@ -171,8 +213,7 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
         raise ValueError("give each end either as a tip (start/goal) or as joints (q_start/q_goal)")
     tr = crane.tele_range
     grid = np.linspace(*tr, n_grid) if tr else np.zeros(1)
-    qs, ts = _end_configs(crane, start, q_start, grid)
-    qg, tg = _end_configs(crane, goal, q_goal, grid)
+    (qs, ts), (qg, tg) = _ends_configs(crane, ((start, q_start), (goal, q_goal)), grid)
     Tv, Tr, Tp, E = _pair_bounds(crane, qs, qg, jerk)
     comb = np.maximum(Tr, Tp)
     best = dict(vel=Tv.min(), r2r=Tr.min(), pump=Tp.min(), comb=comb.min(), E=E.min())
@@ -193,18 +234,18 @@ def lower_bound(crane: Crane, start=None, goal=None, *, q_start=None, q_goal=Non
         for _ in range(refine):
             grids = [np.clip(np.linspace(c - 2 * step, c + 2 * step, 21, axis=1), *tr)
                      for c in centres.T]   # a fixed end (NaN centre) ignores its grid
-            A = _end_grids(crane, start, q_start, grids[0])
-            B = _end_grids(crane, goal, q_goal, grids[1])
-            Tv2, Tr2, Tp2, E2 = _pair_bounds_batch(crane, A, B, jerk)
+            A, B = _ends_grids(crane, ((start, q_start, grids[0]), (goal, q_goal, grids[1])))
+            Tv2, Tr2, Tp2, E2 = _pair_bounds_batch(crane, A, B, jerk, combined_only)
             comb2 = np.maximum(Tr2, Tp2)
             m2 = dict(comb=comb2, vel=Tv2, r2r=Tr2, pump=Tp2, E=E2)
             for s, key in enumerate(keys):   # each start moves to its own metric's minimum
                 a, b = np.unravel_index(np.argmin(m2[key][s]), comb2.shape[1:])
                 centres[s] = (A[1][s, a], B[1][s, b])
             levels.append((A[1], B[1], comb2))
-            best = dict(vel=min(best["vel"], Tv2.min()), r2r=min(best["r2r"], Tr2.min()),
-                        pump=min(best["pump"], Tp2.min()), comb=min(best["comb"], comb2.min()),
-                        E=min(best["E"], E2.min()))
+            best["comb"] = min(best["comb"], comb2.min())
+            if not combined_only:   # (combined only: the rest keep their grid values)
+                best.update(vel=min(best["vel"], Tv2.min()), r2r=min(best["r2r"], Tr2.min()),
+                            pump=min(best["pump"], Tp2.min()), E=min(best["E"], E2.min()))
             step /= 5
         # the telescopes of the smallest combined bound, in the order the starts were
         # refined one after another (start-major: the first strict improvement wins ties)

@@ -170,7 +170,9 @@ class _Problem(TwinFit):
             f = v.pop(f"hose.{j}", None)
             if f is not None:
                 a, b = dyn0.joints[j].hose_volume
-                v[f"hose_a.{j}"], v[f"hose_b.{j}"] = a * f, b * f
+                v[f"hose_a.{j}"] = a * f
+                if crane.spec.joints[i].actuator.acting != "single":   # rod side vented
+                    v[f"hose_b.{j}"] = b * f
             gain[i] = v.pop(f"gain.{j}", 1.0)
         payload = v.pop("payload", None)
         pump = v.pop("pump_flow", 1.0)

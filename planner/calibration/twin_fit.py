@@ -185,6 +185,8 @@ class TwinFit:
                              "allowed: a log of commanded moves")
         self.use_p = pressures and all(r.p_a is not None for r in self.recs)
         self.sig = [_noise(crane, r) for r in self.recs]
+        #: single-acting cylinders: the rod side is vented (the twin holds it at tank)
+        self.vented = np.array([j.actuator.acting == "single" for j in crane.spec.joints])
         self.runs = 0
         self.smooth = 0.0
         self.workers = int(workers)
@@ -261,6 +263,7 @@ class TwinFit:
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
             qa, qb = s.sd_a < 2.0 * sp[:n], s.sd_b < 2.0 * sp[n:]
+            qb &= ~self.vented      # a single-acting rod side stays at tank (no sensor noise)
             x0[2 * n:3 * n][qa] = s.p_a0[qa]
             x0[3 * n:4 * n][qb] = s.p_b0[qb]
         return x0

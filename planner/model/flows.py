@@ -10,6 +10,8 @@ order. ``spec`` may be a :class:`~planner.model.spec.CraneSpec` or anything with
 (a :class:`~planner.model.Crane`). :func:`hydraulics` prices like the CasADi definition: the
 crane's pricing, or the spec's default (:mod:`planner.model.pricing`; the numpy copy of its
 friction and moving pressures is :func:`friction` and :func:`moving_pressures` here).
+:func:`held_hydraulics` carries the one priced effect with memory along a plan's time grid
+(the held chamber pressures, :func:`planner.model.pricing.held_pressures`).
 """
 from __future__ import annotations
 
@@ -19,12 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.model.hydraulics import ACTIVE_FLOW, OUTPUTS
-from planner.model.pricing import Pricing, pricing_of
+from planner.model.pricing import Pricing, held_pressures, pricing_of
 from planner.model.spec import CraneSpec, Pump
 
 __all__ = ["ActuatorTable", "actuator_table", "pump_draw", "swept_volume", "chamber_pressures",
            "load_pressures", "pump_pressure", "pump_power", "throttle_loss", "hydraulics",
-           "pricing", "friction", "moving_pressures", "priced_pressures"]
+           "pricing", "friction", "moving_pressures", "priced_pressures", "held_hydraulics"]
 
 
 @dataclass(frozen=True)
@@ -276,3 +278,24 @@ def hydraulics(spec, x, xd, force, mode: str | None = None) -> dict:
                   p_pump=p_pump, q_pump=q_pump, power=pump_power(spec, p_pump, q_pump),
                   throttle_loss=throttle_loss(p_pump, p_load, q_act))
     return {k: values[k] for k in OUTPUTS}
+
+
+def held_hydraulics(spec_or_crane, t, hyd: dict, mode: str | None = None) -> dict:
+    """``hyd`` (the :data:`~planner.model.hydraulics.OUTPUTS` of samples at the times ``t``
+    (N,), in time order) with the held chamber pressures of the pricing carried along
+    (:func:`planner.model.pricing.held_pressures`) and the load, pump pressure, power and
+    throttle loss that follow; the seed pricing returns ``hyd`` itself."""
+    pr = pricing(spec_or_crane, mode)
+    if not np.any(pr.held):
+        return hyd
+    spec = spec_of(spec_or_crane)
+    xd, q_act = np.asarray(hyd["xd"], float), np.asarray(hyd["q_act"], float)
+    moving = q_act > pr.active
+    force_f = np.asarray(hyd["force"], float) + friction(pr, xd)
+    p_a, p_b = held_pressures(pr, t, hyd["x"], xd, force_f, moving, hyd["p_a"], hyd["p_b"])
+    p_load = load_pressures(spec, p_a, p_b, xd, q_act, pr.active)
+    q_pump = np.asarray(hyd["q_pump"], float)
+    p_pump = pump_pressure(spec, p_load, q_pump, np.any(moving, axis=-1))
+    return dict(hyd, p_a=p_a, p_b=p_b, p_load=p_load, p_pump=p_pump,
+                power=pump_power(spec, p_pump, q_pump),
+                throttle_loss=throttle_loss(p_pump, p_load, q_act))

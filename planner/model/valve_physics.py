@@ -54,10 +54,9 @@ Per valve, pressures in Pa, flows in m³/s, p_t the tank pressure:
 is the independent judge of the model's claims, so it implements the same circuit in its own
 numpy (and plain-Python) code and imports nothing of this module. tests/model/
 test_valve_physics.py cross-checks the two on random states of every machine: openings,
-make-up and leakage agree to round-off; the edge flows differ only by the normalisation above
-(the judge divides by √Δp_c and √Δp_o, so in regulation it passes r(Δp_c)/√Δp_c of G·|o| and
-r(Δp_o)/√Δp_o of its return cap: 1 − 3.9·10⁻⁵ and 1 − 4.0·10⁻⁴ on three of the shipped specs,
-1 − 6.9·10⁻⁵ and 1 − 1.1·10⁻³ on umea-lab), which the test states and checks to round-off.
+make-up, leakage and the edge flows agree to round-off (both normalise an edge by r at its
+regulating drop; until 2026-11-26 the judge divided by √Δp_c and √Δp_o, a factor 1 − 4·10⁻⁵
+and 1 − 4·10⁻⁴ that moved the twin 2.4 mm from the judge at rest on an s100f move).
 """
 from __future__ import annotations
 

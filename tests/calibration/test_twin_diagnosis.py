@@ -138,3 +138,19 @@ def test_a_dynamic_signature_offers_the_twin():
     assert dynamic_signature(res) is None
     res.verdict = "named"
     assert dynamic_signature(res) is None
+
+
+def test_a_hose_candidate_on_a_single_acting_cylinder_scales_its_one_hose():
+    """s100f's boom is single-acting (its rod side vented, no rod-side hose parameter): the
+    hose candidate scales the piston-side hose and leaves the rest alone (it used to ask for
+    the vented side's and stop the whole diagnosis)."""
+    from planner.calibration.twin_diagnosis import _Problem   # the fit problem itself
+    crane = Crane.from_id("s100f")
+    boom = next(j for j in crane.spec.joints if j.actuator.acting == "single").name
+    prob = _Problem.__new__(_Problem)
+    prob.crane, prob.step = crane, 2e-3
+    tw = prob.twin({f"hose.{boom}": 2.0})
+    i = crane.names.index(boom)
+    a0, b0 = crane.spec.dynamics.joints[boom].hose_volume
+    assert tw.params.per["hose_a"][i] == pytest.approx(2.0 * a0)
+    assert tw.params.per["hose_b"][i] == pytest.approx(b0)

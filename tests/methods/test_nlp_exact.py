@@ -12,17 +12,10 @@ from planner.methods.nlp.exact import feasible_exact
 from planner.methods.nlp.limits import JERK_SMOOTH, add_velocity_limits
 from planner.methods.ruckig import rest_to_rest
 from planner.trajectory import Trajectory, evaluate
+from tests.conftest import random_tip_moves
 
 
-def _moves(crane, n, seed):
-    """``n`` (start, goal) tip pairs from random joint configurations inside 10 % margins."""
-    rng = np.random.default_rng(seed)
-    L = crane.limit_arrays()
-    lo = L["q_min"] + 0.1 * (L["q_max"] - L["q_min"])
-    hi = L["q_max"] - 0.1 * (L["q_max"] - L["q_min"])
-    qs = lo + rng.random((2 * n, crane.n)) * (hi - lo)
-    return [tuple(tuple(float(x) for x in np.round(crane.tip(q), 3)) for q in (qs[k], qs[n + k]))
-            for k in range(n)]
+_moves = random_tip_moves
 
 
 @pytest.fixture(scope="module")

@@ -140,8 +140,10 @@ def test_summary_has_every_limit_kind():
 
 def test_evaluation_at_the_trajectory_samples_is_the_model_there():
     """What a library worker ships: the 1 kHz judgement cut to the trajectory's own samples
-    equals the model's hydraulics evaluated at those samples directly; the verdict is kept."""
-    crane = Crane.from_id("s100f")
+    equals the model's hydraulics evaluated at those samples directly; the verdict is kept.
+    (The seed pricing: the machine pricing's held pressures depend on the history, see
+    test_machine_evaluation_is_the_model_plus_the_held_pressures.)"""
+    crane = Crane.from_id("s100f", pricing="seed")
     tr = _bump(crane, 1, 0.5 * crane.spec.joints[1].limits.qd[1], T=4.0, rate=50.0)
     full = evaluate(crane, tr)
     cut = full.at(tr.t)
@@ -158,3 +160,19 @@ def test_evaluation_at_the_trajectory_samples_is_the_model_there():
     direct = crane.hydraulics(q, qd, qdd)["p_a"]
     span = np.ptp(direct, axis=0) + 1.0
     assert np.all(np.abs(full.at(mid).hyd["p_a"] - direct) <= 1e-3 * span)
+
+
+def test_machine_evaluation_is_the_model_plus_the_held_pressures():
+    """Under the machine pricing evaluate() is the per-sample model with the held chamber
+    pressures carried along: motions and flows as the model's, the pump never below the
+    quasi-static price (a held outlet only raises the inlet), and exactly the quasi-static
+    pressures where nothing is held (the boom, single-acting)."""
+    crane = Crane.from_id("s100f")
+    tr = _bump(crane, 2, 0.5 * crane.spec.joints[2].limits.qd[1], T=4.0, rate=50.0)
+    full = evaluate(crane, tr)
+    q, qd, qdd, _ = tr.sample(full.t)
+    hyd = crane.hydraulics(q, qd, qdd)
+    for name in ("x", "xd", "q_act", "q_pump"):
+        np.testing.assert_allclose(full.hyd[name], hyd[name], rtol=1e-12, atol=1e-15)
+    assert np.all(full.hyd["p_pump"] >= hyd["p_pump"] - 1e-6)
+    np.testing.assert_allclose(full.hyd["p_a"][:, 1], hyd["p_a"][:, 1], rtol=1e-12)

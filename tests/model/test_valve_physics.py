@@ -4,12 +4,12 @@ written independently on purpose) on the same random states of every machine, an
 independent oracles: closed forms, the dead-band edge, finite differences of the CasADi
 functions.
 
-Stated tolerance of the cross-check: openings, make-up, leakage and load pressures agree to
-1e-12 (relative); the edge flows differ by the documented normalisation only — the model
-divides the regularised root by r(Δp_c) (so a regulated edge passes exactly G·|o|), the judge
-by √Δp_c — so the model's flows times κ = r(Δp)/√Δp of the edge agree with the judge's to
-1e-12, and the raw flows within 1/κ − 1 (≤ 7e-5 meter-in, ≤ 1.1e-3 meter-out on the shipped
-specs)."""
+Stated tolerance of the cross-check: openings, make-up, leakage, load pressures and the edge
+flows agree to 1e-12 (relative). Both normalise each edge by the regularised root at its
+regulating drop, so a regulated meter-in edge passes exactly G·|o|. (The judge divided by
+√Δp_c and √Δp_o until 2026-11-26: its flows were 1 − 4·10⁻⁵ and 1 − 4·10⁻⁴ of the model's,
+which left the twin 2.4 mm from the judge at rest on an s100f move; the test then allowed
+that factor.)"""
 import math
 
 import casadi as ca
@@ -70,34 +70,27 @@ def test_model_valves_agree_with_the_judges_circuit(cid):
         np.testing.assert_allclose(valves.makeup(vc, p), C.makeup(p), rtol=RTOL, atol=0)
     for mine, theirs in zip(valves.leak_flows(vc, p_a, p_b), C.leak_flows(p_a, p_b)):
         np.testing.assert_allclose(mine, theirs, rtol=RTOL, atol=0)
-    # the edges: equal after the documented normalisation factor of each edge
+    # the edges: the same flows, to round-off
     m = valves.valve_flows(vc, p_a, p_b, p_s, o)
     j = C.flows(p_a, p_b, p_s, o)
-    k_in = float(root(vc.dp_c)) / math.sqrt(vc.dp_c)
-    k_out = float(root(vc.dp_out)) / math.sqrt(vc.dp_out)
-    assert 0.99 < k_out < k_in < 1.0
-    ext = o > 0
-    lower = vc.single & ~ext
-    kq_out = np.where(lower, k_in, k_out)
-    scale_a = np.where(ext, k_in, kq_out)
-    scale_b = np.where(ext, kq_out, k_in)
-    np.testing.assert_allclose(m["q_in"] * k_in, j["q_in"], rtol=RTOL, atol=1e-20)
-    np.testing.assert_allclose(m["q_out"] * kq_out, j["q_out"], rtol=RTOL, atol=1e-20)
-    np.testing.assert_allclose(m["q_a"] * scale_a, j["q_a"], rtol=RTOL, atol=1e-20)
-    np.testing.assert_allclose(m["q_b"] * scale_b, j["q_b"], rtol=RTOL, atol=1e-20)
-    np.testing.assert_array_equal(m["p_load"], j["p_load"])
-    # raw: within the normalisation (the stated tolerance of the two definitions)
     for key in ("q_a", "q_b", "q_in", "q_out"):
-        np.testing.assert_allclose(m[key], j[key], rtol=1 / k_out - 1 + 1e-12, atol=1e-20)
+        np.testing.assert_allclose(m[key], j[key], rtol=RTOL, atol=1e-20)
+    np.testing.assert_array_equal(m["p_load"], j["p_load"])
+    # a regulated meter-in edge passes exactly G·|o| on both (the gain means what it says)
+    big = p_s[:, None] - np.where(o > 0, p_a, p_b) > vc.dp_c
+    draws = big & (np.abs(o) > 0) & ~(vc.single & ~(o > 0))
+    assert draws.any()
+    G = np.broadcast_to(vc.gain, o.shape)
+    np.testing.assert_allclose(j["q_in"][draws], (G * np.abs(o))[draws], rtol=1e-12)
     # the flows the judge's pressure equations integrate (volumes and swept flow taken out)
     x = 0.5 * (C.x_lo + C.x_hi)
     dpa, dpb, _ = C.rhs(p_a, p_b, p_s, o, x, np.zeros_like(o))
     va, vb = C.volumes(x)
-    np.testing.assert_allclose(m["net_a"] - m["q_a"] * (1 - scale_a), dpa * va / C.beta,
-                               rtol=1e-9, atol=1e-16)
-    np.testing.assert_allclose(m["net_b"] - m["q_b"] * (1 - scale_b), dpb * vb / C.beta,
-                               rtol=1e-9, atol=1e-16)
+    np.testing.assert_allclose(m["net_a"], dpa * va / C.beta, rtol=1e-9, atol=1e-16)
+    np.testing.assert_allclose(m["net_b"], dpb * vb / C.beta, rtol=1e-9, atol=1e-16)
     # every regime visited: metering in, metering out, lowering, starving, cavitating
+    ext = o > 0
+    lower = vc.single & ~ext
     assert ext.any() and (o < 0).any() and (o == 0).any()
     assert (lower & (o < 0)).any() or not vc.single.any()
     assert (m["q_in"] > 0).any() and (m["q_in"] < vc.gain * np.abs(o) * (1 - 1e-9)).any()

@@ -237,3 +237,31 @@ def test_plan_with_the_twin_feedforward_keeps_both_commands(tmp_path):
              str(tmp_path / "p.csv"))
     assert r.returncode == 2 and "--out-rate 100" in r.stderr
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_an_idle_joint_is_refined_too(crane, twin):
+    """The boom moves, the jib stays: its holding pressure changes, its oil gives, it creeps
+    off (the nominal commands leave it at 0). The refinement must use the jib's valve too —
+    a closed valve is a kink of the flow whose adjoint slope is 0, so commands that start at
+    exactly 0 used to stay there (the s100f library's telescope on its stroke end: 5.5 mm)."""
+    L = crane.limit_arrays()
+    q0 = L["q_min"] + 0.35 * (L["q_max"] - L["q_min"])
+    q1 = q0.copy()
+    q1[1] = L["q_min"][1] + 0.75 * (L["q_max"][1] - L["q_min"][1])
+    tr = rest_to_rest(crane, q0, q1, scale=0.8).trajectory
+    move = commands(crane, tr, 50.0).attach(tr, knots=True)
+    t_u, u = stored_commands(move)
+    assert np.all(u[:, 2] == 0.0)
+    opts = RefineOptions(iterations=12, settle=1.5)
+    r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
+    assert r.status == RefineStatus.IMPROVED, r.reason
+    assert np.abs(r.u[:, 2]).max() > 1e-4            # the jib's valve is used
+
+    def jib_end(tt, uu):
+        tt = np.append(tt, tt[-1] + 0.02)
+        run = twin.simulate(tt, np.vstack([uu, np.zeros((1, crane.n))]), move.q[0],
+                            t_end=move.t[-1] + opts.tail + opts.settle)
+        return abs(run.q[-1, 2] - move.q[-1, 2])
+    nominal, refined = jib_end(t_u, u), jib_end(r.t_u, r.u)
+    assert nominal > 5e-4                             # the oil gives: ~1.6 mrad
+    assert refined < nominal / 3

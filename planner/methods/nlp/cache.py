@@ -55,7 +55,7 @@ FORMAT = 1
 # the modules whose source writes the NLP's expressions: a change to any invalidates every key
 _SOURCES = ("methods/nlp/move.py", "methods/nlp/transcription.py", "methods/nlp/limits.py",
             "methods/nlp/tip.py", "methods/nlp/stagewise.py", "methods/nlp/pump.py",
-            "methods/nlp/activity.py",
+            "methods/nlp/activity.py", "methods/nlp/hessian.py",
             "model/__init__.py",
             "model/kinematics.py", "model/actuators.py", "model/dynamics.py",
             "model/hydraulics.py", "model/pricing.py", "model/valve_physics.py",

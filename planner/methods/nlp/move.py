@@ -8,7 +8,9 @@ tip path are imposed at the nodes and the interval midpoints, the velocity with 
 interval's own jerk bound and the pump as one smooth conservative inequality per check point
 (minimum time: no slack variables), both in :mod:`planner.methods.nlp.limits` (the curve mode,
 fragile under IPOPT, keeps the earlier uniform velocity tightening and the flow slacks); the 0.5 %
-default pump margin covers the flow's nonlinearity in q between check points. Ends: tip
+default pump margin covers the flow's nonlinearity in q between check points (IPOPT gets the
+Lagrangian's Hessian through the nodes' stroke Jacobians: :mod:`planner.methods.nlp.hessian`,
+the same matrix for less work). Ends: tip
 positions (the redundancy is free at both ends) or joint configurations, at rest (q̇ = q̈ = 0).
 The duration is a state copied per node (chained equal), so every row lies inside one interval:
 the stage structure FATROP exploits (:mod:`planner.methods.nlp.stagewise`; ``solver="auto"``
@@ -54,9 +56,10 @@ from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.base import PlanStatus
 from planner.methods.nlp.activity import Activity, mask_size
 from planner.methods.nlp.cache import build_or_load
-from planner.methods.nlp.exact import (certified, certifying_bound, exact_result,
-                                       feasible_exact)
+from planner.methods.nlp.exact import (ExactMove, certified, certifying_bound, exact_move,
+                                       exact_result)
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
+from planner.methods.nlp.hessian import lagrangian_hessian
 from planner.methods.nlp.limits import add_velocity_limits, step
 from planner.methods.nlp.pump import PumpRows
 from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
@@ -69,10 +72,15 @@ from planner.trajectory import Trajectory
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["MoveNLP", "IPOPT_DEFAULTS"]
+__all__ = ["MoveNLP", "IPOPT_DEFAULTS", "TIME_IPOPT"]
 
 IPOPT_DEFAULTS = {"print_level": 0, "sb": "yes", "max_iter": 1000, "tol": 1e-7,
                   "acceptable_tol": 1e-5, "mu_strategy": "adaptive", "max_wall_time": 60.0}
+#: IPOPT options added for minimum time on a free path: no residual check of the Newton step
+#: (issue 31, 40 random moves per machine, the NLP always solved, interleaved: 0.92× the time
+#: on umea-lab, 0.93× on s100f, 939/1315 instead of 903/1258 iterations in all, every solve
+#: ok, the NLP's own durations within 1.3e-6)
+TIME_IPOPT = {"fast_step_computation": "yes"}
 BIG_T = 1e3  # [s] upper bound of the duration
 AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IPOPT)
 # share of Q_max kept free at the check points (nodes, midpoints). Minimum time: 0.5 %. Least
@@ -80,6 +88,9 @@ AUTO_FATROP_ITER = 200   # FATROP's iteration limit under solver="auto" (then IP
 # 0.6-0.8 % above Q_max on forwarder moves (evaluate() at 1 kHz) — a solution that saves 40-55 %
 # of the energy then failed the 0.1 % audit and the time-optimal move was kept: 2 %
 PUMP_MARGIN = {"time": 0.005, "energy": 0.02, "blend": 0.02}
+# minimum time with the pump under IPOPT: the Lagrangian's Hessian through the stroke
+# Jacobians (planner.methods.nlp.hessian: the same matrix, ~30 % faster to evaluate on umea-lab)
+LIFTED_HESSIAN = True
 
 
 class MoveNLP:
@@ -123,7 +134,8 @@ class MoveNLP:
         self.obstacles = tuple(obstacles)
         self.L = crane.limit_arrays()
         self.acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
-        ipopt = dict(IPOPT_DEFAULTS, **(ipopt_options or {}))
+        fast = TIME_IPOPT if objective == "time" and path == "free" and not self.obstacles else {}
+        ipopt = {**IPOPT_DEFAULTS, **fast, **(ipopt_options or {})}   # the caller's win
         t0 = _time.perf_counter()
         if solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")
@@ -225,7 +237,8 @@ class MoveNLP:
             add_line(lay, crane.f_fk, pts, par["start"], par["goal"])
         pump_rows = PumpRows(crane, self.acts, N, objective, path, self.pump, pump_margin,
                              stagewise=self.solver_name == "fatrop")
-        energy = pump_rows.add(lay, pts, mids, hs[0], par["payload"], par["activity"])
+        lifted = {}
+        energy = pump_rows.add(lay, pts, mids, hs[0], par["payload"], par["activity"], lifted)
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
         # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
         smooth = reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
@@ -247,8 +260,12 @@ class MoveNLP:
         if self.solver_name == "fatrop":
             self.solver = stagewise_solver(problem, lay, self.lbg == self.ubg, ipopt)
         if self.solver is None:
-            self.solver = ca.nlpsol("move", "ipopt", problem,
-                                    {"expand": True, "print_time": False, "ipopt": ipopt})
+            opts = {"expand": True, "print_time": False, "ipopt": ipopt}
+            hess = (lagrangian_hessian(wv, lay.P, f, lay.g, **lifted)
+                    if lifted and LIFTED_HESSIAN else None)
+            if hess is not None:   # the same Hessian, cheaper (nlp.hessian)
+                opts["hess_lag"] = hess
+            self.solver = ca.nlpsol("move", "ipopt", problem, opts)
         self.nw = lay.nw
 
     @property
@@ -284,13 +301,15 @@ class MoveNLP:
         return step(X[:n, k], X[n:2 * n, k], X[2 * n:, k], U[:, k], hh)
 
     def _prefer_exact(self, res, exact, t0):
-        """Minimum time, free path: the feasible jerk-limited rest-to-rest move ``exact`` (or
-        None) when it is faster than the NLP's result ``res``. N equal intervals cannot put the
-        jerk switches of a long, one-joint-dominated move where they belong (up to about one
-        interval is lost); Ruckig's switch times are exact."""
-        if exact is None or (res.ok and exact.duration >= res.duration_s * (1 - 1e-6)):
+        """Minimum time, free path: the jerk-limited rest-to-rest move ``exact`` (an
+        :class:`~planner.methods.nlp.exact.ExactMove`, or None) when it is feasible and faster
+        than the NLP's result ``res``. N equal intervals cannot put the jerk switches of a
+        long, one-joint-dominated move where they belong (up to about one interval is lost);
+        Ruckig's switch times are exact."""
+        if exact is None or exact.tr is None or (res.ok and not exact.faster_than(
+                res.duration_s)) or not exact.feasible():
             return res
-        return exact_result(exact, res, t0, _time.perf_counter())
+        return exact_result(exact.tr, res, t0, _time.perf_counter())
 
     # ------------------------------------------------------------------------ solve
     def solve(self, start=None, goal=None, *, T_max: float | None = None, lam: float = 0.0,
@@ -324,10 +343,12 @@ class MoveNLP:
                               solve_time_s=_time.perf_counter() - t0)
         exact = None
         if w0 is None and self.path == "free" and self._exact_applies(T_max, lam, payload):
-            exact = feasible_exact(self, start, goal, lb, q_ends)
-            if self.certify and certified(exact, lb) and certified(   # nothing can be
-                    exact, certifying_bound(self.crane, start, goal, q_ends)):   # faster
-                return exact_result(exact, None, t0, _time.perf_counter())
+            # its limit check only where it decides (ExactMove): the certificate first by
+            # duration, then feasibility, then the fine bound; else after the NLP
+            exact = ExactMove(self, exact_move(self, start, goal, lb, q_ends))
+            if self.certify and certified(exact.tr, lb) and exact.feasible() and certified(
+                    exact.tr, certifying_bound(self.crane, start, goal, q_ends)):  # nothing
+                return exact_result(exact.tr, None, t0, _time.perf_counter())   # is faster
         res = self._solve_from(guess, start, goal, T_max, lam, payload, t0, q_ends)
         return self._prefer_exact(res, exact, t0)
 
@@ -353,10 +374,10 @@ class MoveNLP:
         except ValueError as e:
             return nlp_result(PlanStatus.UNREACHABLE, str(e),
                               solve_time_s=_time.perf_counter() - t0)
-        exact = (feasible_exact(self, start, goal, lb) if self._exact_applies(T_max, lam, payload)
-                 else None)
-        if self.certify and certified(exact, lb):
-            return exact_result(exact, None, t0, _time.perf_counter())
+        exact = (ExactMove(self, exact_move(self, start, goal, lb))
+                 if self._exact_applies(T_max, lam, payload) else None)
+        if self.certify and exact is not None and certified(exact.tr, lb) and exact.feasible():
+            return exact_result(exact.tr, None, t0, _time.perf_counter())
         res = [self._solve_from(g, start, goal, T_max, lam, payload, t0) for g in guesses]
         good = [r for r in res if r.ok and self.clears(r.trajectory)]
         if good:
@@ -405,7 +426,9 @@ class MoveNLP:
         pars = dict(start=tip_to_xyz(np.asarray(start, float)),
                     goal=tip_to_xyz(np.asarray(goal, float)),
                     T_max=T_max if T_max is not None else 0.0, lam=lam, payload=m)
-        mask = self.activity.mask(guess)
+        # the load-sensing mask enters the energy objectives only (minimum time: zeros)
+        mask = (self.activity.mask(guess) if self.objective != "time" else
+                np.zeros(mask_size(crane.n, self.acts, self.N)))
         lbw, ubw = self.lbw.copy(), self.ubw.copy()
         X0 = self.layout.slice("X").start
         for k, q in zip((0, self.N), q_ends):   # joint ends: fixed by their bounds

@@ -29,12 +29,14 @@ class PumpRows:
     margin: float
     stagewise: bool = False
 
-    def add(self, lay, pts, mids, h, payload, act_mask):
+    def add(self, lay, pts, mids, h, payload, act_mask, lifted: dict | None = None):
         """Pump flow slacks and limit at every check point (``pts``: (q, q̇, q̈) at the nodes,
         ``mids`` at the interval midpoints) into the layout ``lay``; for the energy
         objectives the load-sensing pump pressure per node (``act_mask``: the activity
         parameter, :mod:`planner.methods.nlp.activity`) and the pump energy (trapezoid rule,
-        interval ``h``, ``payload`` parameter), returned (0 when not needed)."""
+        interval ``h``, ``payload`` parameter), returned (0 when not needed). ``lifted`` (a
+        dict, minimum time): filled with the pump rows written in free symbols for the nodes'
+        stroke Jacobians (:func:`~planner.methods.nlp.hessian.lagrangian_hessian`'s arguments)."""
         crane, spec, n, N = self.crane, self.crane.spec, self.crane.n, self.N
         pump_margin = self.margin
         Aa, Ab, dbl = self.acts.area_a, self.acts.area_b, ~self.acts.single
@@ -51,9 +53,21 @@ class PumpRows:
             J = [crane.f_stroke(q)[1] for q, _, _ in pts]
             Jm = ([crane.f_stroke(q)[1] for q, _, _ in mids] if self.stagewise
                   else [(J[k] + J[k + 1]) / 2 for k in range(N)])
+            first = lay.ng
             for k, (Jk, (_, v, _)) in enumerate(zip(J + Jm, pts + mids)):
                 lay.add_con("pump", pump_draw(Jk, v, self.acts, Qm), -ca.inf, 1 - pump_margin,
                             stage=(k % (N + 1), 1))
+            if lifted is not None and not self.stagewise:
+                # the same rows in free symbols Y for the nodes' stroke Jacobians: the Hessian
+                # differentiates the kinematics once per node (planner.methods.nlp.hessian)
+                Y = ca.SX.sym("Jy", n, N + 1)
+                Ys = [Y[:, k] for k in range(N + 1)]
+                Ym = [(Ys[k] + Ys[k + 1]) / 2 for k in range(N)]
+                lifted.update(rows=np.arange(first, lay.ng), Y=Y,
+                              Q=ca.horzcat(*(q for q, _, _ in pts)),
+                              stroke=lambda q: crane.f_stroke(q)[1],
+                              rows_y=ca.vertcat(*(pump_draw(Yk, v, self.acts, Qm) for Yk, (
+                                  _, v, _) in zip(Ys + Ym, pts + mids))))
             return 0
         checks = pts + mids if self.pump else pts
         # least energy: stroke Jacobians at the nodes, at a midpoint (only its pump row needs

@@ -28,29 +28,27 @@ reaction acts on the boom:
   follows a quick horizontal push of the tip with only k²/(L² + k²) of its mass). At rest the
   state is still an equilibrium.
 
-The stepper is the twin's BDF2 (:class:`planner.model.twin.integrator.Stepper`) on the longer
-state, the swing's states scaled by 1 rad (:class:`CoupledStepper`); the twin's adjoint
-(:mod:`planner.model.twin.shooting`) runs on it unchanged, so :func:`planner.refine` can put a
-cost on the swing's states directly.
+The stepper is the twin's own (:class:`planner.model.twin.integrator.Stepper`: BDF2, the
+spools stepped exactly) on the longer state, the swing's states scaled by 1 rad; the twin's
+adjoint (:mod:`planner.model.twin.shooting`) runs on it unchanged, so :func:`planner.refine`
+can put a cost on the swing's states directly.
 """
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 import casadi as ca
-import numpy as np
 
 from planner.model.actuators import stroke_expr
-from planner.model.numeric import jit_function
 from planner.model.pendulum import swing_rhs_expr, tip_motion
-from planner.model.twin.integrator import Stepper, state_scale
+from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size
+from planner.model.twin.params import param_index
 
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["SWING_STATES", "LINK_PARAMETERS", "coupled_rhs", "CoupledStepper",
-           "coupled_stepper"]
+__all__ = ["SWING_STATES", "LINK_PARAMETERS", "coupled_rhs", "coupled_stepper"]
 
 SWING_STATES = 4       # α, β, α̇, β̇
 LINK_PARAMETERS = 4    # length, mass, gyration, damping: inputs of the compiled step
@@ -106,42 +104,6 @@ def coupled_rhs(crane: Crane, spec) -> ca.Function:
                        ["x", "u", "f_x", "P"], ["xdot"])
 
 
-class CoupledStepper(Stepper):
-    """The twin's BDF2 stepper (same Newton, chunk and recovery substeps) on the state with
-    the swing; ``scale`` the per-state scale of its Newton check (the twin's, then 1 rad)."""
-
-    def __init__(self, rhs: ca.Function, n: int, h: float, newton: int = 3, chunk: int = 50,
-                 tol: float = 1e-2, refine: int = 4, depth: int = 2):
-        self.n, self.h, self.newton, self.chunk = n, float(h), int(newton), int(chunk)
-        self.tol, self.refine, self.depth = float(tol), int(refine), int(depth)
-        self._rhs, self._fine, self.refined = rhs, None, 0
-        self.scale = np.concatenate([state_scale(n), np.ones(SWING_STATES)])
-        nx = self.nx = self.scale.size
-        npar = self._npar = rhs.size1_in(3)
-        xk, xm, ys = ca.SX.sym("xk", nx), ca.SX.sym("xm", nx), ca.SX.sym("y", nx)
-        u, fx, P = ca.SX.sym("u", n), ca.SX.sym("f_x", n), ca.SX.sym("P", npar)
-        jac = ca.Function("twin_swing_jac", [ys, u, fx, P], [ca.jacobian(rhs(ys, u, fx, P), ys)])
-        c = 2.0 / 3.0 * self.h
-        y = 2 * xk - xm
-        J = ca.SX.eye(nx) - c * jac(y, u, fx, P)
-        b = 4.0 / 3.0 * xk - 1.0 / 3.0 * xm
-        dy = ca.SX.zeros(nx)
-        for _ in range(self.newton):
-            dy = ca.solve(J, y - b - c * rhs(y, u, fx, P))
-            y = y - dy
-        err = ca.mmax(ca.fabs(dy) * ca.DM(1.0 / self.scale))
-        self.step_sx = ca.Function("twin_swing_bdf2", [ca.vertcat(xk, xm), u, fx, P],
-                                   [ca.vertcat(y, xk), err], {"cse": True})
-        self._f = jit_function(self.step_sx.mapaccum("twin_swing_chunk", self.chunk))
-        self.compiled = self._f is not None and self._f.is_a("External")
-
-    def _refined(self, xx, u, f_x, P):
-        if self._fine is None:
-            self._fine = CoupledStepper(self._rhs, self.n, self.h / self.refine, self.newton,
-                                        self.chunk, self.tol, self.refine, self.depth - 1)
-        return super()._refined(xx, u, f_x, P)
-
-
 def coupled_stepper(crane: Crane, spec, step: float, newton: int, chunk: int):
     """(stepper, rhs) of the coupled twin, built once per process and (bodies, step) and
     compiled once per user (:func:`planner.model.numeric.jit_function`); the grapple's data
@@ -150,5 +112,6 @@ def coupled_stepper(crane: Crane, spec, step: float, newton: int, chunk: int):
     got = _BUILT.get(key)
     if got is None:
         rhs = coupled_rhs(crane, spec)
-        got = _BUILT[key] = (CoupledStepper(rhs, crane.n, step, newton, chunk), rhs)
+        got = _BUILT[key] = (Stepper(rhs, crane.n, step, newton, chunk,
+                                     tau_index=param_index(crane.n, "tau_spool")), rhs)
     return got

@@ -36,7 +36,8 @@ from planner.model.valves import valve_circuit
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["PER_ACTUATOR", "SCALARS", "TwinParams", "twin_params", "COULOMB_SMOOTHING"]
+__all__ = ["PER_ACTUATOR", "SCALARS", "TwinParams", "twin_params", "param_index",
+           "COULOMB_SMOOTHING"]
 
 #: per-actuator parameters, in the order of the parameter vector
 PER_ACTUATOR = ("gain", "deadband", "area_a", "area_b", "single", "leak", "hose_a", "hose_b",
@@ -65,6 +66,14 @@ class TwinParams:
     @property
     def size(self) -> int:
         return len(PER_ACTUATOR) * self.n + len(SCALARS)
+
+
+def param_index(n: int, name: str) -> int:
+    """Position of the machine-wide parameter ``name`` (one of :data:`SCALARS`) in the
+    parameter vector of an n-joint machine."""
+    if name not in SCALARS:
+        raise ValueError(f"twin parameter {name!r}: allowed {', '.join(SCALARS)}")
+    return len(PER_ACTUATOR) * n + SCALARS.index(name)
 
 
 def joint_limit_strokes(crane: Crane):

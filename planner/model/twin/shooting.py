@@ -106,26 +106,43 @@ class Shooting:
 
 
 def _adjoint_step(rhs, n: int, st):
-    """One step of the BDF2 adjoint, backwards: the step k solved G(y) = y − 4/3·x_k +
-    1/3·x_{k−1} − c·f(y, u_k) = 0 for y = x_{k+1} (c = 2h/3). With A = I − c·∂f/∂y at the
-    solution, the implicit function theorem gives dy = A⁻¹(4/3·dx_k − 1/3·dx_{k−1} +
-    c·∂f/∂u·du_k). Carrying (μ_{k+1}, μ_{k+2}), the total adjoint of x_{k+1} is
-    ā = ∂J/∂x_{k+1} + 4/3·μ_{k+1} − 1/3·μ_{k+2}; then μ_k = A⁻ᵀ·ā and ∂J/∂u_k = c·(∂f/∂u)ᵀ·μ_k.
-    Inputs (carry (2nx), y, u, f_x, P, seed); outputs (carry (μ_k, μ_{k+1}), ∂J/∂u_k)."""
+    """One step of the adjoint, backwards. The step k solved G(y) = y − 4/3·x_k + 1/3·x_{k−1}
+    − c·f(y, u_k) = 0 for y = x_{k+1} (c = 2h/3) on the BDF2 rows, and y = ū_k + (x_k −
+    ū_k)·E on the exactly stepped spool rows (E = e^{−h/τ}, ū the clipped command; see
+    :mod:`planner.model.twin.integrator`). With A = ∂G/∂y at the solution (I − c·∂f/∂y on the
+    BDF2 rows, I on the spool rows), the implicit function theorem gives A·dy = W₁·dx_k +
+    W₂·dx_{k−1} + B·du_k, W₁ = diag(4/3 | E), W₂ = diag(−1/3 | 0), B = (c·∂f/∂u | (1 −
+    E)·∂ū/∂u). Carrying (μ_{k+1}, μ_{k+2}), the total adjoint of x_{k+1} is ā = ∂J/∂x_{k+1}
+    + W₁·μ_{k+1} + W₂·μ_{k+2}; then μ_k = A⁻ᵀ·ā and ∂J/∂u_k = Bᵀ·μ_k. Inputs (carry (2nx), y,
+    u, f_x, P, seed); outputs (carry (μ_k, μ_{k+1}), ∂J/∂u_k)."""
     import casadi as ca
     nx = st.nx
     c = 2.0 / 3.0 * st.h
     y, u, fx = ca.SX.sym("y", nx), ca.SX.sym("u", n), ca.SX.sym("f_x", n)
     P = ca.SX.sym("P", rhs.size1_in(3))
     carry, seed = ca.SX.sym("carry", 2 * nx), ca.SX.sym("seed", nx)
+    m = ca.DM(st.spool_mask())
+    keep = 1.0 - m
+    E = st.spool_decay(P)
     f = rhs(y, u, fx, P)
-    A = ca.SX.eye(nx) - c * ca.jacobian(f, y)
-    a = seed + 4.0 / 3.0 * carry[:nx] - 1.0 / 3.0 * carry[nx:]
+    A = ca.SX.eye(nx) - c * ca.mtimes(ca.diag(keep), ca.jacobian(f, y))
+    w1 = 4.0 / 3.0 * keep + E * m
+    w2 = -1.0 / 3.0 * keep
+    a = seed + w1 * carry[:nx] + w2 * carry[nx:]
     # in scaled states (1 rad, 1 MPa, …): the symbolic solve does not pivot, and A mixes
     # entries of 1 and 1e10 unscaled (the adjoint recursion then amplifies the rounding)
-    d = ca.DM(st.scale if hasattr(st, "scale") else state_scale(n))   # coupled: 4 more
+    d = ca.DM(state_scale(n, nx))
     As = A * ca.mtimes(1.0 / d, d.T)             # D⁻¹·A·D
     mu = ca.solve(As.T, d * a) / d
-    gu = c * ca.mtimes(ca.jacobian(f, u).T, mu)
+    ub = ca.fmin(ca.fmax(u, -1.0), 1.0)
+    B = (c * ca.mtimes(ca.diag(keep), ca.jacobian(f, u))
+         + (1.0 - E) * ca.jacobian(_spool_rows(ub, n, nx), u))
+    gu = ca.mtimes(B.T, mu)
     return ca.Function("twin_adjoint_step", [carry, y, u, fx, P, seed],
                        [ca.vertcat(mu, carry[:nx]), gu], {"cse": True})
+
+
+def _spool_rows(ub, n, nx):
+    """The clipped commands placed on the spool rows of a state vector (zeros elsewhere)."""
+    import casadi as ca
+    return ca.vertcat(ca.SX.zeros(4 * n + 1), ub, ca.SX.zeros(nx - 5 * n - 1))

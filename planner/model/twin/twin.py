@@ -31,8 +31,8 @@ import numpy as np
 from planner.model.commands import held_commands
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
-from planner.model.twin.params import twin_params
 from planner.model.twin.coupled import coupled_stepper
+from planner.model.twin.params import param_index, twin_params
 from planner.model.twin.pendulum import grapple_of
 
 if TYPE_CHECKING:
@@ -91,7 +91,8 @@ def _stepper(crane: Crane, spec, step, newton, chunk):
     st = _STEPPERS.get(key)
     if st is None:
         fs = build_rhs(crane, spec)
-        st = _STEPPERS[key] = (Stepper(fs["rhs"], crane.n, step, newton, chunk), fs)
+        st = _STEPPERS[key] = (Stepper(fs["rhs"], crane.n, step, newton, chunk,
+                                       tau_index=param_index(crane.n, "tau_spool")), fs)
     return st
 
 

@@ -8,9 +8,10 @@ Per actuator (piston side a, rod side b; a rotary drive's two motor ports):
   and rack cylinders; a motor keeps its hose volumes); pressure build-up
   ṗ = β/V · (Q_into − A·(±ẋ) − Q_leak + Q_makeup);
 * **proportional valve** (spool opening ``o`` in [−1, 1] after its first-order lag and dead
-  band): the meter-in edge passes G·|o|·√(min(Δp, Δp_c)/Δp_c) from the pump line (an
-  individual pressure compensator holds at most Δp_c across it; below that the flow falls
-  with √Δp — pump saturation; a check valve stops reverse flow); the meter-out edge has its
+  band): the meter-in edge passes G·|o|·r(min(Δp, Δp_c))/r(Δp_c) from the pump line, r the
+  regularised root below (an individual pressure compensator holds at most Δp_c across it, so
+  a regulated edge passes exactly G·|o|; below that the flow falls with √Δp — pump
+  saturation; a check valve stops reverse flow); the meter-out edge has its
   own compensator (return-flow control, the steady-state action of a load-holding valve): it
   passes at most (1 + ``meter_out_margin``) times the outflow that matches the meter-in flow,
   reached at ``meter_out_dp`` — so a passive load is metered in (a back pressure a little
@@ -37,7 +38,12 @@ a closed chamber (Q = 0) compressed from V₀ to V, within the unclipped range,
 law on its residual is only approximate.
 
 Orifice roots are regularised below 0.2 bar (linear through zero) so that Newton's method of
-the implicit integrator sees finite slopes.
+the implicit integrator sees finite slopes; each edge is normalised by the regularised root at
+its regulating drop (Δp_c, Δp_o), so the gains mean what they say: G·|o| through a regulated
+meter-in edge, the return cap at Δp_o. (Until 2026-11-26 the edges divided by √Δp_c and √Δp_o
+and passed 1 − 4·10⁻⁵ and 1 − 4·10⁻⁴ of those flows: on an overrunning, metered-out
+deceleration the meter-out edge sets the speed, and that 4·10⁻⁴ alone left the s100f slew
+0.6 mrad — 2.4 mm at the tip — from where the same commands put the model's twin.)
 """
 from __future__ import annotations
 
@@ -225,15 +231,15 @@ class Circuit:
         p_in = np.where(ext, p_a, p_b)
         p_out = np.where(ext, p_b, p_a)
         dp_in = p_s - p_in
-        comp = root(np.clip(dp_in, 0.0, self.dp_c)) / np.sqrt(self.dp_c)
+        comp = root(np.clip(dp_in, 0.0, self.dp_c)) / root(self.dp_c)
         q_in = self.gain * mag * comp
         k_out = np.where(ext, self.k_out_b, self.k_out_a)
         dp_out = p_out - pt
-        q_out = k_out * mag * root(np.minimum(dp_out, self.dp_out)) / np.sqrt(self.dp_out)
+        q_out = k_out * mag * root(np.minimum(dp_out, self.dp_out)) / root(self.dp_out)
         # single-acting: raising draws from the pump; lowering meters the piston-side
         # outflow through the compensated edge, the rod side is vented
         lower = self.single & ~ext
-        q_low = self.gain * mag * root(np.clip(p_a - pt, 0.0, self.dp_c)) / np.sqrt(self.dp_c)
+        q_low = self.gain * mag * root(np.clip(p_a - pt, 0.0, self.dp_c)) / root(self.dp_c)
         q_in = np.where(lower, 0.0, q_in)
         q_out = np.where(lower, q_low, np.where(self.single, 0.0, q_out))
         dp_out = np.where(lower, p_a - pt, dp_out)

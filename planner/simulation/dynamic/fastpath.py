@@ -32,9 +32,11 @@ def state_function(circuit, strokes):
     C, S = circuit, strokes
     n = C.n
     pt, dpc, beta = float(C.p_tank), float(C.dp_c), float(C.beta)
-    sdpc, dpo = math.sqrt(dpc), float(C.dp_out)
-    sdpo = math.sqrt(dpo)
+    dpo = float(C.dp_out)
     reg2 = DP_REG ** 2
+    # each edge normalised by the regularised root at its regulating drop (circuit.root)
+    sdpc = dpc / math.sqrt(math.sqrt(dpc * dpc + reg2))
+    sdpo = dpo / math.sqrt(math.sqrt(dpo * dpo + reg2))
     ls = C.pump_kind == "load_sensing"
     standby, margin, relief = float(C.standby), float(C.margin), float(C.p_relief)
     p_const = float(C.p_set_const)

@@ -3,8 +3,11 @@
 swing after arrival and the duration of the sway-blind minimum-time plan (``nlp``), its ZV and
 ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side. s100f.
 
-    python benchmarks/bench_sway.py [--moves 12] [--length 1.5] [--zeta 0.05] [--settle 6]
-                                    [--methods nlp,zv,zvd,nlp-sway] [--out benchmarks/results]
+    python benchmarks/bench_sway.py [--moves 12 | --only ID,ID] [--length 1.5] [--zeta 0.05]
+                                    [--settle 6] [--methods nlp,zv,zvd,nlp-sway,nlp-sway+ffs]
+                                    [--ff-iterations 150] [--swing-weight 10]
+                                    [--out benchmarks/results] [--tag sway]
+    python benchmarks/bench_sway.py --merge A.json B.json --tag NAME   # split runs, one table
 
 Forwarder moves over the headboard (the library subset of the shipped forwarder cycle, half
 pick-ups, half drops); every method plans with the headboard and the grapple it is told
@@ -15,7 +18,13 @@ same link, then ``--settle`` s with the valves closed. Measured from the plant's
 tip — its peak during the move, after arrival (the residual swing) and in the last second.
 Beside them: the model's prediction (:func:`planner.model.pendulum.predict_swing`), the tip's
 clearance from the headboard at 1 kHz and the load's (tip + the model's link) in the plan,
-solve times. Judge: the Exudyn plant.
+solve times. A method name may end in ``+ff`` (its commands refined on the dynamic twin,
+:func:`planner.refine.refine_commands`, tip tracking and landing only) or ``+ffs`` (refined with
+the swing term on the twin that carries the load on its link, :mod:`planner.model.twin.coupled`);
+one plan per method and move serves all its variants. Beside the plant's swing: the twin's
+predicted swing for the refined commands, the load's clearance from the headboard on the
+plant's own grid (the load's centre of mass from the plant's tree) and the tip's distance from
+the goal at the end of the record. Judge: the Exudyn plant.
 """
 from __future__ import annotations
 
@@ -49,6 +58,10 @@ from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
 
+#: method-name suffixes that replay the twin's refined commands instead of the nominal ones
+FF = ("ff", "ffs")
+
+
 def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
@@ -71,6 +84,23 @@ def clearances(crane, traj, pend, obstacles):
     return tip, ld
 
 
+def plant_load_clearance(plant, rec, obstacles):
+    """(smallest distance minus clearance of the plant's load centre of mass from the
+    obstacles [m] on the plant's own grid, largest distance of the plant's tip frame from the
+    model's forward kinematics [m]: the check that both use one frame)."""
+    run = rec.meta.get("run")
+    if not obstacles or getattr(run, "grapple_q", None) is None:
+        return float("nan"), float("nan")
+    from planner.simulation.dynamic.grapple import link_frames
+    tree = plant.tree
+    n = tree["crane_links"]
+    _, links = link_frames(tree, np.hstack([run.q, run.grapple_q]))
+    com = (links[-1] @ np.array([tree["grapple"].length, 0.0, 0.0, 1.0]))[:, :3]
+    frame = float(np.max(np.linalg.norm(links[n][:, :3, 3] - plant.crane.fk(run.q), axis=1)))
+    cyl = xyz_to_tip(com)
+    return min(float(ob.distance(com, cyl).min() - ob.clearance) for ob in obstacles), frame
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--moves", type=int, default=12)
@@ -86,11 +116,21 @@ def main(argv=None):
     ap.add_argument("--refine", type=int, default=0, metavar="ITER",
                     help="replay the twin's refined feed-forward (planner.refine, ITER "
                          "L-BFGS-B iterations) instead of the nominal one")
+    ap.add_argument("--ff-iterations", type=int, default=150,
+                    help="L-BFGS-B iterations of the +ff / +ffs refinements")
+    ap.add_argument("--swing-weight", type=float, default=10.0,
+                    help="the refiner's swing weight for the +ffs methods (RefineOptions)")
+    ap.add_argument("--only", default="", help="comma-separated move ids (instead of --moves)")
+    ap.add_argument("--merge", nargs="+", type=Path, default=None, metavar="JSON",
+                    help="write one table of these runs' rows (the same options, moves split "
+                         "between processes with --only) under --tag, and stop")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--tag", default="sway", help="result file name stem")
     ap.add_argument("--work", type=Path, default=Path(os.environ.get("TMPDIR", "/tmp"))
                     / "crane-sway")
     args = ap.parse_args(argv)
+    if args.merge:
+        return merge(args.merge, args.out, args.tag)
     t_start = time.perf_counter()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     crane = Crane.from_id("s100f")
@@ -107,17 +147,41 @@ def main(argv=None):
         ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
         want = args.moves // 2 if first == "p" else args.moves - args.moves // 2
         moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
+    if args.only:
+        moves = [m for m in suite.moves if m.id in args.only.split(",")]
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
-    for mv in moves:
+    def save(done):
+        """The result of the moves ``done`` so far (written after every move)."""
+        res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                   machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
+                                load=list(os.getloadavg())),
+                   args={k: (str(v) if isinstance(v, Path) else v)
+                         for k, v in vars(args).items()},
+                   effect=dict(effect.values), pendulum_hz=pend.omega / (2 * np.pi),
+                   moves=[m.id for m in done], rows=rows,
+                   wall_s=time.perf_counter() - t_start)
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / f"{args.tag}.json", dumps(res))
+        atomic_write_text(args.out / f"{args.tag}.md", "\n".join(markdown(res)) + "\n")
+        return res
+
+    for i_mv, mv in enumerate(moves):
+        if i_mv:
+            save(moves[:i_mv])
+        planned = {}                          # one plan per (method, options) and move
         for name in args.methods.split(","):
-            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1
-            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra)}
+            method, *extra = name.split("+")        # e.g. nlp-sway+swing_robust=0.1+ff
+            ff = [e for e in extra if e in FF]       # +ff / +ffs: refined on the twin
+            extra = {k: float(v) for k, _, v in (e.partition("=") for e in extra if e not in FF)}
+            key = (method, tuple(sorted(extra.items())))
             req = PlanRequest(mv.start, mv.goal, obstacles=obstacles,
                               options={} if method == "nlp" else dict(opts, **extra))
             t0 = time.perf_counter()
             try:
-                res = plan(crane, req, method)
+                if key not in planned:
+                    planned[key] = plan(crane, req, method)
+                res = planned[key]
             except Exception as e:            # a method's failure is a row, not a crash
                 rows.append(dict(method=name, move=mv.id, status="error", reason=str(e)))
                 continue
@@ -133,15 +197,21 @@ def main(argv=None):
             tr = res.trajectory
             pred = predict_swing(crane, tr, pend)
             tip_c, load_c = clearances(crane, tr, pend, obstacles)
-            if args.refine:   # the twin's feed-forward (planner.refine) instead of the nominal
-                ff = commands(crane, tr, 50.0)
-                ref = refine_commands(crane, tr, ff.t, ff.u,
-                                      options=RefineOptions(iterations=args.refine))
+            if args.refine or ff:   # the twin's feed-forward (planner.refine), not the nominal
+                nom = commands(crane, tr, 50.0)
+                w = args.swing_weight if "ffs" in ff else 0.0   # +ffs: with the swing term
+                ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
+                                      options=RefineOptions(iterations=args.refine
+                                                            or args.ff_iterations,
+                                                            swing_weight=w))
                 k = int(round(args.settle * 50.0))
                 t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
                 u = np.vstack([ref.u, np.zeros((k, crane.n))])
                 row.update(refine=str(ref.status), refine_s=ref.wall_s,
-                           lengthened_s=ref.lengthened_s)
+                           lengthened_s=ref.lengthened_s,
+                           twin_swing_after_m=ref.predicted["refined"].get("swing_after_m"),
+                           twin_swing_nominal_m=ref.predicted["nominal"].get("swing_after_m"),
+                           twin_rest_offset_m=ref.predicted["refined"].get("rest_offset_m"))
             else:
                 run_tr = with_settle(crane, tr, args.settle)
                 t_u, u = run_tr.t, run_tr.u
@@ -150,6 +220,8 @@ def main(argv=None):
                        model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
                        load_clearance_m=load_c, plant=rec.status)
             if rec.ok:
+                lc, frame = plant_load_clearance(plant, rec, obstacles)
+                row.update(plant_load_clearance_m=lc, plant_frame_m=frame)
                 ts, sw = load_swing(plant, rec)
                 r = np.linalg.norm(sw, axis=1)
                 T = float(tr.duration)
@@ -161,21 +233,48 @@ def main(argv=None):
             rows.append(row)
             log(f"{mv.id:28s} {name:9s} T={row['duration_s']:.2f} s  after "
                 f"{row.get('swing_after_m', float('nan')) * 1e3:5.0f} mm  model "
-                f"{pred.residual_m * 1e3:5.0f} mm  solve {row['solve_time_s']:.1f} s")
-    res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
-               machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
-                            load=list(os.getloadavg())),
-               args={k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
-               effect=dict(effect.values), pendulum_hz=pend.omega / (2 * np.pi),
-               moves=[m.id for m in moves], rows=rows, wall_s=time.perf_counter() - t_start)
-    args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(args.out / f"{args.tag}.json", dumps(res))
-    atomic_write_text(args.out / f"{args.tag}.md", "\n".join(markdown(res)) + "\n")
+                f"{pred.residual_m * 1e3:5.0f} mm  solve {row['solve_time_s']:.1f} s"
+                + (f"  twin {row['twin_swing_nominal_m'] * 1e3:.0f} -> "
+                   f"{row['twin_swing_after_m'] * 1e3:.0f} mm, refine {row['refine_s']:.0f} s"
+                   if row.get("twin_swing_after_m") is not None else ""))
+    res = save(moves)
     log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
+
+
+def merge(paths, out: Path, tag: str) -> None:
+    """One result of several runs of the same options over different moves (``--only``,
+    parallel processes): rows and moves joined, wall times summed, the first run's date,
+    machine and options (``only`` the union)."""
+    import json
+    runs = [json.loads(Path(p).read_text()) for p in paths]
+    res = dict(runs[0])
+    res["rows"] = [r for run in runs for r in run["rows"]]
+    res["moves"] = [m for run in runs for m in run["moves"]]
+    res["wall_s"] = sum(run["wall_s"] for run in runs)
+    res["args"] = dict(res["args"], only=",".join(res["moves"]), tag=tag,
+                       processes=len(runs))
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / f"{tag}.json", dumps(res))
+    atomic_write_text(out / f"{tag}.md", "\n".join(markdown(res)) + "\n")
+    log(f"wrote {out / (tag + '.md')} ({len(res['rows'])} rows of {len(runs)} runs)")
 
 
 def _q(v, p):
     return float(np.percentile(v, p)) if len(v) else float("nan")
+
+
+def _vals(rows, key):
+    return [r[key] * 1e3 for r in rows if r.get(key) is not None and np.isfinite(r[key])]
+
+
+def _min_mm(rows, key):
+    v = _vals(rows, key)
+    return f"{min(v):.0f}" if v else "–"
+
+
+def _med_mm(rows, key):
+    v = _vals(rows, key)
+    return f"{np.median(v):.0f}" if v else "–"
 
 
 def markdown(res) -> list:
@@ -183,39 +282,52 @@ def markdown(res) -> list:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     L = ["# Sway-free moves on the Exudyn plant with the grapple (issue 29)", "",
          f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
-         f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py --moves "
-         f"{a['moves']} --length {a['length']:g} --zeta {a['zeta']:g} --settle "
+         f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py"
+         + ("" if a.get("only") else f" --moves {a['moves']}")
+         + f" --length {a['length']:g} --zeta {a['zeta']:g} --settle "
          f"{a['settle']:g} --methods {a['methods']}"
          + (f" --refine {a['refine']}" if a.get("refine") else "")
          + (f" --plant-length {a['plant_length']:g}" if a.get("plant_length") else "")
-         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min). s100f, "
+         + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
+            f"{a.get('swing_weight', 10.0):g}"
+            if "+ff" in a["methods"] else "")
+         + (f" --only {a['only']}" if a.get("only") else "")
+         + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min"
+         + (f" of CPU-bound wall time summed over {a['processes']} parallel processes"
+            if a.get("processes") else "") + "). s100f, "
          f"its {res['effect'].get('length', a['length'])} m grapple link "
          + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
          f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
-            else "nominal 50 Hz feed-forward")
+            else "nominal 50 Hz feed-forward (`+ff`: its valve commands refined on the dynamic "
+                 "twin, planner.refine, tip tracking and landing only; `+ffs`: with the swing "
+                 f"term, swing_weight {a.get('swing_weight', 10.0):g}, on the twin carrying "
+                 "the load on its link; "
+                 f"{a.get('ff_iterations', 150)} L-BFGS-B iterations)")
          + " replayed open loop, then the valves closed. Swing: the horizontal "
          "distance of the load's centre of mass from under the tip (the plant's tree). "
          "Judge: the Exudyn plant; 'model': the planner's own pendulum along the plan.", "",
          "| method | ok / moves | duration s (median) | duration ratio to nlp (median) | "
          "residual swing mm (median / p90 / max) | swing left after "
          f"{a['settle']:g} s mm (median) | model residual mm (median / p90) | swing during "
-         "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | solve s "
-         "(median / p90) |",
-         "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | --- |"]
+         "mm (median) | tip clearance mm (min) | load clearance mm (min, model) | load "
+         "clearance mm (min, plant) | twin swing after mm (median, +ff) | tip end error mm "
+         "(median, plant) | solve s (median / p90) |",
+         "| --- | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: "
+         "| ---: | --- |"]
     by = {m: {r["move"]: r for r in rows if r["method"] == m and "swing_after_m" in r}
           for m in methods}
     for m in methods:
         ok = list(by[m].values())
         n_all = sum(r["method"] == m for r in rows)
         if not ok:
-            L.append(f"| {m} | 0 / {n_all} |" + " |" * 9)
+            L.append(f"| {m} | 0 / {n_all} |" + " |" * 12)
             continue
         aft = [r["swing_after_m"] * 1e3 for r in ok]
         mod = [r["model_residual_m"] * 1e3 for r in ok]
-        ratio = [r["duration_s"] / by["nlp"][r["move"]]["duration_s"] for r in ok
-                 if "nlp" in by and r["move"] in by["nlp"]]
+        base = next((by[b] for b in ("nlp", "nlp+ff") if b in by), {})
+        ratio = [r["duration_s"] / base[r["move"]]["duration_s"] for r in ok if r["move"] in base]
         sol = [r["solve_time_s"] for r in ok]
         L.append(f"| {m} | {len(ok)} / {n_all} | {np.median([r['duration_s'] for r in ok]):.2f} "
                  f"| {np.median(ratio) if ratio else float('nan'):.2f} | "
@@ -225,6 +337,9 @@ def markdown(res) -> list:
                  f"{np.median([r['swing_during_m'] for r in ok]) * 1e3:.0f} | "
                  f"{min(r['tip_clearance_m'] for r in ok) * 1e3:.0f} | "
                  f"{min(r['load_clearance_m'] for r in ok) * 1e3:.0f} | "
+                 f"{_min_mm(ok, 'plant_load_clearance_m')} | "
+                 f"{_med_mm(ok, 'twin_swing_after_m')} | "
+                 f"{_med_mm(ok, 'tip_end_error_m')} | "
                  f"{np.median(sol):.2f} / {_q(sol, 90):.2f} |")
     fails = [r for r in rows if "swing_after_m" not in r]
     if fails:

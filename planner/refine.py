@@ -18,6 +18,14 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   ``end_weight`` after it: landing and calm count most), plus ``smooth``·Σ|u_{k+1} − u_k|²
   (no chatter at the control rate). The reference holds the goal after the plan's end, so
   any residual motion, offset or ringing is paid for.
+* **Swing** (``swing_weight`` > 0, issue 29): on the twin that carries the load on its
+  grapple link (:mod:`planner.model.twin.coupled`: the model's pendulum, driven by the twin's
+  tip and pulling on it) the swing costs ``swing_weight``·∫ A²(t) dt after the plan's end
+  (the tail and the settle window), A² the small-angle amplitude squared
+  L²·(α² + β² + (α̇² + β̇²)/ω₀²) (:func:`planner.model.twin.pendulum.amplitude2`) — the swing's
+  offset and rate, constant along a free swing — in the same mm²·s as the tip error: the
+  refined commands end with the load at rest under the tip, not only the tip on its goal.
+  The swing's states are the twin's, so the adjoint gives its gradient too.
 * **Gradient**: exact, by the adjoint of the twin's compiled integrator
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
@@ -53,8 +61,13 @@ if TYPE_CHECKING:
 
 _STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
 _DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
+#: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
+#: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
+#: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
+SWING_WEIGHT = 10.0
 
-__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures"]
+__all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
+           "SWING_WEIGHT"]
 
 
 @dataclass(frozen=True)
@@ -63,7 +76,8 @@ class RefineOptions:
     the ``tail`` [s] the commands may run past the plan, ``settle`` [s] recorded with the
     valves closed after that, ``end_weight`` on the error after the plan's end, ``smooth``
     [1/(command step)²] on the command's steps, the control ``rate`` [Hz], the twin's ``step``
-    [s], ``rest_window`` [s] the end of the record whose mean is the rest point."""
+    [s], ``rest_window`` [s] the end of the record whose mean is the rest point,
+    ``swing_weight`` on the grapple's swing after the plan's end (0: no swing term)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -72,12 +86,14 @@ class RefineOptions:
     rate: float = 50.0
     step: float = 2e-3
     rest_window: float = 1.0
+    swing_weight: float = 0.0
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
                   ("settle", self.settle, 0.2, 60.0), ("end_weight", self.end_weight, 0.0, 1e6),
                   ("smooth", self.smooth, 0.0, 1e6), ("rate", self.rate, 1.0, 1000.0),
-                  ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0))
+                  ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0),
+                  ("swing_weight", self.swing_weight, 0.0, 1e6))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -166,8 +182,9 @@ def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 
 class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
-    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers):
-        self.sh, self.Ku, self.R, self.K = shooting, Ku, R, K
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers,
+                 pendulum=None):
+        self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n
         h = shooting.h
         self.tk = traj.t[0] + h * np.arange(K + 1)
@@ -175,6 +192,7 @@ class _Cost:
         w_t = np.where(self.tk > traj.t[-1] + 1e-9, opts.end_weight, 1.0)
         # J in mm²·s (the scale L-BFGS-B's default tolerances suit)
         self.W = 1e6 * h * w_t[:, None] * (levers ** 2)[None, :]
+        self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
         self.smooth = 1e6 * opts.smooth
         self.x0 = shooting.twin.rest_state(traj.q[0])
         self.n, self.evaluations = n, 0
@@ -196,6 +214,12 @@ class _Cost:
         J = float(np.sum(self.W * e * e))
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
+        if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
+            from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
+            nb = 5 * self.n + 1
+            S = run.x[:, nb:]
+            J += float(np.sum(self.W_swing * amplitude2(self.pendulum, S)))
+            dJdx[:, nb:] += self.W_swing[:, None] * amplitude2_gradient(self.pendulum, S)
         g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
         g = g.reshape(self.Ku, self.R, self.n).sum(axis=1)
         dU = np.diff(U, axis=0)
@@ -206,11 +230,15 @@ class _Cost:
 
 
 def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
-                    options: RefineOptions | None = None) -> Refinement:
+                    options: RefineOptions | None = None, pendulum=None) -> Refinement:
     """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
     ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
-    step) so that the twin follows ``traj`` and comes to rest at its goal (module doc).
-    Never raises for a move the twin cannot run: the status says so."""
+    step) so that the twin follows ``traj`` and comes to rest at its goal (module doc);
+    with the options' ``swing_weight`` > 0 the load at rest under the tip too, the load
+    hanging on the twin's grapple link (the twin's ``pendulum``; default twin: one with
+    ``pendulum`` — a :class:`~planner.model.pendulum.Pendulum` or a length [m] — else the
+    spec's ``[dynamics.grapple]``). Never raises for a move the twin cannot run: the status
+    says so."""
     from scipy.optimize import minimize
 
     from planner.model.twin import Twin
@@ -228,7 +256,12 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
             np.max(np.abs(np.diff(t_u) - dt)) > 1e-6:
         raise ValueError(f"refine: commands are not on the {opts.rate:g} Hz grid from the "
                          f"plan's start t = {traj.t[0]:g} s")
-    twin = twin or Twin(crane, step=opts.step)
+    if twin is None:
+        hang = pendulum if pendulum is not None else (True if opts.swing_weight > 0 else None)
+        twin = Twin(crane, step=opts.step, grapple=hang)
+    if opts.swing_weight > 0 and twin.pendulum is None:
+        raise ValueError(f"refine option 'swing_weight' = {opts.swing_weight!r}; allowed: 0 "
+                         "with a twin that has no grapple (Twin(..., grapple=LENGTH))")
     R = int(round(dt / twin.step))
     if abs(R * twin.step - dt) > 1e-9 * dt:
         raise ValueError(f"refine: twin step {twin.step:g} s does not divide the control period "
@@ -237,7 +270,8 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     Ku = t_u.size + int(round(opts.tail * opts.rate))
     K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
     levers = _levers(crane, traj.q[-1])
-    cost = _Cost(sh, traj, Ku, R, K, opts, levers)
+    cost = _Cost(sh, traj, Ku, R, K, opts, levers,
+                 twin.pendulum if opts.swing_weight > 0 else None)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
     # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
@@ -287,8 +321,9 @@ def _scaled(cost, z, s):
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
              opts: RefineOptions):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
-    in full (the integrator's recovery substeps included) over the cost's horizon; None when
-    the twin diverges."""
+    in full (the integrator's recovery substeps included) over the cost's horizon, with the
+    swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the
+    load on its link; None when the twin diverges."""
     t_end = traj.t[0] + K * twin.step
     tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
     uu = np.vstack([U, np.zeros((1, crane.n))])
@@ -298,4 +333,8 @@ def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
     ts = traj.t[0] + np.arange(int(math.floor((t_end - traj.t[0]) * opts.rate + 1e-9)) + 1) \
         / opts.rate
     q = run.sample(ts)[0]
-    return landing_measures(crane, ts, q, traj, opts.rest_window)
+    out = landing_measures(crane, ts, q, traj, opts.rest_window)
+    if run.swing is not None:
+        from planner.model.twin.pendulum import swing_measures
+        out.update(swing_measures(twin.pendulum, run.t, run.swing, traj.t[-1]))
+    return out

@@ -126,18 +126,27 @@ OUT_SUFFIXES = (".csv", ".h5")
 def predicted_swing(args, crane: Crane, traj) -> dict | None:
     """The model's swing of the load along the plan (planner.model.pendulum) when the grapple
     is known: ``--grapple LENGTH``, or the spec's ``[dynamics.grapple]``; None otherwise."""
-    from planner.model.pendulum import Pendulum, predict_swing
+    from planner.model.pendulum import predict_swing
+    pend = grapple_of_args(args, crane)
+    if pend is None:
+        return None
+    pred = predict_swing(crane, traj, pend)
+    return dict(grapple_m=pend.length, pendulum_hz=pend.omega / (2 * math.pi),
+                zeta=pend.zeta, residual_swing_m=pred.residual_m, swing_peak_m=pred.peak_during_m)
+
+
+def grapple_of_args(args, crane: Crane):
+    """The grapple's pendulum (:class:`planner.model.pendulum.Pendulum`) of ``--grapple``
+    / ``--grapple-zeta`` or the spec's ``[dynamics.grapple]``; None when neither."""
+    from planner.model.pendulum import Pendulum
     dyn = crane.spec.dynamics
     if args.grapple is None and (dyn is None or dyn.grapple is None):
         return None
     try:
-        pend = Pendulum.of(crane, args.grapple, zeta=args.grapple_zeta)
+        return Pendulum.of(crane, args.grapple, zeta=args.grapple_zeta)
     except ValueError as e:
         raise CLIError(str(e).replace("pendulum `length`", "--grapple")
                        .replace("pendulum `zeta`", "--grapple-zeta")) from None
-    pred = predict_swing(crane, traj, pend)
-    return dict(grapple_m=pend.length, pendulum_hz=pend.omega / (2 * math.pi),
-                zeta=pend.zeta, residual_swing_m=pred.residual_m, swing_peak_m=pred.peak_during_m)
 
 
 def check_outputs(args) -> None:
@@ -193,10 +202,16 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
         raise CLIError(f"--feedforward twin: crane '{crane.spec.id}' has no [dynamics] section "
                        "(the twin needs bulk modulus, hose volumes, …)")
     from planner.feedforward import commands
-    from planner.refine import refine_commands
+    from planner.refine import SWING_WEIGHT, RefineOptions, refine_commands
     from planner.simulation.twin_plant import twin_of
     ff = commands(crane, traj, CONTROL_RATE_HZ)
-    r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane))
+    pend = grapple_of_args(args, crane)
+    if pend is not None and not crane.spec.effects:   # the load at rest on its link too
+        from planner.model.twin import Twin
+        r = refine_commands(crane, traj, ff.t, ff.u, twin=Twin(crane, grapple=pend),
+                            options=RefineOptions(swing_weight=SWING_WEIGHT))
+    else:
+        r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane))
     out["feedforward"] = dict(commands="refined" if r.status == "improved" else "nominal",
                               **r.info())
     return r if r.status == "improved" else None
@@ -312,8 +327,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--tele0", type=float, help="law start telescope [m] (default: law's choice)")
     p.add_argument("--feedforward", choices=("nominal", "twin"), default="nominal",
                    help="valve commands: nominal (the quasi-static inverse, default) or twin "
-                        "(refined on the dynamic twin so that the machine lands: --out keeps "
-                        "them, the JSON reports the predicted landing)")
+                        "(refined on the dynamic twin so that the machine lands, and with the "
+                        "grapple known the load at rest under the tip: --out keeps them, the "
+                        "JSON reports the predicted landing and swing)")
     p.add_argument("--grapple", type=float, metavar="LENGTH",
                    help="the grapple hangs on a link of LENGTH m (default: the spec's "
                         "[dynamics.grapple]): zv, zvd and nlp-sway plan with it, and the JSON "

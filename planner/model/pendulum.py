@@ -51,7 +51,8 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.trajectory import Trajectory
 
-__all__ = ["Pendulum", "SwingPrediction", "predict_swing", "tip_motion", "STATE"]
+__all__ = ["Pendulum", "SwingPrediction", "predict_swing", "tip_motion", "swing_rhs_expr",
+           "STATE"]
 
 #: the swing state's entries, in order
 STATE = ("alpha", "beta", "alpha_dot", "beta_dot")
@@ -142,17 +143,14 @@ class Pendulum:
     def f_swing(self) -> ca.Function:
         """``swing_rhs(x[4], a_tip[3]) -> xdot[4]``: the swing's ODE (x = α, β, α̇, β̇)."""
         x, a = ca.SX.sym("x", 4), ca.SX.sym("a_tip", 3)
-        th, thd = x[:2], x[2:]
-        m, k, c, g = self.mass, self.gyration, self.damping, self.gravity
-        d = ca.vertcat(*_direction(self.length, th[0], th[1]))
-        J = ca.jacobian(d, th)
-        M = m * (J.T @ J + k * k * ca.SX.eye(2))
-        Mv = M @ thd
-        h = ca.jacobian(Mv, th) @ thd - 0.5 * ca.gradient(ca.dot(thd, Mv), th)
-        g_eff = ca.vertcat(0, 0, -g) - a
-        thdd = ca.solve(M, m * J.T @ g_eff - h - c * thd)
-        return ca.Function("swing_rhs", [x, a], [ca.vertcat(thd, thdd)], ["x", "a_tip"],
-                           ["xdot"])
+        xdot = swing_rhs_expr(x, a, self.length, self.mass, self.gyration, self.damping,
+                              self.gravity)
+        return ca.Function("swing_rhs", [x, a], [xdot], ["x", "a_tip"], ["xdot"])
+
+    def values(self) -> np.ndarray:
+        """(length, mass, gyration, damping): the link's data in the order
+        :func:`swing_rhs_expr` takes them (a compiled twin's parameter inputs)."""
+        return np.array([self.length, self.mass, self.gyration, self.damping], float)
 
     def rhs(self, x, a_tip) -> np.ndarray:
         """Numeric face of :attr:`f_swing`: (4,) or (N, 4) states, (3,) or (N, 3) tip
@@ -217,6 +215,22 @@ class Pendulum:
         run = self.step_function().mapaccum(K - 1)
         X = np.array(run(np.asarray(x0, float), A[:-1].T, Ah.T, A[1:].T, np.diff(t)[None, :]))
         return np.vstack([np.asarray(x0, float), X.T])
+
+
+def swing_rhs_expr(x, a, length, mass, gyration, damping, gravity):
+    """The swing's ODE as a CasADi expression (the module doc's Lagrange equations, the one
+    definition): state ``x`` (α, β, α̇, β̇), tip acceleration ``a`` (3) [m/s²] and the link's
+    data, numbers or symbols (a compiled twin takes them as inputs) -> ẋ (4)."""
+    th, thd = x[:2], x[2:]
+    m, k, c = mass, gyration, damping
+    d = ca.vertcat(*_direction(length, th[0], th[1]))
+    J = ca.jacobian(d, th)
+    M = m * (J.T @ J + k * k * ca.SX.eye(2))
+    Mv = M @ thd
+    h = ca.jacobian(Mv, th) @ thd - 0.5 * ca.gradient(ca.dot(thd, Mv), th)
+    g_eff = ca.vertcat(0, 0, -gravity) - a
+    thdd = ca.solve(M, m * J.T @ g_eff - h - c * thd)
+    return ca.vertcat(thd, thdd)
 
 
 def tip_motion(crane: Crane) -> ca.Function:

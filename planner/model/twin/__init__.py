@@ -14,7 +14,11 @@ is the model's one definition (:mod:`planner.model.valve_physics`).
 * :mod:`~planner.model.twin.ode` — the right-hand side (CasADi);
 * :mod:`~planner.model.twin.integrator` — BDF2 with Newton on the compiled Jacobian;
 * :mod:`~planner.model.twin.twin` — :class:`Twin` (build once, simulate many) and
-  :class:`TwinRun`.
+  :class:`TwinRun`;
+* :mod:`~planner.model.twin.coupled` — the payload hanging on the grapple link
+  (``Twin(..., grapple=…)``): the model's pendulum as four more states, its pull on the boom;
+* :mod:`~planner.model.twin.pendulum` — the swing along a given joint motion (one way), the
+  swing amplitude that :func:`planner.refine.refine_commands` puts a cost on.
 
 The plant face (effects, sensors, the measured-data record) is
 :class:`planner.simulation.twin_plant.TwinPlant`, registered as the ``twin`` plant.

@@ -31,7 +31,9 @@ import numpy as np
 from planner.model.commands import held_commands
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
+from planner.model.twin.coupled import coupled_stepper
 from planner.model.twin.params import param_index, twin_params
+from planner.model.twin.pendulum import grapple_of
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -46,7 +48,9 @@ class TwinRun:
     """A twin run on its step grid ``t`` (K + 1,): joints ``q``, ``qd`` (K + 1, n), chamber
     pressures ``p_a``, ``p_b`` [Pa], pump line ``p_s`` (K + 1,), ``spool`` and the command
     ``u`` in effect at each step (K + 1, n); ``newton`` the scaled size of each step's last
-    Newton update; ``status`` "ok" | "diverged" with ``reason`` and ``t_fail``."""
+    Newton update; ``status`` "ok" | "diverged" with ``reason`` and ``t_fail``; ``swing``
+    (K + 1, 4) the grapple's swing states (α, β, α̇, β̇) when the twin carries the load on
+    its link (:mod:`planner.model.twin.coupled`), else None."""
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
@@ -61,6 +65,7 @@ class TwinRun:
     t_fail: float | None = None
     wall_s: float = 0.0
     meta: dict = field(default_factory=dict)
+    swing: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -97,11 +102,14 @@ class Twin:
     valves-stage data ``gain_scale`` (per-valve factors), ``deadband`` (None: the spec's),
     ``pump_scale`` (factor on the pump's maximum flow), the rigid bodies of ``bodies`` (a
     spec with other masses; default the crane's), integrated with ``step`` [s] and ``newton``
-    Newton iterations per step."""
+    Newton iterations per step; ``grapple`` (True: the spec's ``[dynamics.grapple]``, a link
+    length [m] or a :class:`~planner.model.pendulum.Pendulum`; default none: the payload a
+    point mass at the tip) hangs the payload on the grapple link, its swing and the boom's
+    motion coupled both ways (:mod:`planner.model.twin.coupled`; four more states)."""
 
     def __init__(self, crane: Crane, dynamics=None, payload=None, gain_scale=1.0, deadband=None,
                  pump_scale: float = 1.0, bodies=None, step: float = 2e-3, newton: int = 3,
-                 chunk: int = 50):
+                 chunk: int = 50, grapple=None):
         spec = crane.spec
         dyn = spec.dynamics if dynamics is None else dynamics
         if dyn is None:
@@ -123,6 +131,11 @@ class Twin:
         self.stepper, fs = _stepper(crane, self.bodies, self.step, int(newton), int(chunk))
         self.f_rhs, self.f_outputs = fs["rhs"], fs["outputs"]
         self._rest_model = None
+        self.pendulum = grapple_of(crane, grapple, self.payload)
+        if self.pendulum is not None:     # the load on its link: the coupled twin
+            self.stepper, self.f_rhs = coupled_stepper(crane, self.bodies, self.step,
+                                                       int(newton), int(chunk))
+            self.P = np.concatenate([self.P, self.pendulum.values()])
 
     def provenance(self) -> dict:
         """Which twin this is: the machine, its spec file, a fingerprint (sha256, 16 hex) of
@@ -133,9 +146,14 @@ class Twin:
         h.update(repr(self.bodies.joints).encode())
         h.update(f"{self.payload!r} {self.step!r} {self.stepper.newton}".encode())
         spec = self.crane.spec
-        return dict(model="twin", crane_id=spec.id, spec=str(spec.path or ""),
-                    fingerprint=h.hexdigest()[:16], step_s=self.step,
-                    bulk_modulus_Pa=float(self.params.scalar["beta"]), payload_kg=self.payload)
+        out = dict(model="twin", crane_id=spec.id, spec=str(spec.path or ""),
+                   fingerprint=h.hexdigest()[:16], step_s=self.step,
+                   bulk_modulus_Pa=float(self.params.scalar["beta"]), payload_kg=self.payload)
+        if self.pendulum is not None:
+            pend = self.pendulum
+            out["grapple"] = dict(length_m=pend.length, mass_kg=pend.mass,
+                                  damping=pend.damping, gyration_m=pend.gyration)
+        return out
 
     # ------------------------------------------------------------------ states
     def bodies_model(self):
@@ -169,7 +187,7 @@ class Twin:
         q0 = np.asarray(q0, float).ravel()
         p_a, p_b = self.holding_pressures(q0)
         return np.concatenate([q0, np.zeros(n), p_a, p_b, [self.rest_pump_pressure()],
-                               np.zeros(n)])
+                               np.zeros(n), np.zeros(self.stepper.nx - state_size(n))])
 
     def rhs(self, x, u, f_x=None) -> np.ndarray:
         """ẋ at state ``x`` (5n + 1,) under commands ``u`` (n,) and extra forces ``f_x``."""
@@ -196,7 +214,7 @@ class Twin:
             X, err = self.stepper.run(x_start, uk[:K], fx, self.P)
         else:
             C = self.stepper.chunk
-            X = np.empty((K + 1, state_size(n)))
+            X = np.empty((K + 1, self.stepper.nx))
             err = np.empty(K)
             X[0] = x_start
             prev = None
@@ -209,6 +227,8 @@ class Twin:
                 X[s + 1:e + 1], err[s:e] = Xc[1:], ec
                 prev = X[e - 1]
         run = self._checked(tk, X, uk, err)
+        if self.pendulum is not None:
+            run.swing = X[:len(run.t), state_size(n):]
         run.wall_s = time.perf_counter() - wall0
         run.meta.update(step=h, steps=K, newton_max=float(np.max(err)) if err.size else 0.0)
         return run

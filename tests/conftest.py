@@ -62,3 +62,14 @@ def random_tip_moves(crane, n, seed):
     qs = lo + rng.random((2 * n, crane.n)) * (hi - lo)
     return [tuple(tuple(float(x) for x in np.round(crane.tip(q), 3)) for q in (qs[k], qs[n + k]))
             for k in range(n)]
+
+
+def step_commands(shooting, u, extra_steps):
+    """(R, K, us): 50 Hz commands ``u`` (M, n) held on the twin's step grid (R steps per
+    command) and padded with ``extra_steps`` closed steps to whole chunks of ``shooting``
+    (K steps in all)."""
+    R = int(round(0.02 / shooting.h))
+    K = shooting.steps(len(u) * R + extra_steps)
+    us = np.zeros((K, u.shape[1]))
+    us[:len(u) * R] = np.repeat(u, R, axis=0)
+    return R, K, us

@@ -19,6 +19,7 @@ from planner.model.twin import Twin
 from planner.model.twin.pendulum import TwinSwing, grapple_of
 from planner.refine import RefineOptions, refine_commands
 from planner.trajectory import Trajectory
+from tests.conftest import step_commands
 
 MACHINE = "umea-lab"   # the lightest twin: the compiled code builds quickest
 
@@ -164,10 +165,7 @@ def test_the_coupled_twins_adjoint_gradient_matches_central_differences(crane, p
     twin = Twin(crane, grapple=pend)
     sh = Shooting(twin)
     t_u, u = stored_commands(move)
-    R = int(round(0.02 / twin.step))
-    K = sh.steps(len(u) * R + 100)
-    us = np.zeros((K, crane.n))
-    us[:len(u) * R] = np.repeat(u, R, axis=0)
+    R, K, us = step_commands(sh, u, 100)
     x0 = twin.rest_state(move.q[0])
     rng = np.random.default_rng(5)
     W = np.zeros((K + 1, sh.nx))

@@ -23,6 +23,7 @@ from planner.methods.ruckig import rest_to_rest
 from planner.model.twin import Twin
 from planner.model.twin.shooting import Shooting
 from planner.refine import RefineOptions, RefineStatus, refine_commands
+from tests.conftest import step_commands
 
 MACHINE = "umea-lab"   # the lightest twin: the compiled adjoint builds quickest
 
@@ -54,10 +55,7 @@ def test_the_adjoint_gradient_matches_central_differences(crane, twin, move):
     same forward runs along smooth random directions of the per-step commands."""
     sh = Shooting(twin)
     t_u, u = stored_commands(move)
-    R = int(round(0.02 / twin.step))
-    K = sh.steps(len(u) * R + 200)
-    us = np.zeros((K, crane.n))
-    us[:len(u) * R] = np.repeat(u, R, axis=0)
+    R, K, us = step_commands(sh, u, 200)
     x0 = twin.rest_state(move.q[0])
     rng = np.random.default_rng(1)
     W = np.zeros((K + 1, sh.nx))

@@ -61,6 +61,10 @@ if TYPE_CHECKING:
 
 _STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
 _DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
+# L-BFGS-B stops when one iteration lowers the cost by less than this fraction: scipy's default
+# (2.2e-9) ended slow energy entries after 18-121 iterations with the twin itself predicting
+# 5-76 mm of ringing (bench_refine's 20 energy entries: 13 -> 14 land on Exudyn with this one)
+_FTOL = 1e-12
 #: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
 #: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
 #: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
@@ -292,7 +296,8 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     s = _STEP
     res = minimize(lambda z: _scaled(cost, z, s), U0.ravel() / s, jac=True, method="L-BFGS-B",
                    bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
-                   options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations)))
+                   options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations),
+                                ftol=_FTOL))
     U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
     refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))

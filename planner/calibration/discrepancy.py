@@ -54,7 +54,7 @@ from planner.calibration.ends import near_stroke_end
 from planner.calibration.noise import logged_noise, noise_floor, upsampling_factor
 from planner.calibration.rate import analysis_note, analysis_rate
 from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
-                                        verdict_fields)
+                                        check_recording, verdict_fields)
 from planner.calibration.calibrated import calibrated_spec_text  # re-exported
 from planner.calibration.signature import signature_text
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
@@ -126,11 +126,7 @@ class Discrepancy:
     # ------------------------------------------------------------------ data
     def _prepare(self, rec: Recording):
         crane, n = self.crane, self.crane.n
-        if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
-            raise ValueError(f"recording: expected u and q of shape (N, {n})")
-        if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
-            raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
-                             f"is too short: need at least 4 blocks of {self.block_s:g} s")
+        check_recording(rec, n, self.block_s)
         # uniform within the CSV's 10 significant digits of t (a long log's times carry them)
         if np.ptp(dt := np.diff(rec.t)) > 1e-6 * np.median(dt) + 2e-9 * np.abs(rec.t).max():
             raise ValueError("recording: the sample times must be uniform (one command per "

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Candidate", "DiscrepancyResult", "channel_fields", "verdict_fields"]
+__all__ = ["Candidate", "DiscrepancyResult", "channel_fields", "verdict_fields",
+           "check_recording"]
 
 
 @dataclass
@@ -99,3 +100,14 @@ def verdict_fields(v: dict) -> dict:
     (:func:`planner.calibration.verdict.judge`)."""
     return {k: v[k] for k in ("verdict", "confidence", "candidates", "signature",
                               "not_credible", "reasons", "suggest")}
+
+
+def check_recording(rec, n: int, block_s: float) -> None:
+    """The checks every diagnosis makes of a log before it fits: commands and positions of
+    shape (N, ``n``), and at least four train/test blocks of ``block_s`` seconds; ValueError
+    naming what is wrong otherwise."""
+    if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
+        raise ValueError(f"recording: expected u and q of shape (N, {n})")
+    if rec.t[-1] - rec.t[0] < 4 * block_s or len(rec.t) < 20:
+        raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
+                         f"is too short: need at least 4 blocks of {block_s:g} s")

@@ -57,7 +57,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
-                                        verdict_fields)
+                                        check_recording, verdict_fields)
 from planner.calibration.signature import signature_text
 from planner.calibration.twin_fit import TwinFit
 from planner.calibration.twin_params import TwinParameter, machine_of, twin_parameters
@@ -256,11 +256,7 @@ class TwinDiagnosis:
     # ------------------------------------------------------------------ prediction
     def _prepare(self, rec: Recording) -> None:
         crane, n = self.crane, self.crane.n
-        if rec.u is None or rec.u.shape != rec.q.shape or rec.q.shape[1] != n:
-            raise ValueError(f"recording: expected u and q of shape (N, {n})")
-        if rec.t[-1] - rec.t[0] < 4 * self.block_s or len(rec.t) < 20:
-            raise ValueError(f"recording: {rec.t[-1] - rec.t[0]:.2f} s ({len(rec.t)} samples) "
-                             f"is too short: need at least 4 blocks of {self.block_s:g} s")
+        check_recording(rec, n, self.block_s)
         self.pb = pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold,
                                 self.step, self.workers)
         rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])

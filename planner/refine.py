@@ -13,8 +13,8 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   end may lengthen by up to ``tail``, and by how much is reported), valves closed after that.
   Bounds |u| ≤ 1.
 * **Cost**: the tip-weighted joint error ∫ w(t)·Σ_j ℓ_j²·(q_j − q_ref,j)² dt over the move, the
-  tail and ``settle`` s with the valves closed (ℓ_j: the tip's lever of joint j at the goal,
-  m per rad | m, so the sum is close to the tip error squared; w = 1 during the move and
+  tail and ``settle`` s with the valves closed (ℓ_j: the tip's lever of joint j at the reference's
+  pose, m per rad | m, so the sum is close to the tip error squared; w = 1 during the move and
   ``end_weight`` after it: landing and calm count most), plus ``smooth``·Σ|u_{k+1} − u_k|²
   (no chatter at the control rate). The reference holds the goal after the plan's end, so
   any residual motion, offset or ringing is paid for.
@@ -65,12 +65,17 @@ _DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
 # (2.2e-9) ended slow energy entries after 18-121 iterations with the twin itself predicting
 # 5-76 mm of ringing (bench_refine's 20 energy entries: 13 -> 14 land on Exudyn with this one)
 _FTOL = 1e-12
+# L-BFGS-B's memory (scipy's default 10): the twin's lightly damped hydraulic modes make the
+# cost ill-conditioned, and a longer memory of curvature pairs costs nothing beside a twin run
+# (an s100f entry, 150 iterations: cost 311 -> 198 mm²·s, the largest tip error 23 -> 18 mm)
+_MEMORY = 50
 #: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
 #: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
 #: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
 SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
+           "tip_levers",
            "SWING_WEIGHT"]
 
 
@@ -150,15 +155,19 @@ class Refinement:
                     wall_s=self.wall_s)
 
 
-def _levers(crane: Crane, q) -> np.ndarray:
-    """|∂tip/∂q_j| at ``q`` [m per rad | m] (central differences of the forward kinematics)."""
+def tip_levers(crane: Crane, q) -> np.ndarray:
+    """|∂tip/∂q_j| at ``q`` (n,) or at each row of ``q`` (K, n) [m per rad | m] (central
+    differences of the forward kinematics); the shape of ``q``."""
     n, eps = crane.n, 1e-6
-    Q = np.repeat(np.asarray(q, float)[None], 2 * n, axis=0)
+    q = np.asarray(q, float)
+    Qs = np.atleast_2d(q)
+    Q = np.repeat(Qs[:, None, :], 2 * n, axis=1)       # (K, 2n, n)
     for j in range(n):
-        Q[2 * j, j] += eps
-        Q[2 * j + 1, j] -= eps
-    tip = crane.fk(Q)
-    return np.linalg.norm(tip[0::2] - tip[1::2], axis=1) / (2 * eps)
+        Q[:, 2 * j, j] += eps
+        Q[:, 2 * j + 1, j] -= eps
+    tip = crane.fk(Q.reshape(-1, n)).reshape(Qs.shape[0], 2 * n, -1)
+    L = np.linalg.norm(tip[:, 0::2] - tip[:, 1::2], axis=2) / (2 * eps)
+    return L.reshape(q.shape)
 
 
 def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 1.0) -> dict:
@@ -186,7 +195,7 @@ def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 
 class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
-    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, levers,
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane,
                  pendulum=None):
         self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n
@@ -194,8 +203,11 @@ class _Cost:
         self.tk = traj.t[0] + h * np.arange(K + 1)
         self.q_ref = traj.sample(np.clip(self.tk, traj.t[0], traj.t[-1]))[0]
         w_t = np.where(self.tk > traj.t[-1] + 1e-9, opts.end_weight, 1.0)
-        # J in mm²·s (the scale L-BFGS-B's default tolerances suit)
-        self.W = 1e6 * h * w_t[:, None] * (levers ** 2)[None, :]
+        # the levers along the reference (a slew's lever is the reach: 1.8 m folded at an s100f
+        # goal, 6 m stretched out on the way; weighted at the goal only, the optimiser paid a
+        # mid-move slew error an eleventh of its tip error); J in mm²·s (the scale L-BFGS-B's
+        # default tolerances suit)
+        self.W = 1e6 * h * w_t[:, None] * tip_levers(crane, self.q_ref) ** 2
         self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
         self.smooth = 1e6 * opts.smooth
         self.x0 = shooting.twin.rest_state(traj.q[0])
@@ -273,8 +285,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     sh = Shooting(twin)
     Ku = t_u.size + int(round(opts.tail * opts.rate))
     K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
-    levers = _levers(crane, traj.q[-1])
-    cost = _Cost(sh, traj, Ku, R, K, opts, levers,
+    cost = _Cost(sh, traj, Ku, R, K, opts, crane,
                  twin.pendulum if opts.swing_weight > 0 else None)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
@@ -297,7 +308,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     res = minimize(lambda z: _scaled(cost, z, s), U0.ravel() / s, jac=True, method="L-BFGS-B",
                    bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
                    options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations),
-                                ftol=_FTOL))
+                                ftol=_FTOL, maxcor=_MEMORY))
     U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
     refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))

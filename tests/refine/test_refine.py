@@ -263,3 +263,21 @@ def test_an_idle_joint_is_refined_too(crane, twin):
     nominal, refined = jib_end(t_u, u), jib_end(r.t_u, r.u)
     assert nominal > 5e-4                             # the oil gives: ~1.6 mrad
     assert refined < nominal / 3
+
+
+def test_the_cost_weighs_each_joint_by_its_lever_along_the_path():
+    """The tip's lever of the slew is the reach, the telescope's is 1 (m per m), on every pose
+    along a path, not only at the goal: a slew error mid-move, stretched out, costs what its
+    tip error costs (s100f: the reach goes 1.9 → 6.7 m between folded and stretched)."""
+    from planner.refine import tip_levers
+    c = Crane.from_id("s100f")
+    L = c.limit_arrays()
+    q = np.array([L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.2, 0.5, 0.8)])
+    tip = c.fk(q)
+    lev = tip_levers(c, q)
+    assert lev.shape == q.shape
+    assert lev[:, 0] == pytest.approx(np.hypot(tip[:, 0], tip[:, 1]), rel=1e-6)
+    assert lev[:, 3] == pytest.approx(1.0, rel=1e-6)
+    assert np.ptp(lev[:, 0]) > 3.0
+    # one pose gives the same row as the batch
+    assert tip_levers(c, q[1]) == pytest.approx(lev[1], rel=1e-12)

@@ -29,7 +29,11 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
 * **Gradient**: exact, by the adjoint of the twin's compiled integrator
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
-* **Solver**: L-BFGS-B (scipy) from the nominal commands, at most ``iterations`` iterations.
+* **Solver**: L-BFGS-B (scipy, a memory of 50 pairs) from the nominal commands, at most
+  ``iterations`` iterations: all but the last ``polish`` on the twin at ``coarse_step``
+  (4 ms: half the work per run; its tip within ~1 mm of the 2 ms twin's on planned moves),
+  the last ones on the twin at its own step from where the coarse ones ended (on an s100f
+  entry: the same cost, 197 mm²·s, in 21 s of CPU instead of 38 s).
   A command that is exactly 0 starts at 10⁻⁶ instead: a closed valve is a kink of the flow
   (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while the
   others move, a telescope that creeps off its stroke end — would otherwise never be used.
@@ -86,7 +90,9 @@ class RefineOptions:
     valves closed after that, ``end_weight`` on the error after the plan's end, ``smooth``
     [1/(command step)²] on the command's steps, the control ``rate`` [Hz], the twin's ``step``
     [s], ``rest_window`` [s] the end of the record whose mean is the rest point,
-    ``swing_weight`` on the grapple's swing after the plan's end (0: no swing term)."""
+    ``swing_weight`` on the grapple's swing after the plan's end (0: no swing term),
+    ``coarse_step`` [s] the twin's step for all but the last ``polish`` iterations (0, or
+    not above ``step``: every iteration on the twin at ``step``)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -96,13 +102,17 @@ class RefineOptions:
     step: float = 2e-3
     rest_window: float = 1.0
     swing_weight: float = 0.0
+    coarse_step: float = 4e-3
+    polish: int = 40
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
                   ("settle", self.settle, 0.2, 60.0), ("end_weight", self.end_weight, 0.0, 1e6),
                   ("smooth", self.smooth, 0.0, 1e6), ("rate", self.rate, 1.0, 1000.0),
                   ("step", self.step, 1e-4, 0.01), ("rest_window", self.rest_window, 0.05, 10.0),
-                  ("swing_weight", self.swing_weight, 0.0, 1e6))
+                  ("swing_weight", self.swing_weight, 0.0, 1e6),
+                  ("coarse_step", self.coarse_step, 0.0, 0.01),
+                  ("polish", self.polish, 0, 10000))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -255,8 +265,6 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     ``pendulum`` — a :class:`~planner.model.pendulum.Pendulum` or a length [m] — else the
     spec's ``[dynamics.grapple]``). Never raises for a move the twin cannot run: the status
     says so."""
-    from scipy.optimize import minimize
-
     from planner.model.twin import Twin
     from planner.model.twin.shooting import Shooting
     opts = options or RefineOptions()
@@ -278,15 +286,21 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     if opts.swing_weight > 0 and twin.pendulum is None:
         raise ValueError(f"refine option 'swing_weight' = {opts.swing_weight!r}; allowed: 0 "
                          "with a twin that has no grapple (Twin(..., grapple=LENGTH))")
-    R = int(round(dt / twin.step))
-    if abs(R * twin.step - dt) > 1e-9 * dt:
-        raise ValueError(f"refine: twin step {twin.step:g} s does not divide the control period "
-                         f"{dt:g} s")
-    sh = Shooting(twin)
+    for what, h in (("twin step", twin.step), ("refine option 'coarse_step' =", opts.coarse_step)):
+        R = int(round(dt / h)) if h > 0 else 1
+        if h > 0 and abs(R * h - dt) > 1e-9 * dt:
+            raise ValueError(f"refine: {what} {h:g} s does not divide the control period "
+                             f"{dt:g} s")
     Ku = t_u.size + int(round(opts.tail * opts.rate))
-    K = sh.steps((Ku + 1) * R + int(round(opts.settle / twin.step)))
-    cost = _Cost(sh, traj, Ku, R, K, opts, crane,
-                 twin.pendulum if opts.swing_weight > 0 else None)
+    pend = twin.pendulum if opts.swing_weight > 0 else None
+
+    def problem(tw):
+        sh = Shooting(tw)
+        R = int(round(dt / tw.step))
+        K = sh.steps((Ku + 1) * R + int(round(opts.settle / tw.step)))
+        return _Cost(sh, traj, Ku, R, K, opts, crane, pend), K
+
+    cost, K = problem(twin)
     U0 = np.zeros((Ku, n))
     U0[:t_u.size] = np.clip(u, -1.0, 1.0)
     # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
@@ -301,21 +315,32 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                           wall_s=time.perf_counter() - wall0, **base)
     J0, _ = cost(U0.ravel())
     cost.fail = 100.0 * J0 + 1.0
-    # scaled unknowns: L-BFGS-B's first step is a unit step along −g, which in command units
-    # can swing a valve across its range (the twin then leaves its range); ``_STEP`` is the
-    # size of that first step in commands, later steps follow the curvature it learns
-    s = _STEP
-    res = minimize(lambda z: _scaled(cost, z, s), U0.ravel() / s, jac=True, method="L-BFGS-B",
-                   bounds=[(-1.0 / s, 1.0 / s)] * U0.size,
-                   options=dict(maxiter=int(opts.iterations), maxfun=2 * int(opts.iterations),
-                                ftol=_FTOL, maxcor=_MEMORY))
-    U = np.clip(res.x.reshape(Ku, n) * s, -1.0, 1.0)
+    z, fine, nit, evals = U0.ravel(), int(opts.iterations), 0, 0
+    if opts.coarse_step > twin.step and opts.iterations > opts.polish:
+        # most iterations on the twin at the coarse step (half the work per run; its tip
+        # within ~1 mm of the fine twin's on planned moves), the last ``polish`` on the twin
+        # itself, from where the coarse ones ended
+        coarse, _ = problem(twin.at_step(opts.coarse_step))
+        Jc0, _ = coarse(z)
+        coarse.fail = 100.0 * Jc0 + 1.0
+        r1 = _minimize(coarse, z, opts.iterations - opts.polish)
+        nit, evals, fine = int(r1.nit), coarse.evaluations, int(opts.polish)
+        if r1.fun < Jc0:
+            z = np.clip(r1.x, -1.0, 1.0)
+    if fine > 0:
+        res = _minimize(cost, z, fine)
+        res.x = np.clip(res.x, -1.0, 1.0)
+    else:
+        res = _Result(z, cost(z)[0], 0, "coarse iterations only")
+    nit += int(res.nit)
+    evals += cost.evaluations
+    U = res.x.reshape(Ku, n)
     refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
                "the twin diverged on the optimised commands")
-        return Refinement(t_u, u, RefineStatus.UNCHANGED, why, int(res.nit), cost.evaluations,
+        return Refinement(t_u, u, RefineStatus.UNCHANGED, why, nit, evals,
                           dict(pred, refined=nominal), 0.0,
                           wall_s=time.perf_counter() - wall0, **base)
     # drop trailing rows that open no valve (inside every dead band)
@@ -324,14 +349,37 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     last = max(int(live[-1]) + 1 if live.size else 0, t_u.size)
     U = U[:last]
     lengthened = max(0.0, (last - t_u.size) * dt)
-    return Refinement(t_all[:last], U, RefineStatus.IMPROVED, str(res.message), int(res.nit),
-                      cost.evaluations, dict(pred, refined=refined), lengthened,
+    return Refinement(t_all[:last], U, RefineStatus.IMPROVED, str(res.message), nit,
+                      evals, dict(pred, refined=refined), lengthened,
                       wall_s=time.perf_counter() - wall0, **base)
 
 
-def _scaled(cost, z, s):
-    J, g = cost(z * s)
-    return J, g * s
+@dataclass
+class _Result:
+    x: np.ndarray
+    fun: float
+    nit: int
+    message: str
+
+
+def _minimize(cost, z0, iterations: int) -> _Result:
+    """L-BFGS-B on ``cost`` from the commands ``z0`` (flat), |u| ≤ 1, at most ``iterations``
+    iterations. The unknowns are scaled: L-BFGS-B's first step is a unit step along −g, which
+    in command units can swing a valve across its range (the twin then leaves its range);
+    ``_STEP`` is the size of that first step in commands, later steps follow the curvature it
+    learns."""
+    from scipy.optimize import minimize
+    s = _STEP
+
+    def f(z):
+        J, g = cost(z * s)
+        return J, g * s
+
+    res = minimize(f, np.asarray(z0, float) / s, jac=True, method="L-BFGS-B",
+                   bounds=[(-1.0 / s, 1.0 / s)] * len(z0),
+                   options=dict(maxiter=int(iterations), maxfun=2 * int(iterations),
+                                ftol=_FTOL, maxcor=_MEMORY))
+    return _Result(res.x * s, float(res.fun), int(res.nit), str(res.message))
 
 
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,

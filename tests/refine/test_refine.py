@@ -103,7 +103,9 @@ def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin
 @pytest.mark.parametrize("kw, field", [(dict(iterations=0), "iterations"),
                                        (dict(tail=-1.0), "tail"),
                                        (dict(settle=float("nan")), "settle"),
-                                       (dict(settle=0.5, rest_window=1.0), "rest_window")])
+                                       (dict(settle=0.5, rest_window=1.0), "rest_window"),
+                                       (dict(coarse_step=-1e-3), "coarse_step"),
+                                       (dict(polish=-1), "polish")])
 def test_bad_options_name_the_field(kw, field):
     with pytest.raises(ValueError, match=f"'{field}'"):
         RefineOptions(**kw)
@@ -281,3 +283,25 @@ def test_the_cost_weighs_each_joint_by_its_lever_along_the_path():
     assert np.ptp(lev[:, 0]) > 3.0
     # one pose gives the same row as the batch
     assert tip_levers(c, q[1]) == pytest.approx(lev[1], rel=1e-12)
+
+
+@pytest.mark.slow   # compiles the twin's step and adjoint at 4 ms (a minute on a fresh clone)
+def test_the_coarse_phase_hands_over_to_the_twin_itself(crane, twin, move):
+    """Most iterations on the twin at the coarse step, the last on the twin itself: the result
+    is judged (and predicted) by the twin at its own step, and beats the nominal commands
+    there."""
+    t_u, u = stored_commands(move)
+    opts = RefineOptions(iterations=14, polish=4, settle=1.5, coarse_step=4e-3)
+    r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
+    assert r.status == RefineStatus.IMPROVED, r.reason
+    assert r.iterations > 4                      # the coarse iterations are counted
+    assert r.model["step_s"] == twin.step        # the provenance is the fine twin's
+    nom, ref = r.predicted["nominal"], r.predicted["refined"]
+    assert ref["rest_offset_m"] < 0.5 * nom["rest_offset_m"]
+
+
+def test_a_coarse_step_that_does_not_divide_the_control_period_is_refused(crane, twin, move):
+    t_u, u = stored_commands(move)
+    with pytest.raises(ValueError, match="coarse_step' = 0.003 s does not divide"):
+        refine_commands(crane, move, t_u, u, twin=twin,
+                        options=RefineOptions(iterations=3, polish=1, coarse_step=3e-3))

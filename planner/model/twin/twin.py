@@ -137,6 +137,24 @@ class Twin:
                                                        int(newton), int(chunk))
             self.P = np.concatenate([self.P, self.pendulum.values()])
 
+    def at_step(self, step: float) -> "Twin":
+        """This twin (the same machine, parameters, payload and grapple) integrated with
+        another ``step`` [s]; itself when the step is its own."""
+        import copy
+        if not (math.isfinite(step) and 0 < step <= 0.01):
+            raise ValueError(f"Twin: step = {step!r} s; allowed: 0 < step <= 0.01")
+        if float(step) == self.step:
+            return self
+        tw = copy.copy(self)
+        tw.step = float(step)
+        newton, chunk = self.stepper.newton, self.stepper.chunk
+        tw.stepper, fs = _stepper(self.crane, self.bodies, tw.step, newton, chunk)
+        tw.f_rhs = fs["rhs"]
+        if self.pendulum is not None:
+            tw.stepper, tw.f_rhs = coupled_stepper(self.crane, self.bodies, tw.step, newton,
+                                                   chunk)
+        return tw
+
     def provenance(self) -> dict:
         """Which twin this is: the machine, its spec file, a fingerprint (sha256, 16 hex) of
         everything that decides a run (the parameter vector, the rigid bodies, the payload,

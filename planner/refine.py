@@ -30,10 +30,12 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   (:class:`planner.model.twin.shooting.Shooting`): about six forward runs per gradient,
   whatever the number of commands.
 * **Solver**: L-BFGS-B (scipy, a memory of 50 pairs) from the nominal commands, at most
-  ``iterations`` iterations: all but the last ``polish`` on the twin at ``coarse_step``
-  (4 ms: half the work per run; its tip within ~1 mm of the 2 ms twin's on planned moves),
-  the last ones on the twin at its own step from where the coarse ones ended (on an s100f
-  entry: the same cost, 197 mm²·s, in 21 s of CPU instead of 38 s).
+  ``iterations`` iterations. With ``coarse_step`` (off by default) all but the last
+  ``polish`` run on the twin at that step and the last ones on the twin at its own step from
+  where the coarse ones ended. Measured on three s100f entries (150 iterations, 4 ms then
+  2 ms): 12–32 % less CPU, but a higher final cost on two of them (the largest tip error
+  during the move 17.7 → 21.8 and 27.0 → 33.4 mm): at 4 ms the twin's Newton iteration
+  fails more often on fast moves (substeps), and the polish restarts L-BFGS-B's memory.
   A command that is exactly 0 starts at 10⁻⁶ instead: a closed valve is a kink of the flow
   (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while the
   others move, a telescope that creeps off its stroke end — would otherwise never be used.
@@ -102,7 +104,7 @@ class RefineOptions:
     step: float = 2e-3
     rest_window: float = 1.0
     swing_weight: float = 0.0
-    coarse_step: float = 4e-3
+    coarse_step: float = 0.0
     polish: int = 40
 
     def __post_init__(self):

@@ -17,7 +17,8 @@ Per entry:
 * the excess pump work ∫ max(p_s − p_pump,plan, 0)·Q_pump dt (Exudyn's p_s and pump flow,
   evaluate()'s pump pressure at the same instant; the flow's own difference is reported
   apart: ∫ p_pump,plan·(Q_pump − Q_plan) dt), split by the function that sets the plant's LS
-  pressure (the open valve with the highest meter-in pressure) and by that function's phase in
+  pressure (the drawing valve with the highest meter-in pressure, by the judge's own rule:
+  open past 10⁻⁶; none: standby) and by that function's phase in
   the plan: *accelerating* (q̇·q̈ > 0), *braking* (q̇·q̈ < 0), *cruising* (|q̈| under 5 % of
   its peak), *at rest* (|q̇| under 0.1 % of its peak: the plant moves where the plan stands);
 * for the main setter, the excess-weighted mean of its meter-in and outlet pressures on the
@@ -92,13 +93,14 @@ def anatomy(crane, traj, ev, run) -> dict:
     Q = fl["q_in"].sum(axis=1)
     p_in = np.where(o > 0, run.p_a, run.p_b)
     p_out = np.where(o > 0, run.p_b, run.p_a)
-    setter = np.argmax(np.where(np.abs(o) > 0, p_in, -np.inf), axis=1)
+    pl = fl["p_load"]                  # the judge's own LS rule: a valve open past 1e-6
+    setter = np.where(pl.max(axis=1) > 0, np.argmax(pl, axis=1), -1)   # -1: standby
     t = run.t
     h = ev.hyd
     p_plan = np.interp(t, ev.t, h["p_pump"], right=0.0)
     q_plan = np.interp(t, ev.t, h["q_pump"], right=0.0)
     x = np.maximum(run.p_s - p_plan, 0.0) * Q
-    ph = phases(ev.t, ev.qd, ev.qdd, t)[np.arange(len(t)), setter]
+    ph = phases(ev.t, ev.qd, ev.qdd, t)[np.arange(len(t)), np.maximum(setter, 0)]
     n = crane.n
     by = np.array([[_integral(t, x * (setter == i) * (ph == k)) for k in range(len(PHASES))]
                    for i in range(n)])

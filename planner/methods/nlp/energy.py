@@ -3,9 +3,10 @@
 :func:`energy_optimal` (least energy within a time budget, never above the time-optimal
 move's energy) and :func:`pareto_front` (the budgets k·T_min) judge every candidate with
 :func:`~planner.trajectory.evaluate` (``energy_optimal(judge="twin")``, as the library builder
-asks: then by the dynamic twin's pump energy, :mod:`planner.methods.nlp.twin_judge`); :func:`stretch` (a move slowed uniformly) gives the
-always-feasible incumbents and the warm starts. :func:`hold_creep` re-solves the energy NLP
-with the functions its move creeps along held still (:mod:`planner.methods.nlp.idle`).
+asks: then by the dynamic twin's pump energy, :mod:`planner.methods.nlp.twin_judge`);
+:func:`stretch` (a move slowed uniformly) gives the always-feasible incumbents and the warm
+starts. :func:`hold_creep` re-solves the energy NLP with the functions its move creeps along
+held still (:mod:`planner.methods.nlp.idle`).
 """
 from __future__ import annotations
 

@@ -231,8 +231,9 @@ def summary(rows) -> dict:
         if not rs:
             continue
         ex = np.array([r["w_exudyn_J"] for r in rs])
-        for pricing, key in (("machine", "w_qs_J"), ("machine, no held pair", "w_qs_static_J"),
-                             ("seed", "w_qs_seed_J")):
+        for pricing, key in (("machine", "w_qs_J"),
+                             ("machine, per sample (no held pair, no spool tail)",
+                              "w_qs_static_J"), ("seed", "w_qs_seed_J")):
             if key not in rs[0]:
                 continue
             qs = np.array([r[key] for r in rs])

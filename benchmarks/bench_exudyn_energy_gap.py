@@ -23,9 +23,10 @@ then exactly
 
 The quasi-static figure is priced as the crane prices it by default — the machine pricing of
 issue 30 (:mod:`planner.model.pricing`); each row also carries the seed pricing's figure
-(``w_qs_seed_J``) and the machine pricing's without the held chamber pair
-(``w_qs_static_J``: sample by sample, what evaluate() gave before it), and the report gives the ratio Exudyn / evaluate() under both (median,
-p90, range; the target of issue 30: within 5 %).
+(``w_qs_seed_J``) and the machine pricing's without its effects with memory, the held chamber
+pair and the closing spools' tails (``w_qs_static_J``: sample by sample), and the report
+gives the ratio Exudyn / evaluate() under each (median, p90, range; the target of issue 30:
+within 5 %).
 
 Writes <out>/exudyn_energy_gap.md and .json.
 """
@@ -97,7 +98,7 @@ def entry_gap(crane, plant, traj, seed=None, keep=False):
     if seed is not None:
         es = evaluate(seed, traj)
         row["w_qs_seed_J"] = _integral(es.t, es.hyd["p_pump"] * es.hyd["q_pump"])
-    qs = crane.hydraulics(ev.q, ev.qd, ev.qdd)   # sample by sample: no held chamber pair
+    qs = crane.hydraulics(ev.q, ev.qd, ev.qdd)   # sample by sample: no held pair, no tail
     row["w_qs_static_J"] = _integral(ev.t, qs["p_pump"] * qs["q_pump"])
     row["gap_J"] = row["w_exudyn_J"] - w_qs
     row["closure_J"] = row["gap_J"] - sum(row[k] for k in COLUMNS)   # 0 by construction
@@ -206,7 +207,9 @@ def ratio_table(ok, pricing) -> list:
         if not rs:
             continue
         ex = np.array([r["w_exudyn_J"] for r in rs])
-        for name, key in ((pricing, "w_qs_J"), (f"{pricing}, no held pair", "w_qs_static_J"),
+        for name, key in ((pricing, "w_qs_J"),
+                          (f"{pricing}, per sample (no held pair, no spool tail)",
+                           "w_qs_static_J"),
                           ("seed", "w_qs_seed_J")):
             if key != "w_qs_J" and (pricing == "seed" or key not in rs[0]):
                 continue

@@ -10,8 +10,9 @@ order. ``spec`` may be a :class:`~planner.model.spec.CraneSpec` or anything with
 (a :class:`~planner.model.Crane`). :func:`hydraulics` prices like the CasADi definition: the
 crane's pricing, or the spec's default (:mod:`planner.model.pricing`; the numpy copy of its
 friction and moving pressures is :func:`friction` and :func:`moving_pressures` here).
-:func:`held_hydraulics` carries the one priced effect with memory along a plan's time grid
-(the held chamber pressures, :func:`planner.model.pricing.held_pressures`).
+:func:`held_hydraulics` carries the priced effects with memory along a plan's time grid
+(the held chamber pressures, :func:`planner.model.pricing.held_pressures`; the closing
+spools' tails, :func:`spool_tail`).
 """
 from __future__ import annotations
 
@@ -21,12 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.model.hydraulics import ACTIVE_FLOW, OUTPUTS
-from planner.model.pricing import Pricing, held_pressures, pricing_of
+from planner.model.pricing import Pricing, held_pressures, pricing_of, spool_lag
 from planner.model.spec import CraneSpec, Pump
+from planner.model.valve_physics import OPEN_EPS, REST_TOL
 
 __all__ = ["ActuatorTable", "actuator_table", "pump_draw", "swept_volume", "chamber_pressures",
            "load_pressures", "pump_pressure", "pump_power", "throttle_loss", "hydraulics",
-           "pricing", "friction", "moving_pressures", "priced_pressures", "held_hydraulics"]
+           "pricing", "friction", "moving_pressures", "priced_pressures", "held_hydraulics",
+           "spool_tail"]
 
 
 @dataclass(frozen=True)
@@ -280,13 +283,31 @@ def hydraulics(spec, x, xd, force, mode: str | None = None) -> dict:
     return {k: values[k] for k in OUTPUTS}
 
 
+def spool_tail(pr: Pricing, t, xd):
+    """The closing spool's tail (:mod:`planner.model.pricing`): (open (N, n) bool, the valve
+    lagged open past ``OPEN_EPS``; s (N, n) the lagged spools) of a plan's stroke rates ``xd``
+    at the times ``t`` (N,): the quasi-static command of each rate (clipped to ±1) through
+    :func:`planner.model.pricing.spool_lag`. None without a tail (``pr.tau_spool`` 0)."""
+    if not pr.tau_spool > 0 or len(t) < 2:
+        return None
+    xd = np.asarray(xd, float)
+    q = np.where(xd > 0, pr.area_extend * xd, -pr.area_retract * xd)
+    o = np.where(q > REST_TOL * pr.gain, np.sign(xd) * q / pr.gain, 0.0)
+    u = np.clip(np.sign(o) * (pr.deadband + (1.0 - pr.deadband) * np.abs(o)), -1.0, 1.0)
+    s = spool_lag(t, u, pr.tau_spool)
+    o_lag = np.maximum(np.abs(s) - pr.deadband, 0.0) / (1.0 - pr.deadband)
+    return o_lag > OPEN_EPS, s
+
+
 def held_hydraulics(spec_or_crane, t, hyd: dict, mode: str | None = None) -> dict:
     """``hyd`` (the :data:`~planner.model.hydraulics.OUTPUTS` of samples at the times ``t``
     (N,), in time order) with the held chamber pressures of the pricing carried along
-    (:func:`planner.model.pricing.held_pressures`) and the load, pump pressure, power and
-    throttle loss that follow; the seed pricing returns ``hyd`` itself."""
+    (:func:`planner.model.pricing.held_pressures`), the closing spools' tails
+    (:func:`spool_tail`: a stopped function whose spool is still open shows the LS line the
+    meter-in side of its held pair) and the load, pump pressure, power and throttle loss that
+    follow; the seed pricing returns ``hyd`` itself."""
     pr = pricing(spec_or_crane, mode)
-    if not np.any(pr.held):
+    if not np.any(pr.held) and not pr.tau_spool > 0:
         return hyd
     spec = spec_of(spec_or_crane)
     xd, q_act = np.asarray(hyd["xd"], float), np.asarray(hyd["q_act"], float)
@@ -294,8 +315,15 @@ def held_hydraulics(spec_or_crane, t, hyd: dict, mode: str | None = None) -> dic
     force_f = np.asarray(hyd["force"], float) + friction(pr, xd)
     p_a, p_b = held_pressures(pr, t, hyd["x"], xd, force_f, moving, hyd["p_a"], hyd["p_b"])
     p_load = load_pressures(spec, p_a, p_b, xd, q_act, pr.active)
+    drawing = moving
+    tail = spool_tail(pr, t, xd)
+    if tail is not None:
+        lowering = actuator_table(spec).single & (tail[1] < 0)    # draws nothing
+        lagged = tail[0] & ~moving & ~lowering
+        p_load = np.where(lagged, np.where(tail[1] > 0, p_a, p_b), p_load)
+        drawing = moving | lagged
     q_pump = np.asarray(hyd["q_pump"], float)
-    p_pump = pump_pressure(spec, p_load, q_pump, np.any(moving, axis=-1))
+    p_pump = pump_pressure(spec, p_load, q_pump, np.any(drawing, axis=-1))
     return dict(hyd, p_a=p_a, p_b=p_b, p_load=p_load, p_pump=p_pump,
                 power=pump_power(spec, p_pump, q_pump),
                 throttle_loss=throttle_loss(p_pump, p_load, q_act))

@@ -97,7 +97,9 @@ def test_energy_entry_under_machine_pricing_never_costs_more_than_its_time_entry
     """A short move under the machine pricing: the least-energy move within 1.2 T_min costs no
     more than the minimum-time move by evaluate(), and holding the NLP's creep still
     (HOLD_ROUNDS) finds a cheaper move than the NLP alone (measured 59.0 against 62.0 kJ, the
-    minimum-time move 68.3 kJ)."""
+    minimum-time move 68.3 kJ; since the closing spools' tails are priced — a function held
+    still after moving keeps the pump at its holding pressure for ~0.4 s — 62.0 against
+    63.2 kJ)."""
     from planner.methods.nlp import energy
     crane = s100f
     assert crane.pricing == "machine"
@@ -118,4 +120,4 @@ def test_energy_entry_under_machine_pricing_never_costs_more_than_its_time_entry
         assert ev.energy_J <= e_time
         got[rounds] = (ev.energy_J, info["held"])
     assert got[0][1] == 0 and got[energy.HOLD_ROUNDS][1] > 0
-    assert got[energy.HOLD_ROUNDS][0] < 0.98 * got[0][0]
+    assert got[energy.HOLD_ROUNDS][0] < 0.99 * got[0][0]

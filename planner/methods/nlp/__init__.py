@@ -108,7 +108,7 @@ class NLPPlanner(Planner):
         req = super().library_request(crane, move, objective, time_result=time_result,
                                       settings=settings)
         return replace(req, options=dict(req.options, intervals=settings.intervals,
-                                         time_result=time_result))
+                                         time_result=time_result, energy_judge="twin"))
 
     def clear(self) -> None:
         """Forget the NLPs built in this process (a timed build then starts from scratch)."""
@@ -123,8 +123,10 @@ class NLPPlanner(Planner):
             energy_nlp = self.built(crane, "energy", "free", N, obs, cache, paid)
             res, info = energy_optimal(crane, request.start, request.goal, request.duration,
                                        time_result=request.option("time_result"),
-                                       time_nlp=time_nlp, energy_nlp=energy_nlp)
+                                       time_nlp=time_nlp, energy_nlp=energy_nlp,
+                                       judge=request.option("energy_judge", "evaluate"))
             res.stats["energy_winner"] = info.get("winner")
+            res.stats["energy_judge"] = info.get("judge")
             main = energy_nlp
         else:
             main = self.built(crane, request.objective, request.path, N, obs, cache, paid)

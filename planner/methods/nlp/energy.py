@@ -2,9 +2,11 @@
 
 :func:`energy_optimal` (least energy within a time budget, never above the time-optimal
 move's energy) and :func:`pareto_front` (the budgets k·T_min) judge every candidate with
-:func:`~planner.trajectory.evaluate`; :func:`stretch` (a move slowed uniformly) gives the
-always-feasible incumbents and the warm starts. :func:`hold_creep` re-solves the energy NLP
-with the functions its move creeps along held still (:mod:`planner.methods.nlp.idle`).
+:func:`~planner.trajectory.evaluate` (``energy_optimal(judge="twin")``, as the library builder
+asks: then by the dynamic twin's pump energy, :mod:`planner.methods.nlp.twin_judge`);
+:func:`stretch` (a move slowed uniformly) gives the always-feasible incumbents and the warm
+starts. :func:`hold_creep` re-solves the energy NLP with the functions its move creeps along
+held still (:mod:`planner.methods.nlp.idle`).
 """
 from __future__ import annotations
 
@@ -19,12 +21,17 @@ from planner.methods.nlp.guess import stretch
 from planner.methods.nlp.idle import creep_nodes, pinned
 from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import nlp_result
+from planner.methods.nlp.twin_judge import has_twin, twin_pump_energy
+from planner.model.twin import Twin
 from planner.trajectory import evaluate
 
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["energy_optimal", "hold_creep", "pareto_front", "stretch"]
+__all__ = ["JUDGES", "energy_optimal", "hold_creep", "pareto_front", "stretch"]
+
+#: the prices energy_optimal can compare its candidates under (see its doc)
+JUDGES = ("evaluate", "twin")
 
 
 def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N: int = 40,
@@ -59,7 +66,7 @@ def pareto_front(crane: Crane, start, goal, factors=(1.0, 1.1, 1.2, 1.5, 2.0), N
 def energy_optimal(crane: Crane, start, goal, T_max: float, *,
                    time_result: PlanResult | None = None,
                    time_nlp: MoveNLP | None = None, energy_nlp: MoveNLP | None = None,
-                   N: int = 40) -> tuple[PlanResult, dict]:
+                   N: int = 40, judge: str = "evaluate") -> tuple[PlanResult, dict]:
     """Least pump energy with duration ≤ T_max: the energy NLP warm-started from the
     time-optimal move stretched to T_max (and, if that does not converge to a move within the
     limits, from the Ruckig guess),
@@ -72,9 +79,17 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
     carried along below a useful valve opening, which the machine's load-sensing pump and
     ``evaluate()`` charge their holding pressure for) is held still and the NLP solved again
     from that move, up to ``HOLD_ROUNDS`` times while new creep appears; the held moves compete
-    as "nlp" under the same judge. Returns (result, info), info["winner"] in {"nlp",
-    "stretched", "time_optimal"}, info["held"] the node-joints held still in the last round
-    (0: none)."""
+    as "nlp" under the same judge. ``judge`` = "twin" (where the crane has one,
+    :func:`planner.methods.nlp.twin_judge.has_twin`): the candidates within the limits are
+    then compared once more by the dynamic twin's pump energy of their feed-forward
+    (:mod:`planner.methods.nlp.twin_judge`: the oil spring's ringing, which the quasi-static
+    price cannot see) and the cheapest there wins — so the result never costs the twin more
+    than the time-optimal move; info["judge"] says which price chose, info["twin_J"] the
+    twin's figure per candidate. Returns (result, info), info["winner"] in {"nlp",
+    "stretched", "time_optimal"}, info["energy_J"] the winner's ``evaluate()`` energy,
+    info["held"] the node-joints held still in the last round (0: none)."""
+    if judge not in JUDGES:
+        raise ValueError(f"judge: {judge!r} is not a judge; allowed: {', '.join(JUDGES)}")
     t0 = _time.perf_counter()
     rt = time_result or (time_nlp or MoveNLP(crane, "time", "free", N=N)).solve(start, goal)
     if not rt.ok:
@@ -88,8 +103,9 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
     best = (e_inc.energy_J, nlp_result(PlanStatus.OK, trajectory=inc, duration_s=T_max),
             "stretched")
     e_t = evaluate(crane, rt.trajectory).energy_J
+    cands = [best, (e_t, rt, "time_optimal")]
     if e_t < best[0]:
-        best = (e_t, rt, "time_optimal")
+        best = cands[1]
     tries = []
 
     def consider(r):
@@ -101,8 +117,10 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
             ev = evaluate(crane, r.trajectory)
             if ev.max_limit_violation > 1e-3:
                 status = PlanStatus.LIMITS  # converged, but a limit broken between check points
-            elif ev.energy_J < best[0]:
-                best = (ev.energy_J, r, "nlp")
+            else:
+                cands.append((ev.energy_J, r, "nlp"))
+                if ev.energy_J < best[0]:
+                    best = cands[-1]
         tries.append(status)
         return r if status == PlanStatus.OK else None
 
@@ -112,10 +130,19 @@ def energy_optimal(crane: Crane, start, goal, T_max: float, *,
         # moves a converged first start that lost to the incumbents was never beaten by it)
         moved = consider(en.solve(start, goal, T_max=T_max))
     held = hold_creep(crane, en, moved, start, goal, T_max, consider)
+    info = dict(judge="evaluate")
+    if judge == "twin" and has_twin(crane):
+        tw = Twin(crane)
+        priced = [(twin_pump_energy(crane, c[1].trajectory, twin=tw), k)
+                  for k, c in enumerate(cands)]
+        ok = [(w, k) for w, k in priced if w is not None]
+        if ok:
+            best = cands[min(ok)[1]]
+            info = dict(judge="twin", twin_J=[(cands[k][2], w) for w, k in priced])
     res = best[1]
     res.solve_time_s = _time.perf_counter() - t0
     return res, dict(winner=best[2], energy_J=best[0], stretched_energy_J=e_inc.energy_J,
-                     nlp_status=tries, held=held)
+                     nlp_status=tries, held=held, **info)
 
 
 HOLD_ROUNDS = 2  # solves with the creep held still (each one from the move before)

@@ -1,0 +1,75 @@
+"""A candidate move's pump energy as the dynamic twin pays it — the second price the energy
+planner's candidates are compared under (issue 30).
+
+The quasi-static pricing (:mod:`planner.model.pricing`, what the energy NLP minimises and
+``evaluate()`` reports) has no oil spring: each function's load rides on the oil column of its
+chambers and hoses, stiffness K = β·(A_a²/V_a + A_b²/V_b), and both of its valve edges are
+flow controlled (the compensated meter-in edge a flow source, the load-holding meter-out edge
+capped at (1 + m) times the matched outflow, m = ``meter_out_margin``, 1 % on s100f). That
+mode is barely damped, so an open-loop feed-forward rings it: the function lags its commanded
+flow, catches up, overshoots; every over-speed half-cycle is choked by the return cap, which
+compresses the outlet (tens of MPa on the s100f slew) and leaves the chamber pair pressurised
+(it bleeds only through m). The pump then pushes the meter-in chamber against that outlet.
+On the Exudyn plant this is most of the tail of the pump-work ratio Exudyn / evaluate()
+(benchmarks/results/energy_tail_judgefix.md: on the 27 entries above 1.05 the twin with the
+oil 30 × stiffer and the margin / 30 — the modes √30 × faster, the held pair's bleed m·β as
+specified — lands at 1.026 of evaluate() in the median, 1.069 at most, where the twin as
+specified is the plant's 1.094 and 1.271; the rest is mostly the closing spool's tail, which
+the pricing now carries) — and a move the NLP found cheap by the
+quasi-static price can ring more than its own time-optimal move, and cost more on the machine.
+
+:func:`twin_pump_energy` replays a plan's valve feed-forward (:func:`planner.feedforward.
+commands`, 50 Hz, the valves closed after the end, ``SETTLE`` s more) on the model's twin
+(:class:`planner.model.twin.Twin`, its valve physics the model's one definition) and integrates
+the pump's work p_s·ΣQ_in, divided by the pump efficiency like ``evaluate().energy_J``. None
+where the crane has no twin (no ``[dynamics]``, or an enabled transformer) or the run
+diverged.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.feedforward import commands
+from planner.model.twin import Twin
+from planner.model.valves import opening, valve_circuit, valve_flows
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+    from planner.trajectory import Trajectory
+
+__all__ = ["SETTLE", "RATE", "has_twin", "twin_pump_energy"]
+
+#: s the replay runs past the plan's end with the valves closed (the library bench's settle)
+SETTLE = 3.0
+#: Hz, the feed-forward's control rate (the library's stored commands)
+RATE = 50.0
+
+
+def has_twin(crane: Crane) -> bool:
+    """True where the model has a dynamic twin of ``crane`` ([dynamics], no transformer)."""
+    spec = crane.spec
+    ht = spec.transformer
+    return spec.dynamics is not None and not (ht is not None and ht.enabled)
+
+
+def twin_pump_energy(crane: Crane, traj: Trajectory, settle: float = SETTLE,
+                     twin: Twin | None = None) -> float | None:
+    """Pump energy at the shaft [J] of ``traj``'s feed-forward replayed open loop on the twin
+    (module doc), ``settle`` s past the end; None without a twin or when the run diverged."""
+    if not has_twin(crane):
+        return None
+    ff = commands(crane, traj, RATE)
+    t_u = np.append(ff.t, ff.t[-1] + 1.0 / RATE)           # the valves closed after the end
+    u = np.vstack([ff.u, np.zeros((1, crane.n))])
+    tw = twin if twin is not None else Twin(crane)
+    run = tw.simulate(t_u, u, traj.q[0], t_end=float(t_u[-1]) + settle)
+    if not run.ok:
+        return None
+    vc = valve_circuit(crane)
+    spool = np.vstack([run.spool[1:], run.spool[-1:]])      # the opening in force over a step
+    q_in = valve_flows(vc, run.p_a, run.p_b, run.p_s, opening(vc, spool))["q_in"].sum(axis=1)
+    w = run.p_s * q_in
+    work = float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(run.t)))
+    return work / crane.spec.pump.efficiency

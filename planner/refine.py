@@ -207,7 +207,7 @@ def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 
 class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
-    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane,
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane: Crane,
                  pendulum=None):
         self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n

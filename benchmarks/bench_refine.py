@@ -8,7 +8,11 @@ the move, the rest offset from the goal, the residual oscillation (the largest d
 the rest point after the plan's end) and the lengthening; the refine cost per entry.
 
     python benchmarks/bench_refine.py --library LIB.h5 [--every K] [--workers N]
-                                      [--iterations I] [--tag NAME]
+                                      [--iterations I] [--tag NAME] [--work DIR]
+
+``--work DIR`` keeps the selection library and its refined commands there: ``library refine``
+resumes, so a run that was stopped (or that spans sessions: the 400-entry library is about
+four CPU hours) refines only what is missing when started again with the same arguments.
 """
 from __future__ import annotations
 
@@ -17,7 +21,6 @@ import datetime
 import json
 import os
 import platform
-import shutil
 import sys
 import tempfile
 import time
@@ -56,23 +59,42 @@ def main():
     ap.add_argument("--settle", type=float, default=3.0)
     ap.add_argument("--tag", default="s100f")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--work", help="keep the selection and its refinements here (resumable)")
     a = ap.parse_args()
     tmp = tempfile.TemporaryDirectory()
-    lib = Path(tmp.name) / "lib.h5"
-    shutil.copy(a.library, lib)
-    with LibraryStore.open(lib) as db:
+    with LibraryStore.open(a.library) as db:
         ok = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
         crane_id = db.crane_id
     ids = ok[a.offset::a.every]
     # refine only the selected entries: a library holding just them
-    sel = Path(tmp.name) / "sel.h5"
-    with LibraryStore.open(lib) as src, LibraryStore.create(sel, _spec(src)) as dst:
+    work = Path(a.work) if a.work else Path(tmp.name)
+    work.mkdir(parents=True, exist_ok=True)
+    sel = work / f"sel-{a.tag}.h5"
+    if sel.exists():
+        with LibraryStore.open(sel) as db:
+            have = [r["id"] for r in db.index_rows()]
+        if have != ids:
+            sys.exit(f"--work {work}: {sel.name} holds other entries than this selection; "
+                     "use another --work or --tag")
+    else:
+        _select(Path(a.library), ids, sel)
+    _refine_and_replay(a, ids, sel, crane_id, ok)
+    tmp.cleanup()
+
+
+def _select(library: Path, ids, sel: Path):
+    part = sel.with_name(sel.name + ".part")
+    with LibraryStore.open(library) as src, LibraryStore.create(part, _spec(src)) as dst:
         for i in ids:
             r = next(x for x in src.index_rows() if x["id"] == i)
             at = src.entry_attrs(i)
             dst.add(i, src.trajectory(i), start=r["start"], goal=r["goal"],
                     objective=r["objective"], method=r["method"], status="ok",
                     attrs={k: v for k, v in at.items() if k in ("suite", "solve_s")})
+    os.replace(part, sel)
+
+
+def _refine_and_replay(a, ids, sel, crane_id, ok):
     opts = RefineOptions(iterations=a.iterations)
     t0 = time.perf_counter()
     summary = refine_library(sel, workers=a.workers, options=opts, show_progress=False)
@@ -99,7 +121,6 @@ def main():
     out = Path(a.out)
     atomic_write_text(out / f"refine_{a.tag}.json", json.dumps(rep, indent=1, default=str))
     atomic_write_text(out / f"refine_{a.tag}.md", markdown(rep))
-    tmp.cleanup()
 
 
 def _spec(store):

@@ -60,6 +60,7 @@ def main():
     ap.add_argument("--tag", default="s100f")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", help="keep the selection and its refinements here (resumable)")
+    ap.add_argument("--energy-weight", type=float, default=0.0)
     a = ap.parse_args()
     tmp = tempfile.TemporaryDirectory()
     with LibraryStore.open(a.library) as db:
@@ -95,7 +96,7 @@ def _select(library: Path, ids, sel: Path):
 
 
 def _refine_and_replay(a, ids, sel, crane_id, ok):
-    opts = RefineOptions(iterations=a.iterations)
+    opts = RefineOptions(iterations=a.iterations, energy_weight=a.energy_weight)
     t0 = time.perf_counter()
     summary = refine_library(sel, workers=a.workers, options=opts, show_progress=False)
     refine_wall = time.perf_counter() - t0

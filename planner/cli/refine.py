@@ -17,10 +17,12 @@ def cmd_library_refine(args):
     if args.limit is not None and args.limit < 1:
         raise CLIError(f"--limit {args.limit}: allowed >= 1 (the first N ok entries)")
     try:
-        opts = RefineOptions(iterations=args.iterations, tail=args.tail)
+        opts = RefineOptions(iterations=args.iterations, tail=args.tail,
+                             energy_weight=args.energy_weight)
     except ValueError as e:
         raise CLIError(str(e).replace("refine option 'iterations'", "--iterations")
-                       .replace("refine option 'tail'", "--tail")) from None
+                       .replace("refine option 'tail'", "--tail")
+                       .replace("refine option 'energy_weight'", "--energy-weight")) from None
     try:
         s = refine_library(args.library, model=args.model, workers=args.workers,
                            scheduler=args.scheduler, limit=args.limit, options=opts,
@@ -73,6 +75,7 @@ def build_refine(args, summary: dict) -> int:
 def _rerun(args) -> str:
     words = ["crane-planner", "library", "refine", args.library, "--workers", str(args.workers),
              "--iterations", str(args.iterations), "--tail", str(args.tail)]
+    words += ["--energy-weight", str(args.energy_weight)] if args.energy_weight else []
     words += ["--model", args.model] if args.model else []
     words += ["--limit", str(args.limit)] if args.limit is not None else []
     words += ["--scheduler", args.scheduler] if args.scheduler else []
@@ -94,6 +97,9 @@ def add_refine_parser(lsub) -> None:
                    help="L-BFGS-B iterations per entry at most (150)")
     p.add_argument("--tail", type=float, default=0.5,
                    help="seconds the commands may act past the plan's end (0.5)")
+    p.add_argument("--energy-weight", type=float, default=0.0, metavar="W",
+                   help="weight of the twin's pump work in the refine cost, mm²·s per kJ "
+                        "(0: tracking and landing only; energy entries: see planner/refine.py)")
     p.add_argument("--force", action="store_true",
                    help="refine entries already refined by the same twin again")
     add_json_arg(p)

@@ -96,6 +96,9 @@ def _stepper(crane: Crane, spec, step, newton, chunk):
     return st
 
 
+_POWER: dict = {}   # per process: the compiled pump power of each twin's outputs
+
+
 class Twin:
     """The dynamic twin of ``crane`` (see the module doc) with ``dynamics`` (default the
     spec's ``[dynamics]``), tip ``payload`` [kg] (default the spec's load + tool), the
@@ -154,6 +157,27 @@ class Twin:
             tw.stepper, tw.f_rhs = coupled_stepper(self.crane, self.bodies, tw.step, newton,
                                                    chunk)
         return tw
+
+    def pump_power(self):
+        """The pump's hydraulic power p_s·Σ q_in [W] and its gradient with respect to the
+        state, as a batched compiled function of (x (nx,), P) (:class:`planner.model.numeric.
+        Batched`: arrays (K, nx) in, [(K, 1), (K, nx)] out). The meter-in flows depend on the
+        pressures and the spools only (states), so a cost on the pump's work has an adjoint."""
+        import casadi as ca
+
+        from planner.model.numeric import Batched
+        key = (id(self.f_outputs), self.stepper.nx, len(self.P))
+        f = _POWER.get(key)
+        if f is None:
+            n, nx = self.crane.n, self.stepper.nx
+            X = ca.SX.sym("x", nx)
+            P = ca.SX.sym("P", len(self.P))      # the coupled twin's grapple data follow
+            out = self.f_outputs(X[:state_size(n)], ca.DM.zeros(n), ca.DM.zeros(n),
+                                 P[:self.f_outputs.size1_in(3)])
+            w = X[4 * n] * ca.sum1(out[3])
+            f = _POWER[key] = Batched(ca.Function("twin_pump_power", [X, P],
+                                                  [w, ca.gradient(w, X)]))
+        return f
 
     def provenance(self) -> dict:
         """Which twin this is: the machine, its spec file, a fingerprint (sha256, 16 hex) of

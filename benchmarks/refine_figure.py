@@ -74,6 +74,7 @@ def main(argv=None):
         row[1].axvline(0, color="k", lw=0.8)
         row[1].axhline(1e3 * TOL, color="k", lw=0.6, ls=":")
         row[1].set_yscale("symlog", linthresh=1.0)
+        row[1].set_ylim(bottom=0.0)
         row[1].set_xlabel("time after the planned arrival [s]")
         row[1].set_ylabel("tip distance from the goal [mm]")
         row[1].set_title(f"{eid}: arrival and rest (valves closed after the last command)",

@@ -226,6 +226,7 @@ def test_demo_writes_summary_and_figures(capsys, tmp_path):
               "discrepancy/residuals.png"):
         assert (out_dir / f).stat().st_size > 0, f
     assert "4 entries, 4 ok" in summary and "flow_gain" in summary
+    assert "## Open loop on the independent plant" in summary and "| refined |" in summary
     assert "On equal limits the free-path minimum-time NLP is faster" in summary
     assert "– with the laws'" not in summary          # both margins were measured
     assert f"demo written to {out_dir}/" in out

@@ -12,7 +12,12 @@ and a ``summary.md`` with the headline numbers and links to every figure.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pathlib import Path
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 DEFAULT_CRANE = "s100f"
 
@@ -190,7 +195,7 @@ def run_demo(out, *, library_moves: int = 6, workers: int = 2, progress: bool = 
 DEMO_REFINE_ITERATIONS = 60
 
 
-def _open_loop(crane, lib, entry: str):
+def _open_loop(crane: Crane, lib, entry: str):
     """One library entry replayed open loop on the Exudyn plant (the judge) with its nominal
     feed-forward and with the commands refined on the dynamic twin: (summary lines, dict)."""
     from planner.feedforward import stored_commands

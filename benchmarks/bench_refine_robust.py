@@ -6,8 +6,8 @@
    (seeded; the values go into the results) uniformly within ±``spread`` of the spec's: bulk
    modulus, each hose volume, the spool and the pump time constants, each joint's Coulomb and
    viscous friction, a leakage of the loaded chamber (from 0 up to ``leak_max``) and a valve
-   dead band (from 0 up to ``deadband_max``); and each runs with an effect the twin does not
-   have at all: a bulk modulus that rises with pressure
+   dead band (from 0 up to ``deadband_max``); and each runs with a bulk modulus that rises with pressure (the
+   twin has that law since issue 28, but runs with the spec's constant β)
    (:class:`~planner.simulation.dynamic.circuit.PressureBulk`). Nominal and refined commands of
    each entry are replayed on every machine (and on the spec's own machine, the reference).
 2. **A work cycle.** Entries that chain (each one's start joints = the previous one's goal
@@ -403,7 +403,7 @@ def markdown(rep) -> str:
          f"±{100 * rep['spread']:.0f} % of the spec's, a leakage of the loaded chamber "
          f"U(0, {LEAK_MAX:g}) m³/(s·Pa) and a valve dead band U(0, {DEADBAND_MAX:g}) per "
          "joint (the spec's are 0), and the oil's bulk modulus rising with pressure "
-         "(β(p) = β·clip((p + p_a)/(p_ref + p_a), lo, hi), an effect the twin does not have). "
+         "(β(p) = β·clip((p + p_a)/(p_ref + p_a), lo, hi), a law the twin has, with values it was not given). "
          "`spec` is the spec's own machine; `spec+β(p)` adds only the pressure law. The spec's "
          f"machine and m1 (which run the cycle) replay all {len(rep['chain'])} entries, the "
          f"others the first {rep['subset']}.", "",

@@ -234,7 +234,9 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     Nothing is written when the run stops early: :class:`PlantDiverged` is raised. Returns a
     JSON-ready summary (``effects``: what each effect did, with its hooks; where the plant
     accounts for its pump, ``pump_energy_J`` beside ``evaluate_energy_J``, the quasi-static
-    model's figure for the plan under the crane's ``pricing``). With ``plan`` (the planned
+    model's figure for the plan under the crane's ``pricing``, and ``twin_energy_J``, the
+    dynamic twin's on the same commands — None where the crane has no twin or the plant
+    carries hidden effects the twin was not told of). With ``plan`` (the planned
     trajectory whose end is the arrival; ``traj`` then carries the commands, e.g.
     :func:`planner.feedforward.with_settle`) the summary adds how the run lands
     (:func:`planner.refine.landing_measures`: ``rest_offset_m``, ``residual_oscillation_m``,
@@ -281,10 +283,13 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     pump_J = p.pump_energy(rec)
     if pump_J is not None:   # the plant's own pump work beside the quasi-static model's
         from planner.trajectory import evaluate
+        from planner.methods.nlp.twin_judge import commands_pump_energy
+        twin_J = commands_pump_energy(crane, t_u, u, traj.q[0],
+                                      float(max(traj.t[-1], t_u[-1]))) if not effects else None
         extra.update(pump_energy_J=float(pump_J),
                      evaluate_energy_J=float(evaluate(crane, traj if plan is None else plan)
                                              .energy_J),
-                     pricing=crane.pricing)
+                     twin_energy_J=twin_J, pricing=crane.pricing)
     return dict(status="ok", plant=plant, out=str(out), samples=len(rec.t), columns=cols,
                 commands=src, effects=p.report(), noise=noise_levels(noise), seed=seed,
                 max_tip_error_m=float(tip_err.max()), final_tip_error_m=float(tip_err[-1]),

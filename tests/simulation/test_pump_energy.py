@@ -59,3 +59,5 @@ def test_simulate_json_reports_the_plants_pump_energy(tmp_path, capsys, monkeypa
     gap_m = abs(r["evaluate_energy_J"] / r["pump_energy_J"] - 1)
     gap_s = abs(seed / r["pump_energy_J"] - 1)
     assert gap_m < 0.25 and gap_m < gap_s      # measured: 0.18 and 0.29 (a fast 2 s move)
+    # the twin's figure for the same commands: it carries the oil, the plant's pump within 2 %
+    assert r["twin_energy_J"] == pytest.approx(r["pump_energy_J"], rel=0.02)

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.trajectory import Trajectory
 
-__all__ = ["SETTLE", "RATE", "has_twin", "twin_pump_energy"]
+__all__ = ["SETTLE", "RATE", "has_twin", "twin_pump_energy", "commands_pump_energy"]
 
 #: s the replay runs past the plan's end with the valves closed (the library bench's settle)
 SETTLE = 3.0
@@ -63,8 +63,18 @@ def twin_pump_energy(crane: Crane, traj: Trajectory, settle: float = SETTLE,
     ff = commands(crane, traj, RATE)
     t_u = np.append(ff.t, ff.t[-1] + 1.0 / RATE)           # the valves closed after the end
     u = np.vstack([ff.u, np.zeros((1, crane.n))])
+    return commands_pump_energy(crane, t_u, u, traj.q[0], float(t_u[-1]) + settle, twin)
+
+
+def commands_pump_energy(crane: Crane, t_u, u, q0, t_end: float,
+                         twin: Twin | None = None) -> float | None:
+    """Pump energy at the shaft [J] of the commands ``u`` held from ``t_u`` (the last row
+    held to ``t_end``) replayed open loop on the twin from rest at ``q0``; None without a
+    twin or when the run diverged."""
+    if not has_twin(crane):
+        return None
     tw = twin if twin is not None else Twin(crane)
-    run = tw.simulate(t_u, u, traj.q[0], t_end=float(t_u[-1]) + settle)
+    run = tw.simulate(np.asarray(t_u, float), np.asarray(u, float), q0, t_end=t_end)
     if not run.ok:
         return None
     vc = valve_circuit(crane)

@@ -102,8 +102,9 @@ def measure(args) -> dict:
         series[name] = dict(t=ts[keep].tolist(), swing_m=r[keep].tolist(), duration_s=T,
                             residual_m=float(r[ts >= T].max()),
                             during_m=float(r[ts <= T].max()))
+        s = series[name]
         log(f"{mv.id} {name:13s} T = {T:.2f} s, swing after arrival "
-            f"{series[name]['residual_m'] * 1e3:.0f} mm, during {series[name]['during_m'] * 1e3:.0f} mm")
+            f"{s['residual_m'] * 1e3:.0f} mm, during {s['during_m'] * 1e3:.0f} mm")
     return dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                 machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                              load=list(os.getloadavg())),

@@ -5,6 +5,7 @@ ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side
 
     python benchmarks/bench_sway.py [--moves 12 | --only ID,ID] [--length 1.5] [--zeta 0.05]
                                     [--settle 6] [--methods nlp,zv,zvd,nlp-sway,nlp-sway+ffs]
+                                    [--plant-length 1.8] [--plant-mass 1.2]
                                     [--ff-iterations 150] [--swing-weight 10]
                                     [--out benchmarks/results] [--tag sway]
     python benchmarks/bench_sway.py --merge A.json B.json --tag NAME   # split runs, one table
@@ -108,6 +109,9 @@ def main(argv=None):
     ap.add_argument("--plant-length", type=float, default=None,
                     help="the plant's link length [m] when it differs from the one planned "
                          "with (robustness; default --length)")
+    ap.add_argument("--plant-mass", type=float, default=None, metavar="SCALE",
+                    help="the plant's load + tool mass as a multiple of the spec's, while the "
+                         "planners assume the spec's (robustness; the payload_mass effect)")
     ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
     ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
     ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
@@ -137,7 +141,11 @@ def main(argv=None):
     pend = Pendulum.of(crane, args.length, zeta=args.zeta)
     plant_length = args.plant_length or args.length    # the plant's link: off when asked
     effect = make("grapple_swing", length=plant_length, damping=round(pend.damping, 1))
-    plant = make_plant("exudyn", crane, [effect])
+    effects = [effect]
+    if args.plant_mass is not None:   # the plant's load off from the planners' assumption
+        effects.append(make("payload_mass", mass=round((args.plant_mass - 1.0)
+                                                       * crane.spec.payload.total, 1)))
+    plant = make_plant("exudyn", crane, effects)
     args.work.mkdir(parents=True, exist_ok=True)
     suite = build_suite(str(subset_suite(args.work / "forwarder-cycle-claims.toml")),
                         Settings(forwarder_moves=10 ** 6))
@@ -288,6 +296,7 @@ def markdown(res) -> list:
          f"{a['settle']:g} --methods {a['methods']}"
          + (f" --refine {a['refine']}" if a.get("refine") else "")
          + (f" --plant-length {a['plant_length']:g}" if a.get("plant_length") else "")
+         + (f" --plant-mass {a['plant_mass']:g}" if a.get("plant_mass") else "")
          + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
             f"{a.get('swing_weight', 10.0):g}"
             if "+ff" in a["methods"] else "")
@@ -297,6 +306,8 @@ def markdown(res) -> list:
             if a.get("processes") else "") + "). s100f, "
          f"its {res['effect'].get('length', a['length'])} m grapple link "
          + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
+         + (f"and {a['plant_mass']:g} × the spec's load + tool mass (the planners and the "
+            "twin assume the spec's) " if a.get("plant_mass") else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
          f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")

@@ -77,13 +77,14 @@ def cmd_library_build(args):
     moves = checked_suite(args)
     if args.scheduler is None:
         args.workers = capped_workers(args.workers, moves)
+    grapple = build_grapple(args, objectives)
     created = missing_dirs(args.out)
     try:
         summary = build(args.crane, args.tasks, args.out, objectives=objectives,
                         workers=args.workers, scheduler=args.scheduler, limit=args.limit,
                         N=args.intervals, robustness=not args.no_robustness,
                         progress=not (args.json == "-"), method=args.method,
-                        compile=args.compile)
+                        compile=args.compile, grapple=grapple, grapple_zeta=args.grapple_zeta)
     except Interrupted as e:  # Ctrl-C / SIGTERM: one line, the shell's 128 + signal code
         s = e.summary
         if s:
@@ -142,6 +143,46 @@ def cmd_library_build(args):
     return 0
 
 
+def build_grapple(args, objectives) -> float | bool | None:
+    """``library build``'s grapple (:func:`planner.library.build.build`'s ``grapple``): the
+    link of ``--grapple LENGTH``, else the spec's ``[dynamics.grapple]`` (True) unless
+    ``--no-grapple``, else None; and the method when ``--method`` is not given: ``nlp-sway``
+    (sway-free entries) with a grapple, ``nlp`` without. Bad input: CLIError, one line."""
+    import math
+
+    from planner.methods import get
+    from planner.model import Crane
+    spec = Crane.from_id(args.crane).spec
+    if args.grapple is not None:
+        if args.no_grapple:
+            raise CLIError(f"--grapple {args.grapple:g} and --no-grapple: allowed one of them")
+        if not (math.isfinite(args.grapple) and 0 < args.grapple <= 20):
+            raise CLIError(f"--grapple {args.grapple:g}: allowed a link length in (0, 20] m")
+    if args.grapple_zeta is not None and not (math.isfinite(args.grapple_zeta)
+                                              and 0 <= args.grapple_zeta <= 1):
+        raise CLIError(f"--grapple-zeta {args.grapple_zeta:g}: allowed a share of critical "
+                       "damping in [0, 1]")
+    has = spec.dynamics is not None and spec.dynamics.grapple is not None
+    grapple = (args.grapple if args.grapple is not None
+               else True if has and not args.no_grapple else None)
+    if grapple is None and args.grapple_zeta is not None:
+        raise CLIError(f"--grapple-zeta {args.grapple_zeta:g}: needs a grapple link "
+                       f"(--grapple LENGTH; {spec.id} has no [dynamics.grapple]"
+                       + (", and --no-grapple was given)" if args.no_grapple else ")"))
+    if args.method is None:
+        args.method = "nlp-sway" if grapple is not None else "nlp"
+        if grapple is not None and "energy" in objectives:
+            raise CLIError(f"--objectives {args.objectives}: sway-free entries (nlp-sway, the "
+                           "default with a grapple) are minimum-time only; allowed: --objectives "
+                           "time, --method nlp (sway-blind, the swing predicted per entry) or "
+                           "--no-grapple")
+    elif grapple is None and getattr(get(args.method), "grapple", False):
+        raise CLIError(f"--method {args.method} plans with the grapple: {spec.id} has no "
+                       "[dynamics.grapple]" + (" and --no-grapple was given" if args.no_grapple
+                                               else "") + "; allowed: --grapple LENGTH [m]")
+    return grapple
+
+
 def rerun_command(args) -> str:
     """The ``library build`` command line that resumes this build."""
     words = ["crane-planner", "library", "build", args.crane, "--tasks", args.tasks, "--out",
@@ -150,6 +191,9 @@ def rerun_command(args) -> str:
     words += ["--limit", str(args.limit)] if args.limit is not None else []
     words += ["--scheduler", args.scheduler] if args.scheduler else []
     words += ["--no-robustness"] if args.no_robustness else []
+    words += ["--grapple", f"{args.grapple:g}"] if args.grapple is not None else []
+    words += ["--grapple-zeta", f"{args.grapple_zeta:g}"] if args.grapple_zeta is not None else []
+    words += ["--no-grapple"] if args.no_grapple else []
     return shlex.join(words)
 
 
@@ -281,6 +325,14 @@ def cmd_library_show(args):
             return "-" if v is None or not np.isfinite(v) else format(v * scale, fmt)
         print(f"  duration {num(s['duration_s'])} s, energy {num(s['energy_J'], 1e-3, '.2f')} "
               f"kJ, robustness {num(s['robustness'], fmt='.4f')} m")
+        a = s["attrs"]
+        if a.get("swing_residual_m") is not None:
+            print(f"  grapple {a['grapple_m']:g} m ({a['pendulum_hz']:.2f} Hz): the model's "
+                  f"residual swing {num(a['swing_residual_m'], 1e3, '.0f')} mm, peak "
+                  f"{num(a['swing_peak_m'], 1e3, '.0f')} mm during the move"
+                  + (f"; load clearance {num(a['load_clearance_m'], 1e3, '.0f')} mm, tip "
+                     f"{num(a.get('clearance_m'), 1e3, '.0f')} mm (1 kHz)"
+                     if a.get("load_clearance_m") is not None else ""))
         if "samples" in s:
             print(f"  {s['samples']} samples, t {s['t0_s']:.3f} .. {s['t_end_s']:.3f} s, joints "
                   f"{', '.join(s['joint_names'])}"
@@ -329,9 +381,20 @@ def add_parsers(sub) -> None:
                    help="Dask scheduler (tcp://host:8786), or local:N for a LocalCluster")
     p.add_argument("--limit", type=int, help="only the first N moves of the suite")
     p.add_argument("--intervals", type=int, default=40, help="NLP intervals N (40)")
-    p.add_argument("--method", type=method_arg, default="nlp",
-                   help="registered planning method of every entry (nlp); see plan --help")
+    p.add_argument("--method", type=method_arg, default=None,
+                   help="registered planning method of every entry (nlp; nlp-sway with a "
+                        "grapple); see plan --help")
     p.add_argument("--no-robustness", action="store_true", help="skip the replay scores")
+    p.add_argument("--grapple", type=float, metavar="LENGTH",
+                   help="the load hangs on a grapple link of LENGTH m (default: the spec's "
+                        "[dynamics.grapple]): entries planned sway-free (nlp-sway) unless "
+                        "--method says otherwise, each with the model's predicted swing and "
+                        "the load's clearance (library show)")
+    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
+                   help="the grapple pins' damping, a share of critical (default: the spec's, "
+                        "or none)")
+    p.add_argument("--no-grapple", action="store_true",
+                   help="ignore the spec's [dynamics.grapple]: the load a point at the tip")
     p.add_argument("--feedforward", choices=("nominal", "twin"), default="nominal",
                    help="twin: refine every entry's commands on the dynamic twin after planning "
                         "(as `library refine` does; resumable the same way)")

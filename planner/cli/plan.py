@@ -125,14 +125,22 @@ OUT_SUFFIXES = (".csv", ".h5")
 
 def predicted_swing(args, crane: Crane, traj) -> dict | None:
     """The model's swing of the load along the plan (planner.model.pendulum) when the grapple
-    is known: ``--grapple LENGTH``, or the spec's ``[dynamics.grapple]``; None otherwise."""
+    is known: ``--grapple LENGTH``, or the spec's ``[dynamics.grapple]``; None otherwise.
+    With ``--wall``: ``load_clearance_m``, the swinging load's least distance to the walls on
+    a 1 kHz resampling (planner.methods.shaping.load_clearance)."""
     from planner.model.pendulum import predict_swing
     pend = grapple_of_args(args, crane)
     if pend is None:
         return None
     pred = predict_swing(crane, traj, pend)
-    return dict(grapple_m=pend.length, pendulum_hz=pend.omega / (2 * math.pi),
-                zeta=pend.zeta, residual_swing_m=pred.residual_m, swing_peak_m=pred.peak_during_m)
+    out = dict(grapple_m=pend.length, pendulum_hz=pend.omega / (2 * math.pi),
+               zeta=pend.zeta, residual_swing_m=pred.residual_m, swing_peak_m=pred.peak_during_m)
+    if getattr(args, "wall", None):
+        from planner.geometry.obstacles import Wall
+        from planner.methods.shaping import load_clearance
+        out["load_clearance_m"] = load_clearance(crane, traj, pend,
+                                                 tuple(Wall(*w) for w in args.wall))
+    return out
 
 
 def grapple_of_args(args, crane: Crane):

@@ -46,6 +46,8 @@ from pathlib import Path
 from planner.io import progress
 from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
+from planner.library.swing import (GrappleError, grapple_setting, pendulum_of, same_grapple,
+                                   swing_attrs)
 from planner.library.workers import (Interrupted, SignalGuard, WorkerLost, WorkerPool,
                                      run_setup)
 from planner.methods import PlanStatus, UnsupportedRequest, get, plan
@@ -66,7 +68,10 @@ class BuildSettings:
     with every entry); ``method``: the registered planning method; ``objectives``: the build's
     objectives (:data:`OBJECTIVES`); ``intervals``: the NLP's N; ``robustness``: score every
     entry's open-loop robustness; ``obstacles``: the suite's; ``energy_budget``: an energy
-    entry's duration limit as a multiple of the move's minimum time. Each method turns these
+    entry's duration limit as a multiple of the move's minimum time; ``grapple``: the link the
+    load hangs on, (length [m] or None for the spec's ``[dynamics.grapple]``, pin damping as a
+    share of critical or None), or None: no grapple (every entry then carries the swing the
+    model predicts, :func:`planner.library.swing.swing_attrs`). Each method turns these
     into its own request (:meth:`~planner.methods.base.Planner.library_request`)."""
     crane_id: str
     suite: str = ""
@@ -76,6 +81,7 @@ class BuildSettings:
     robustness: bool = True
     obstacles: tuple = ()
     energy_budget: float = ENERGY_BUDGET
+    grapple: tuple | None = None     # (link length [m] or None: the spec's, pin zeta or None)
 
     def __post_init__(self):
         object.__setattr__(self, "objectives", tuple(self.objectives))
@@ -99,8 +105,9 @@ class EntryResult:
     """One planned entry as a worker hands it to the driver (the single writer): the fields
     of the stored entry (``trajectory`` and ``evaluation`` when ok, else None) and the
     figures stored as its attributes (``solve_s``, ``cpu_s``, ``build_s`` [s],
-    ``clearance_m`` [m], ``energy_winner``; None where not measured). ``iterations``: the
-    method's own count (not stored)."""
+    ``clearance_m`` [m], ``energy_winner``, and ``swing``: the
+    :func:`~planner.library.swing.swing_attrs` of a build with a grapple; None where not
+    measured). ``iterations``: the method's own count (not stored)."""
     id: str
     start: tuple
     goal: tuple
@@ -117,6 +124,7 @@ class EntryResult:
     build_s: float | None = None
     iterations: int = 0
     energy_winner: str | None = None
+    swing: dict | None = None
 
 
 # ------------------------------------------------------------------------------ worker side
@@ -229,6 +237,7 @@ def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -
         clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in st.obstacles)
     # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
     # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
+    swing = swing_attrs(crane, st.grapple, st.obstacles, traj)
     traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
     ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
     rob = float("nan")
@@ -236,7 +245,8 @@ def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -
         from planner.simulation.replay import robustness as robust
         rob = float(robust(crane, traj_u)["score_m"])
     return replace(out, status=PlanStatus.OK, reason="", trajectory=traj_u, evaluation=ev,
-                   robustness=rob, clearance_m=clear, solve_s=_time.perf_counter() - t0,
+                   robustness=rob, clearance_m=clear, swing=swing,
+                   solve_s=_time.perf_counter() - t0,
                    iterations=res.stats.get("iterations", 0),
                    # CPU seconds of the worker process (its own threads included) and the
                    # seconds spent building solvers (0: the worker's set-up had built them)
@@ -268,9 +278,17 @@ def check_scheduler(scheduler: str) -> None:
 def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int = 1,
           scheduler: str | None = None, limit: int | None = None, N: int = 40,
           robustness: bool = True, progress: bool = True, method: str = "nlp",
-          compile: bool = False) -> dict:
+          compile: bool = False, grapple: float | bool | None = None,
+          grapple_zeta: float | None = None) -> dict:
     """Build (or resume) the library ``out`` (HDF5) with the registered planning ``method``
     (default: the NLP). Returns a summary dict.
+
+    ``grapple``: the load hangs on a link of that length [m] (True: the spec's
+    ``[dynamics.grapple]``; None: no link, the load a point at the tip), its pins damped at
+    ``grapple_zeta`` of critical (None: the spec's damping, or none); the methods that read it
+    (``nlp-sway``, ``zv``, ``zvd``) plan with it, and every entry stores the swing the model
+    predicts along it (:func:`planner.library.swing.swing_attrs`). A resumed build must name
+    the same link as the entries already there.
 
     One build per file: another build on ``out`` is refused with the holder's pid
     (:class:`~planner.library.lock.LibraryBusy`). SIGINT / SIGTERM stop the build promptly
@@ -293,8 +311,12 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
     meta, moves = load_suite(suite)
     if limit is not None:
         moves = moves[:limit]
+    try:
+        link = grapple_setting(crane, grapple, grapple_zeta)
+    except GrappleError as e:
+        raise BuildError(str(e)) from None
     settings = BuildSettings(crane.spec.id, suite, method, objectives, N, robustness,
-                             meta["obstacles"])
+                             meta["obstacles"], grapple=link)
     check_method(settings, crane, moves)
     prepared_s = 0.0
     if compile and moves:   # the solvers built (and stored) once, before any worker starts
@@ -325,6 +347,10 @@ def build(crane_id: str, suite: str, out, *, objectives=("time",), workers: int 
                     db = (LibraryStore.open(out, "a", spec=crane.spec) if out.exists()
                           else LibraryStore.create(out, crane.spec))
                     with db:
+                        try:
+                            same_grapple(db, out, pendulum_of(crane, settings.grapple))
+                        except GrappleError as e:
+                            raise BuildError(str(e)) from None
                         _fill(db, settings, moves, pool, guard, state, setup,
                               show_progress=progress)
                         info = db.info()
@@ -395,7 +421,7 @@ def _fill(db, settings: BuildSettings, moves, pool, guard, state, setup=None, *,
                    evaluation=r.evaluation, robustness=r.robustness,
                    attrs=dict(solve_s=r.solve_s, cpu_s=r.cpu_s, build_s=r.build_s,
                               suite=settings.suite, energy_winner=r.energy_winner,
-                              clearance_m=r.clearance_m))
+                              clearance_m=r.clearance_m, **(r.swing or {})))
             state["written"] += 1
             counts[r.status] = counts.get(r.status, 0) + 1
             bar.update(1)

@@ -51,6 +51,9 @@ if TYPE_CHECKING:
 INDEX_CSV_COLUMNS = ("id", "file", "start_r", "start_z", "start_slew", "goal_r", "goal_z",
                      "goal_slew", "objective", "method", "status", "duration_s", "energy_J",
                      "robustness", "reason")
+#: index.csv's columns after those of a library built with a grapple (planner.library.swing)
+SWING_CSV_COLUMNS = ("grapple_m", "swing_residual_m", "swing_peak_m", "clearance_m",
+                     "load_clearance_m")
 
 
 def _unique(name: str, used: set, maxlen: int) -> str:
@@ -277,18 +280,32 @@ def _entry_hyd(db, eid):
     return e
 
 
-def index_csv_text(rows, files, reasons) -> str:
+def index_csv_text(rows, files, reasons, swing=None) -> str:
     """index.csv: one row per entry (:data:`INDEX_CSV_COLUMNS`); ``files`` maps an id to the
-    file (or folder) written for it, empty for entries without a trajectory."""
+    file (or folder) written for it, empty for entries without a trajectory. ``swing`` (a
+    library built with a grapple): per id its stored :data:`SWING_CSV_COLUMNS` (the model's
+    swing and the load's clearance, planner.library.swing), appended as columns."""
     buf = StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(INDEX_CSV_COLUMNS)
+    w.writerow(INDEX_CSV_COLUMNS + (SWING_CSV_COLUMNS if swing else ()))
     for r in rows:
+        extra = ([_fmt(swing[r["id"]].get(k, math.nan)) for k in SWING_CSV_COLUMNS]
+                 if swing else [])
         w.writerow([r["id"], files[r["id"]], *(_fmt(v) for v in r["start"]),
                     *(_fmt(v) for v in r["goal"]), r["objective"], r["method"],
                     r["status"], _fmt(r["duration_s"]), _fmt(r["energy_J"]),
-                    _fmt(r["robustness"]), reasons[r["id"]]])
+                    _fmt(r["robustness"]), reasons[r["id"]], *extra])
     return buf.getvalue()
+
+
+def swing_columns(db, rows) -> dict | None:
+    """Per entry id its stored swing attributes (:data:`SWING_CSV_COLUMNS`), or None when no
+    entry has them (a library built without a grapple)."""
+    out = {}
+    for r in rows:
+        a = db.entry_attrs(r["id"])
+        out[r["id"]] = {k: a[k] for k in SWING_CSV_COLUMNS if a.get(k) is not None}
+    return out if any(out.values()) else None
 
 
 def _replayed(db, eid, traj, which):
@@ -345,7 +362,7 @@ def _export_per_entry(db, rows, reasons, out_dir, fmt, rate, units_row,
         files[eid] = name
         written.append(p)
     p = out_dir / "index.csv"
-    atomic_write_text(p, index_csv_text(rows, files, reasons))
+    atomic_write_text(p, index_csv_text(rows, files, reasons, swing_columns(db, rows)))
     written.append(p)
     return written
 

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.geometry.paths import tip_to_xyz
+from planner.geometry.paths import tip_to_xyz, xyz_to_tip
 from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
                                   UnsupportedRequest)
 from planner.methods.nlp.guess import stretch
@@ -50,7 +50,9 @@ from planner.trajectory import Trajectory, evaluate
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["shaper", "shape", "ShapingPlanner", "pendulum_of_request", "clearance_margin"]
+__all__ = ["shaper", "shape", "ShapingPlanner", "pendulum_of_request", "clearance_margin",
+           "load_path", "load_distances", "load_clearance",
+           "load_clearance_margin"]
 
 RETIME_ROUNDS = 4          # slow-downs after a broken limit
 CLEARANCE_ROUNDS = 2       # base plans with raised clearance after a too-close shaped move
@@ -126,6 +128,44 @@ def clearance_margin(crane: Crane, traj: Trajectory, obstacles, rate: float = 10
                for ob in obstacles)
 
 
+def load_path(crane: Crane, traj: Trajectory, pend: Pendulum,
+              rate: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
+    """(times [s] (K,), the load's centre of mass (K, 3) [m] in frame 0) on a ``rate``
+    resampling of ``traj``: the tip's forward kinematics plus the link vector of the swing the
+    model predicts along the plan (:func:`~planner.model.pendulum.predict_swing`, from hanging
+    at rest)."""
+    pred = predict_swing(crane, traj, pend, rate=rate)
+    tip = tip_to_xyz(crane.tip(traj.sample(pred.t)[0]))
+    return pred.t, tip + pend.link(pred.x)
+
+
+def load_distances(crane: Crane, traj: Trajectory, pend: Pendulum, obstacles,
+                   rate: float = 1000.0) -> list:
+    """[(least distance [m] of the swinging load's centre of mass (:func:`load_path`) on a
+    ``rate`` resampling, the obstacle's clearance [m])], one pair per obstacle."""
+    if not obstacles:
+        return []
+    _, xyz = load_path(crane, traj, pend, rate)
+    cyl = xyz_to_tip(xyz)
+    return [(float(ob.distance(xyz, cyl).min()), float(ob.clearance)) for ob in obstacles]
+
+
+def load_clearance(crane: Crane, traj: Trajectory, pend: Pendulum, obstacles,
+                   rate: float = 1000.0) -> float:
+    """The least distance [m] of the swinging load to any of ``obstacles`` at ``rate`` (inf:
+    none), as a library entry reports the tip's (``clearance_m``)."""
+    return min((d for d, _ in load_distances(crane, traj, pend, obstacles, rate)),
+               default=math.inf)
+
+
+def load_clearance_margin(crane: Crane, traj: Trajectory, pend: Pendulum, obstacles,
+                          rate: float = 1000.0) -> float:
+    """As :func:`clearance_margin` for the swinging load: the smallest distance minus
+    CLEARANCE_SHARE × clearance over every obstacle [m] (≥ 0: clear; inf: none)."""
+    return min((d - CLEARANCE_SHARE * c for d, c in
+                load_distances(crane, traj, pend, obstacles, rate)), default=math.inf)
+
+
 class ShapingPlanner(Planner):
     """``zv`` / ``zvd``: the ``nlp`` minimum-time plan shaped at the grapple pendulum's
     frequency (module doc), re-timed until every limit holds and clear of the obstacles."""
@@ -139,6 +179,16 @@ class ShapingPlanner(Planner):
         self.name = kind
         self.description = (f"{kind.upper()} input shaping of the nlp minimum-time plan at the "
                             "grapple's swing frequency (re-timed, clearance checked)")
+
+    def library_request(self, crane: Crane, move, objective: str, *, time_result=None,
+                        settings) -> PlanRequest:
+        """The plain library request with the build's ``intervals`` and grapple link
+        (``settings.grapple``: length or None for the spec's, pin zeta)."""
+        req = super().library_request(crane, move, objective, time_result=time_result,
+                                      settings=settings)
+        length, zeta = getattr(settings, "grapple", None) or (None, None)
+        return replace(req, options=dict(req.options, intervals=settings.intervals,
+                                         grapple=length, grapple_zeta=zeta))
 
     def check(self, request: PlanRequest) -> None:
         super().check(request)

@@ -15,7 +15,10 @@ is a function of the joint motion the NLP chooses. Constraints beyond the sway-b
   nodes (an operator's limit; default none: only |α|, |β| ≤ 1 rad, where the model stays valid);
 - obstacles: the tip's clearance at the nodes and midpoints (as the sway-blind NLP, and checked
   afterwards on a 1 kHz resampling at 0.96 × the clearance); with ``load_clearance`` the load's
-  centre of mass (tip + link) keeps the clearance at the nodes too;
+  centre of mass (tip + link) keeps the clearance at the nodes and at the RK4 steps inside each
+  interval (at least two per interval: the midpoints), and the solution is checked on the
+  same 1 kHz resampling at 0.96 × with the swing the model predicts along it
+  (:func:`~planner.methods.shaping.load_clearance_margin`; stat ``load_clearance_margin_m``);
 - ``swing_robust`` r > 0: the same residual bound for two more pendulums at ω₀·(1 ± r) driven
   by the same tip (zero residual over a band of frequencies, as ZVD is to ZV): robust to a
   link length or load off from what was assumed, and a little to the plant not following the
@@ -58,7 +61,8 @@ from planner.methods.nlp.pump import PumpRows
 from planner.methods.nlp.tip import add_obstacles
 from planner.methods.nlp.transcription import STATUS_OK, Layout, ipopt_code
 from planner.methods.registry import plan as plan_with, register
-from planner.methods.shaping import clearance_margin, pendulum_of_request, shape, shaper
+from planner.methods.shaping import (clearance_margin, load_clearance_margin,
+                                     pendulum_of_request, shape, shaper)
 from planner.model.flows import actuator_table
 from planner.model.pendulum import Pendulum, predict_swing, tip_motion
 from planner.trajectory import Trajectory, evaluate
@@ -123,12 +127,15 @@ class SwayNLP:
         def acc(k, tau):
             q, qd, qdd = at(k, tau)
             return f_acc(q, qd, qdd)[2]
+        inner = []   # (interval, joints, swing angles) at the RK4 steps inside intervals
         for k in range(N):
             lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*at(k, hs[k])), 0.0, 0.0)
             lay.add_con("duration_chain", TT[k + 1] - TT[k], 0.0, 0.0)
             hh = hs[k] / substeps
             xs = [S[4 * i:4 * i + 4, k] for i in range(P)]
             for i in range(substeps):
+                if i > 0:
+                    inner.append((k, at(k, i * hh)[0], xs[0][:2]))
                 a0, am, a1 = (acc(k, (i + f) * hh) for f in (0.0, 0.5, 1.0))
                 for j, pj in enumerate(self.pends):
                     f_sw, x = pj.f_swing, xs[j]
@@ -167,7 +174,8 @@ class SwayNLP:
                 f_load = ca.Function("load_fk", [qs], [p, cyl])
                 add_obstacles(lay, f_load, self.obstacles,
                               [(k, (ca.vertcat(X[:n, k], S[:2, k]), None, None))
-                               for k in range(N + 1)])
+                               for k in range(N + 1)]
+                              + [(k, (ca.vertcat(q, th), None, None)) for k, q, th in inner])
         PumpRows(crane, actuator_table(crane.spec), N, "time", "free", True,
                  PUMP_MARGIN).add(lay, pts, mids, hs[0], par["payload"], par["activity"])
         f = T + reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
@@ -270,6 +278,18 @@ class SwayPlanner(Planner):
     def clear(self) -> None:
         self._built.clear()
 
+    def library_request(self, crane: Crane, move, objective: str, *, time_result=None,
+                        settings) -> PlanRequest:
+        """The plain library request with the build's ``intervals``, its grapple link
+        (``settings.grapple``: length or None for the spec's, pin zeta) and, with obstacles,
+        the load's clearance planned (``load_clearance``)."""
+        req = super().library_request(crane, move, objective, time_result=time_result,
+                                      settings=settings)
+        length, zeta = getattr(settings, "grapple", None) or (None, None)
+        return replace(req, options=dict(req.options, intervals=settings.intervals,
+                                         grapple=length, grapple_zeta=zeta,
+                                         load_clearance=bool(settings.obstacles)))
+
     def built(self, crane: Crane, pend: Pendulum, request: PlanRequest,
               substeps: int = 1) -> SwayNLP:
         """The SwayNLP of this request's formulation, built on first use."""
@@ -298,6 +318,9 @@ class SwayPlanner(Planner):
         # asked on a 10.9 s forwarder move (ω₀·h = 0.68), two 10.1 mm (predict_swing, 200 Hz)
         N = request.option("intervals", 40)
         sub = max(1, math.ceil(pend.omega * 1.1 * base.duration_s / N / SUBSTEP_RAD))
+        load = bool(request.option("load_clearance", False)) and bool(request.obstacles)
+        if load:   # the load's rows at the midpoints too (a 1 kHz check follows)
+            sub = max(sub, 2)
         nlp = self.built(crane, pend, request, sub)
         times, amps = shaper("zvd", pend.omega, pend.zeta)
         warm = (("sway-blind", lambda: base.trajectory, False),
@@ -321,6 +344,12 @@ class SwayPlanner(Planner):
                 last = (PlanStatus.OBSTACLE, "the tip comes closer to an obstacle than 0.96 × "
                         "its clearance between the check points")
                 continue
+            lmargin = (load_clearance_margin(crane, tr, pend, request.obstacles) if load
+                       else math.inf)
+            if lmargin < 0:
+                last = (PlanStatus.OBSTACLE, f"the load comes {-1e3 * lmargin:.0f} mm closer "
+                        "to an obstacle than 0.96 × its clearance between the check points")
+                continue
             pred = predict_swing(crane, tr, pend)
             build = sum(x[1].build_time_s for x in self._built.values()) - b0
             return PlanResult(PlanStatus.OK, trajectory=tr, duration_s=tr.duration,
@@ -331,6 +360,7 @@ class SwayPlanner(Planner):
                                          pendulum_hz=pend.omega / (2 * math.pi),
                                          swing_residual_m=pred.residual_m,
                                          swing_peak_m=pred.peak_during_m,
+                                         load_clearance_margin_m=lmargin,
                                          base_swing_residual_m=predict_swing(
                                              crane, base.trajectory, pend).residual_m))
         build = sum(x[1].build_time_s for x in self._built.values()) - b0

@@ -163,6 +163,12 @@ class Pendulum:
                                             np.broadcast_to(A, (N, 3)).T)).T
         return out[0] if single else out
 
+    def link(self, x) -> np.ndarray:
+        """(…, 3) link vector d(α, β) [m] from the pivot (the tip) to the load's centre of
+        mass, world-aligned axes of frame 0 (the module doc's d)."""
+        x = np.asarray(x, float)
+        return np.stack(_direction(self.length, x[..., 0], x[..., 1]), -1)
+
     def offset(self, x) -> np.ndarray:
         """(…, 2) horizontal offset [m] of the load's centre of mass from under the tip."""
         x = np.asarray(x, float)

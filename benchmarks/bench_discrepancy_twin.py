@@ -61,7 +61,8 @@ def run_case(case):
     if rec is None:
         return dict(out, verdict="plant-failed", reason=why)
     t1, c1 = time.perf_counter(), time.process_time()
-    res = TwinDiagnosis(crane).fit(rec)
+    kw = dict(step=case["twin_step"]) if case.get("twin_step") else {}
+    res = TwinDiagnosis(crane, **kw).fit(rec)
     cpu = time.process_time() - c1
     r = dict(verdict=res.verdict, effect=res.effect, joint=res.joint,
              parameters=res.parameters,
@@ -84,6 +85,8 @@ def main():
     ap.add_argument("--duration", type=float, default=30.0)
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--twin-step", type=float, default=None,
+                    help="the twin's step in the diagnosis [s] (default: TwinDiagnosis's)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--from-json", action="store_true", help="rewrite the markdown only")
     ap.add_argument("--append", action="store_true",
@@ -96,7 +99,8 @@ def main():
         atomic_write_text(out / "discrepancy_twin.md", "\n".join(markdown(rep)))
         return
     effects = [e for e in args.effects.split(",") if e]
-    cases = [dict(machine=m, seed=args.first_seed + s, effect=e, duration=args.duration)
+    cases = [dict(machine=m, seed=args.first_seed + s, effect=e, duration=args.duration,
+                  twin_step=args.twin_step)
              for m in args.machines.split(",") for s in range(args.seeds)
              for e in [None] + effects]
     t0 = time.perf_counter()

@@ -16,8 +16,9 @@ over more than twice its noise in the window keeps the twin's own state, carried
 previous segment (its pressures, velocities, pump and spools), and only the positions are
 re-anchored; the test is per joint (both chambers of a joint quiet, else both carried: the rod
 side swings by the piston side's swing times the area ratio and may pass it alone, and one
-chamber measured beside one carried leaves a locked cylinder with the wrong trapped oil). A log without pressures starts each segment from the model's holding pressures
-(or the carried state). A log without holds is one segment.
+chamber measured beside one carried leaves a locked cylinder with the wrong trapped oil). A
+log without pressures starts each segment from the model's holding pressures (or the carried
+state). A log without holds is one segment.
 
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below

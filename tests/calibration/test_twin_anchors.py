@@ -129,3 +129,21 @@ def test_small_umea_lab_effects_on_exudyn_are_named(effect, joint, value):
     assert (effect, joint) in got, res.message
     if res.verdict == "named":
         assert list(res.parameters.values())[0] == pytest.approx(value, rel=0.25)
+
+
+@pytest.mark.parametrize("machine", ["s100f", "cranab850", "umea-lab", "cat215b"])
+def test_friction_candidates_reach_the_catalogues_largest_trial(machine):
+    """The twin's friction candidates can take the largest friction the catalogue's trials
+    hide (the oracle: :meth:`Effect.trial_values` at full magnitude, added to the spec's):
+    the s100f slew's Coulomb candidate stopped at 6 kN·m (20 × the spec's 300 N·m) under a
+    hidden 7.5 kN·m, so its best fit could not be credible."""
+    from planner.calibration.twin_params import twin_parameters
+    from planner.model.effects.loads import CoulombFriction, ViscousFriction
+    crane = Crane.from_id(machine)
+    tp = {p.name: p for p in twin_parameters(crane)}
+    for i, j in enumerate(crane.names):
+        for kind, cls, key in (("coulomb", CoulombFriction, "force"),
+                               ("viscous", ViscousFriction, "coefficient")):
+            p = tp[f"{kind}.{j}"]
+            need = p.nominal + cls.trial_values(crane, i, 1.0, 1, None, None)[key]
+            assert p.to_value(p.z_bounds[1]) >= need, (j, kind)

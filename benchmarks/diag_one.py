@@ -1,3 +1,7 @@
+"""One case of bench_discrepancy_twin (Exudyn records, the twin diagnoses), printed as JSON:
+
+    python benchmarks/diag_one.py MACHINE SEED [EFFECT|-] [TWIN_STEP]
+"""
 import sys, json, time
 sys.path.insert(0, "benchmarks")
 import numpy as np

@@ -61,7 +61,8 @@ def run_case(case):
     if rec is None:
         return dict(out, verdict="plant-failed", reason=why)
     t1, c1 = time.perf_counter(), time.process_time()
-    res = TwinDiagnosis(crane).fit(rec)
+    kw = dict(step=case["twin_step"]) if case.get("twin_step") else {}
+    res = TwinDiagnosis(crane, **kw).fit(rec)
     cpu = time.process_time() - c1
     r = dict(verdict=res.verdict, effect=res.effect, joint=res.joint,
              parameters=res.parameters,
@@ -84,6 +85,8 @@ def main():
     ap.add_argument("--duration", type=float, default=30.0)
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--twin-step", type=float, default=None,
+                    help="the twin's step in the diagnosis [s] (default: TwinDiagnosis's)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--from-json", action="store_true", help="rewrite the markdown only")
     ap.add_argument("--append", action="store_true",
@@ -96,7 +99,8 @@ def main():
         atomic_write_text(out / "discrepancy_twin.md", "\n".join(markdown(rep)))
         return
     effects = [e for e in args.effects.split(",") if e]
-    cases = [dict(machine=m, seed=args.first_seed + s, effect=e, duration=args.duration)
+    cases = [dict(machine=m, seed=args.first_seed + s, effect=e, duration=args.duration,
+                  twin_step=args.twin_step)
              for m in args.machines.split(",") for s in range(args.seeds)
              for e in [None] + effects]
     t0 = time.perf_counter()
@@ -164,7 +168,8 @@ def markdown(rep) -> list:
     cmds = "; ".join(
         f"`python benchmarks/bench_discrepancy_twin.py --machines {x['machines']} --seeds "
         f"{x['seeds']} --first-seed {x['first_seed']} --duration {x['duration']:g} --effects "
-        f"{x['effects']}" + (" --append" if x.get("append") else "") + "`"
+        f"{x['effects']}" + (" --append" if x.get("append") else "")
+        + (f" --twin-step {x['twin_step']:g}" if x.get("twin_step") else "") + "`"
         for x in [r["args"] for r in rep.get("runs") or [dict(args=a)]])
     L = ["# Recordings made by Exudyn, diagnosed by the twin", "",
          f"{rep['date']}, {rep['machine']['platform']}, {rep['machine']['cpus']} CPUs (shared), "
@@ -186,23 +191,17 @@ def markdown(rep) -> list:
     best = sum(_best_is_truth(r) for r in hid)
     near = sum(r["verdict"] == "unexplained" and _best_is_truth(r) for r in hid)
     L += ["", "## Reading", "",
-          f"The twin finds the hidden effect: its best single-effect fit is the truth on its "
-          f"joint in {best} of {len(hid)} hidden cases, with the value recovered (s100f, seed "
-          f"1000: a dead band 0.191 for 0.192, the oil × 0.580 for × 0.580), and it names no "
-          f"wrong effect ({wrong} of {len(hid)}). But {near} of those right fits are judged `not "
-          "credible` by the unchanged rules, because the residual left after them is not noise: "
-          "it is the twin's own gap to the Exudyn plant, which the clean recordings show "
-          "directly (`unexplained`, or a spool lag a few per cent off the spec's named: on "
-          "s100f and umea-lab the slew pressures at 1.2–1.4 σ held-out RMS after the right "
-          "fit against a bound of 1.18 σ, or a slow residual of 0.30–0.5 σ against 0.28 σ). "
-          "The verdict rules demand noise after the fit, so what limits the naming "
-          "here is the twin's fidelity to this plant, not the search. The diagnosis re-anchors "
-          "each segment as `calibrate` does (TwinFit), except that a joint still ringing "
-          "through a hold keeps the twin's own position as well as its pressures (without it "
-          "the clean s100f log sat at 2.0 σ on q_slew and 3.1 σ on p_boom_a; with it, "
-          "1.07 and 1.56 σ).", ""]
+          f"The twin's best single-effect fit is the hidden effect on its joint in {best} of "
+          f"{len(hid)} hidden cases, and it names a wrong effect in {wrong} of {len(hid)}; "
+          f"{near} right fits are judged `not credible` by the unchanged rules (the residual "
+          "left after them is not noise). The diagnosis re-anchors each segment as "
+          "`calibrate` does (TwinFit: a joint ringing through a hold keeps the twin's own "
+          "state, both chambers; the diagnosis keeps its position too)" + (
+              f"; the twin's step {a['twin_step'] * 1e3:g} ms." if a.get("twin_step") else
+              "; the twin at TwinDiagnosis's step."), ""]
     L += ["", "## Runtime of the diagnosis per verdict", "",
-          "Wall time on the shared machine (two workers beside other sessions' work) and "
+          f"Wall time on the shared machine ({a.get('workers', 2)} worker(s) beside other "
+          "sessions' work) and "
           "the worker's own CPU time (one core: what the diagnosis costs on a quiet one).", "",
           "| machine | verdict | cases | log length [s] | wall [s], median | max | CPU [s], "
           "median | max |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]

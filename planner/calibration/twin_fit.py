@@ -14,8 +14,11 @@ lightly damped mode (the slew's trapped oil, 0.7 Hz on s100f) still rings throug
 hold, and its average over the window is not its state. So a chamber whose pressure spreads
 over more than twice its noise in the window keeps the twin's own state, carried from the
 previous segment (its pressures, velocities, pump and spools), and only the positions are
-re-anchored. A log without pressures starts each segment from the model's holding pressures
-(or the carried state). A log without holds is one segment.
+re-anchored; the test is per joint (both chambers of a joint quiet, else both carried: the rod
+side swings by the piston side's swing times the area ratio and may pass it alone, and one
+chamber measured beside one carried leaves a locked cylinder with the wrong trapped oil). A
+log without pressures starts each segment from the model's holding pressures (or the carried
+state). A log without holds is one segment.
 
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
@@ -262,9 +265,14 @@ class TwinFit:
             x0[4 * n + 1:] = run.spool[-1]
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
-            qa, qb = s.sd_a < 2.0 * sp[:n], s.sd_b < 2.0 * sp[n:]
-            qb &= ~self.vented      # a single-acting rod side stays at tank (no sensor noise)
-            x0[2 * n:3 * n][qa] = s.p_a0[qa]
+            # quiet per joint, not per chamber: a cylinder's two chambers ring together (the
+            # rod side's swing is the piston side's times the area ratio, so one may pass the
+            # test and the other not), and one chamber measured beside one carried is a state
+            # that never was: its force balance is off, and a locked cylinder keeps the
+            # wrong trapped oil for the rest of the segment
+            quiet = (s.sd_a < 2.0 * sp[:n]) & (s.sd_b < 2.0 * sp[n:])
+            qb = quiet & ~self.vented   # a single-acting rod side stays at tank (no sensor noise)
+            x0[2 * n:3 * n][quiet] = s.p_a0[quiet]
             x0[3 * n:4 * n][qb] = s.p_b0[qb]
         return x0
 

@@ -122,12 +122,15 @@ def twin_parameters(crane: Crane, dynamics=None) -> list[TwinParameter]:
                 continue        # a single-acting cylinder's rod side is vented: no oil to fit
             out.append(TwinParameter(f"hose_{side}.{j.name}", f"hose_{side}", j.name, "m³", v,
                                      0.2 * v, 10.0 * v, True))
+        # the bound: 20 typical sizes, and never below 20 assumed ones (a spec's small seal
+        # friction, 300 N·m on the s100f slew, bounded the fit at 6 kN·m where the
+        # catalogue's own Coulomb trial reaches 0.5 MPa on the area, 7.5 kN·m there)
         fc = jd.coulomb if jd.coulomb > 0 else f_typ
         out.append(TwinParameter(f"coulomb.{j.name}", "coulomb", j.name, f_unit, jd.coulomb,
-                                 0.0, 20.0 * fc, False, fc))
+                                 0.0, 20.0 * max(fc, f_typ), False, fc))
         fv = jd.viscous if jd.viscous > 0 else f_typ / v_full
         out.append(TwinParameter(f"viscous.{j.name}", "viscous", j.name, v_unit, jd.viscous,
-                                 0.0, 20.0 * fv, False, fv))
+                                 0.0, 20.0 * max(fv, f_typ / v_full), False, fv))
         out.append(TwinParameter(f"leakage.{j.name}", "leakage", j.name, "m³/(s·Pa)",
                                  jd.leakage, 0.0, 1e-11, False,
                                  max(jd.leakage, TYPICAL_LEAKAGE)))

@@ -28,8 +28,8 @@ def test_noise_floor_recovers_white_noise_under_a_smooth_signal():
     assert s[0] == pytest.approx(0.01, rel=0.08) and s[1] == pytest.approx(1.7e5, rel=0.08)
 
 
-# the default run checks two effects; the whole catalogue runs with -m slow (make bench)
-FAST = ("flow_gain", "coulomb_friction")   # a valve effect and a force effect
+# the default run checks one effect; the whole catalogue runs with -m slow (make bench)
+FAST = ("flow_gain",)   # a valve effect (coulomb_friction and the rest: -m slow)
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=() if n in FAST else pytest.mark.slow)
@@ -80,6 +80,7 @@ def test_replanned_feedforward_tracks_the_true_plant_better(cat215b):
     assert cl["after"]["rms_m"] < 0.05 * cl["before"]["rms_m"]
 
 
+@pytest.mark.slow   # ~7 s: make bench
 def test_position_only_recordings_work(cat215b):
     from planner.calibration.trials import record
     plan, ff = excitation(cat215b, DUR, seed=8)

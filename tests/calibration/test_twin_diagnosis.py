@@ -65,6 +65,7 @@ def test_soft_oil_is_named(lab):
     assert res.parameters["scale"] == pytest.approx(0.5, rel=0.05)
 
 
+@pytest.mark.slow   # the twin diagnosis names friction in bench_discrepancy_twin too (~5 s)
 def test_seal_friction_is_named_on_its_joint(lab):
     boom = lab.names[1]
     spec_fc = lab.spec.dynamics.joints[boom].coulomb

@@ -65,6 +65,7 @@ def test_in_catalogue_effect_is_named(cat):
     assert res.to_json()["verdict"] == "named"
 
 
+@pytest.mark.slow   # ~7 s each: the default suite keeps 3 minutes; make bench runs it
 def test_oscillation_is_unexplained_and_periodic(cat, clean):
     q = clean.q.copy()
     i = list(cat.names).index("boom")
@@ -145,6 +146,7 @@ def _upsample(rec, m):
     return Recording(t, rec.u[k], at(rec.q), at(rec.p_a), at(rec.p_b))
 
 
+@pytest.mark.slow   # ~7 s each: the default suite keeps 3 minutes; make bench runs it
 def test_upsampled_log_is_detected_and_not_a_false_alarm(cat, clean):
     Y = np.hstack([clean.q, clean.p_a, clean.p_b])
     floor = np.array([1e-6] * cat.n + [1e3] * 2 * cat.n)
@@ -252,6 +254,7 @@ def test_gauge_pressures_down_to_minus_2_MPa_are_read(cat, clean, tmp_path):
         Recording.from_csv(p, cat)
 
 
+@pytest.mark.slow   # ~7 s each: the default suite keeps 3 minutes; make bench runs it
 def test_sensor_gain_is_told_from_flow_gain(cat):
     plan, ff = excitation(cat, DUR, seed=44)
     rec = record(cat, plan, ff, (make("sensor_gain", "boom", scale=1.03),), seed=44)

@@ -60,6 +60,7 @@ def built(tmp_path_factory):
     return d, lib, argv
 
 
+@pytest.mark.slow   # a sway-free library build (~10 s): make bench
 def test_the_entry_is_sway_free_and_stores_the_swing_the_model_predicts(built):
     d, lib, _ = built
     crane = Crane.from_id("s100f")
@@ -79,6 +80,7 @@ def test_the_entry_is_sway_free_and_stores_the_swing_the_model_predicts(built):
     assert a["load_clearance_m"] == pytest.approx(plate, abs=2e-3)
 
 
+@pytest.mark.slow   # a sway-free library build (~10 s): make bench
 def test_the_sway_blind_entry_of_the_same_move_leaves_it_swinging(built, tmp_path):
     d, _, argv = built
     lib = tmp_path / "blind.h5"
@@ -96,6 +98,7 @@ def test_the_sway_blind_entry_of_the_same_move_leaves_it_swinging(built, tmp_pat
     assert residual > 0.1 and a["swing_residual_m"] == pytest.approx(residual, abs=1e-3)
 
 
+@pytest.mark.slow   # a sway-free library build (~10 s): make bench
 def test_a_rerun_resumes_and_another_link_is_refused_in_one_line(built, capsys):
     d, lib, argv = built
     capsys.readouterr()
@@ -109,6 +112,7 @@ def test_a_rerun_resumes_and_another_link_is_refused_in_one_line(built, capsys):
         assert "grapple" in err and "1.5 m" in err and "\n" not in err
 
 
+@pytest.mark.slow   # a sway-free library build (~10 s): make bench
 def test_show_and_export_list_the_swing(built, tmp_path, capsys):
     d, lib, _ = built
     capsys.readouterr()

@@ -106,7 +106,8 @@ def test_never_above_a_feasible_move(small_pump):
 
 @pytest.mark.parametrize("a,b", [((2.6, 2.2, 0.3), (3.4, 2.6, -0.6)),
                                  ((3.2, 1.6, 0.0), (2.2, 3.1, 0.4)),
-                                 ((2.8, 3.0, -0.5), (3.5, 1.6, 0.2))])
+                                 pytest.param((2.8, 3.0, -0.5), (3.5, 1.6, 0.2),
+                                              marks=pytest.mark.slow)])
 def test_the_nlp_plan_is_never_faster_and_close(small_pump, a, b):
     """The minimum-time NLP (free telescopes at both ends) against the bound minimised over
     the telescopes: never below, and within 3 % (the certificate a plan reports)."""

@@ -334,6 +334,7 @@ def test_the_pump_power_and_its_gradient(crane, twin, move):
         assert dw[k, i] == pytest.approx(float(fd[0, 0]), rel=1e-4, abs=1e-6 * abs(ref[k]))
 
 
+@pytest.mark.slow   # two refinements (~5 s): make bench
 def test_an_energy_weight_lowers_the_pump_work_on_the_twin(crane, twin, move):
     """With a weight on the pump's work the refined commands make the twin's pump work less
     than without it (the tracking alone lets the optimiser open valves that raise the

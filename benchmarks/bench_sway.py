@@ -67,6 +67,23 @@ def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
 
+def sway_moves(work: Path, n: int, only: str | None = None):
+    """(suite, moves): the claims subset of the forwarder cycle (its suite file in ``work``)
+    and ``n`` of its moves spread evenly over the pick-up → drop and the drop → pick-up ones,
+    or the ids of ``only`` (a comma list)."""
+    work.mkdir(parents=True, exist_ok=True)
+    suite = build_suite(str(subset_suite(work / "forwarder-cycle-claims.toml")),
+                        Settings(forwarder_moves=10 ** 6))
+    moves = []
+    for first in ("p", "d"):
+        ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
+        want = n // 2 if first == "p" else n - n // 2
+        moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
+    if only:
+        moves = [m for m in suite.moves if m.id in only.split(",")]
+    return suite, moves
+
+
 def clearances(crane, traj, pend, obstacles):
     """(tip, load) smallest distance minus clearance [m] over the obstacles at 1 kHz; the load
     at the model's predicted swing."""
@@ -146,17 +163,8 @@ def main(argv=None):
         effects.append(make("payload_mass", mass=round((args.plant_mass - 1.0)
                                                        * crane.spec.payload.total, 1)))
     plant = make_plant("exudyn", crane, effects)
-    args.work.mkdir(parents=True, exist_ok=True)
-    suite = build_suite(str(subset_suite(args.work / "forwarder-cycle-claims.toml")),
-                        Settings(forwarder_moves=10 ** 6))
+    suite, moves = sway_moves(args.work, args.moves, args.only)
     obstacles = tuple(suite.obstacles)
-    moves = []
-    for first in ("p", "d"):
-        ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
-        want = args.moves // 2 if first == "p" else args.moves - args.moves // 2
-        moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
-    if args.only:
-        moves = [m for m in suite.moves if m.id in args.only.split(",")]
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
     def save(done):

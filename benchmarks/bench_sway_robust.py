@@ -35,10 +35,8 @@ for p in (str(ROOT), str(HERE)):
     if p not in sys.path:
         sys.path.insert(0, p)
 
-from bench_exudyn_claims import subset_suite  # noqa: E402
+from bench_sway import sway_moves  # noqa: E402
 from planner import Crane  # noqa: E402
-from planner.bench.context import Settings  # noqa: E402
-from planner.bench.suites import build_suite  # noqa: E402
 from planner.feedforward import commands, with_settle  # noqa: E402
 from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods import PlanRequest, plan  # noqa: E402
@@ -91,17 +89,8 @@ def main(argv=None):
     crane = Crane.from_id("s100f")
     pend = Pendulum.of(crane, args.length, zeta=args.zeta)
     runs = plants(crane, pend, args.length, args.off)
-    args.work.mkdir(parents=True, exist_ok=True)
-    suite = build_suite(str(subset_suite(args.work / "forwarder-cycle-claims.toml")),
-                        Settings(forwarder_moves=10 ** 6))
+    suite, moves = sway_moves(args.work, args.moves, args.only)
     obstacles = tuple(suite.obstacles)
-    moves = []
-    for first in ("p", "d"):
-        ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
-        want = args.moves // 2 if first == "p" else args.moves - args.moves // 2
-        moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
-    if args.only:
-        moves = [m for m in suite.moves if m.id in args.only.split(",")]
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
 

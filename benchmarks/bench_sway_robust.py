@@ -52,6 +52,22 @@ def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
 
+def move_commands(crane, tr, name: str, pend, args):
+    """(t_u, u): the commands replayed for a planned move, ``settle`` s of closed valves after
+    them — refined on the twin that carries the load (with the swing cost) for a method named
+    ``…+ffs``, else the nominal feed-forward."""
+    if name.endswith("+ffs"):
+        nom = commands(crane, tr, 50.0)
+        ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
+                              options=RefineOptions(iterations=args.ff_iterations,
+                                                    swing_weight=args.swing_weight))
+        k = int(round(args.settle * 50.0))
+        t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
+        return t_u, np.vstack([ref.u, np.zeros((k, crane.n))])
+    run = with_settle(crane, tr, args.settle)
+    return run.t, run.u
+
+
 def plants(crane, pend, length, off):
     """{name: plant}: nominal, link × (1 ± off), load mass × (1 ± off)."""
     c = round(pend.damping, 1)
@@ -121,17 +137,7 @@ def main(argv=None):
                 log(f"{mv.id} {name}: {res.status}: {res.reason}")
                 continue
             tr = res.trajectory
-            if name.endswith("+ffs"):
-                nom = commands(crane, tr, 50.0)
-                ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
-                                      options=RefineOptions(iterations=args.ff_iterations,
-                                                            swing_weight=args.swing_weight))
-                k = int(round(args.settle * 50.0))
-                t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
-                u = np.vstack([ref.u, np.zeros((k, crane.n))])
-            else:
-                run = with_settle(crane, tr, args.settle)
-                t_u, u = run.t, run.u
+            t_u, u = move_commands(crane, tr, name, pend, args)
             T = float(tr.duration)
             row = dict(method=name, move=mv.id, status="ok", duration_s=T,
                        solve_time_s=float(res.solve_time_s))

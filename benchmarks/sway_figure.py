@@ -51,11 +51,10 @@ def measure(args) -> dict:
     from planner import Crane
     from planner.bench.context import Settings
     from planner.bench.suites import build_suite
-    from planner.feedforward import commands, with_settle
+    from bench_sway_robust import move_commands
     from planner.methods import PlanRequest, plan
     from planner.model.effects import make
     from planner.model.pendulum import Pendulum
-    from planner.refine import RefineOptions, refine_commands
     from planner.simulation.plants import load_swing, make_plant
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     t_start = time.perf_counter()
@@ -81,17 +80,7 @@ def measure(args) -> dict:
         if not res.ok:
             raise SystemExit(f"{name} on {mv.id}: {res.status}: {res.reason}")
         tr = res.trajectory
-        if name.endswith("+ffs"):
-            nom = commands(crane, tr, 50.0)
-            ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
-                                  options=RefineOptions(iterations=args.ff_iterations,
-                                                        swing_weight=args.swing_weight))
-            k = int(round(args.settle * 50.0))
-            t_u = np.concatenate([ref.t_u, ref.t_u[-1] + 0.02 * np.arange(1, k + 1)])
-            u = np.vstack([ref.u, np.zeros((k, crane.n))])
-        else:
-            run = with_settle(crane, tr, args.settle)
-            t_u, u = run.t, run.u
+        t_u, u = move_commands(crane, tr, name, pend, args)
         rec = plant.run(t_u, u, tr.q[0], t_end=float(t_u[-1]), rate=50.0)
         if not rec.ok:
             raise SystemExit(f"{name} on {mv.id}: the plant run stopped: {rec.status}")

@@ -220,7 +220,7 @@ class _Cost:
     """The cost of the module doc and its gradient with respect to the control-grid commands."""
 
     def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane: Crane,
-                 pendulum=None):
+                 pendulum=None, x0=None):
         self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n
         h = shooting.h
@@ -239,7 +239,7 @@ class _Cost:
         self.power = shooting.twin.pump_power() if opts.energy_weight > 0 else None
         self.P = np.asarray(shooting.twin.P, float)
         self.energy_kJ = float("nan")
-        self.x0 = shooting.twin.rest_state(traj.q[0])
+        self.x0 = shooting.twin.rest_state(traj.q[0]) if x0 is None else np.asarray(x0, float)
         self.n, self.evaluations = n, 0
         self.fail = 1e30
 
@@ -280,15 +280,18 @@ class _Cost:
 
 
 def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
-                    options: RefineOptions | None = None, pendulum=None) -> Refinement:
+                    options: RefineOptions | None = None, pendulum=None,
+                    x0=None) -> Refinement:
     """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
     ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
     step) so that the twin follows ``traj`` and comes to rest at its goal (module doc);
     with the options' ``swing_weight`` > 0 the load at rest under the tip too, the load
     hanging on the twin's grapple link (the twin's ``pendulum``; default twin: one with
     ``pendulum`` — a :class:`~planner.model.pendulum.Pendulum` or a length [m] — else the
-    spec's ``[dynamics.grapple]``). Never raises for a move the twin cannot run: the status
-    says so."""
+    spec's ``[dynamics.grapple]``). ``x0``: the twin's state to start from (default its rest
+    state at the plan's start: holding pressures, the unloaded chambers at tank) — in a work
+    cycle, the state the previous move leaves (:func:`refine_cycle`). Never raises for a move
+    the twin cannot run: the status says so."""
     from planner.model.twin import Twin
     from planner.model.twin.shooting import Shooting
     opts = options or RefineOptions()
@@ -322,7 +325,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         sh = Shooting(tw)
         R = int(round(dt / tw.step))
         K = sh.steps((Ku + 1) * R + int(round(opts.settle / tw.step)))
-        return _Cost(sh, traj, Ku, R, K, opts, crane, pend), K
+        return _Cost(sh, traj, Ku, R, K, opts, crane, pend, x0), K
 
     cost, K = problem(twin)
     U0 = np.zeros((Ku, n))
@@ -333,7 +336,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     U0[U0 == 0.0] = _DITHER
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
-    nominal = _predict(crane, twin, traj, t_all, U0, K, opts)
+    nominal = _predict(crane, twin, traj, t_all, U0, K, opts, x0)
     if nominal is None:
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
                           wall_s=time.perf_counter() - wall0, **base)
@@ -359,7 +362,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     nit += int(res.nit)
     evals += cost.evaluations
     U = res.x.reshape(Ku, n)
-    refined = _predict(crane, twin, traj, t_all, U, K, opts) if res.fun < J0 else None
+    refined = _predict(crane, twin, traj, t_all, U, K, opts, x0) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
@@ -376,6 +379,40 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     return Refinement(t_all[:last], U, RefineStatus.IMPROVED, str(res.message), nit,
                       evals, dict(pred, refined=refined), lengthened,
                       wall_s=time.perf_counter() - wall0, **base)
+
+
+def refine_cycle(crane: Crane, moves, *, twin: Twin | None = None,
+                 options: RefineOptions | None = None, gap: float = 3.0):
+    """A work cycle refined as one: ``moves`` ((traj, t_u, u) per move, in the order the
+    machine runs them, each move's nominal commands) each refined (:func:`refine_commands`)
+    from the twin's state that the refined move before it leaves — its commands, then the
+    valves closed until the next move starts ``gap`` s after the later of its plan's end and its
+    last command: its position, residual motion and the chamber pressures it trapped (a
+    forwarder's slew stops with 10–40 bar in both chambers, its telescope's rod side climbs to
+    250 bar over a cycle on the twin, where a move refined alone assumes the unloaded chamber
+    at tank). The first move starts at rest. Returns (refinements, start states: None for rest,
+    else the twin's state at that move's start)."""
+    from planner.model.twin import Twin
+    opts = options or RefineOptions()
+    twin = twin if twin is not None else Twin(crane, step=opts.step)
+    n, dt = crane.n, 1.0 / opts.rate
+    x, out, starts = None, [], []
+    for traj, t_u, u in moves:
+        r = refine_commands(crane, traj, t_u, u, twin=twin, options=opts, x0=x)
+        out.append(r)
+        starts.append(x)
+        t_r = np.asarray(r.t_u, float) - traj.t[0]
+        span = round((max(traj.duration, t_r[-1] + dt) + gap) * opts.rate) / opts.rate
+        run = twin.simulate(np.append(t_r, t_r[-1] + dt),
+                            np.vstack([np.asarray(r.u, float), np.zeros((1, n))]),
+                            traj.q[0] if x is None else x[:n], t_end=span, x0=x)
+        if not run.ok:      # the twin cannot say what the machine is left in: from rest
+            x = None
+            continue
+        x = np.concatenate([run.q[-1], run.qd[-1], run.p_a[-1], run.p_b[-1], [run.p_s[-1]],
+                            run.spool[-1]] + ([run.swing[-1]] if run.swing is not None
+                                               else []))
+    return out, starts
 
 
 @dataclass
@@ -407,7 +444,7 @@ def _minimize(cost, z0, iterations: int) -> _Result:
 
 
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
-             opts: RefineOptions):
+             opts: RefineOptions, x0=None):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
     in full (the integrator's recovery substeps included) over the cost's horizon, with the
     swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the
@@ -415,7 +452,7 @@ def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
     t_end = traj.t[0] + K * twin.step
     tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
     uu = np.vstack([U, np.zeros((1, crane.n))])
-    run = twin.simulate(tu, uu, traj.q[0], t_end=t_end)
+    run = twin.simulate(tu, uu, traj.q[0], t_end=t_end, x0=x0)
     if not run.ok:
         return None
     ts = traj.t[0] + np.arange(int(math.floor((t_end - traj.t[0]) * opts.rate + 1e-9)) + 1) \

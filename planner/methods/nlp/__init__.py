@@ -25,16 +25,21 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import math
+import time
 from dataclasses import replace
 
 from planner.geometry.obstacles import Plate, Wall
-from planner.methods.base import Planner, PlanRequest, PlanResult, UnsupportedRequest
+from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
+                                  UnsupportedRequest)
 from planner.methods.nlp.energy import energy_optimal, pareto_front
 from planner.methods.nlp.guess import stretch
 from planner.methods.nlp.kinematic import kinematic_line_nlp
+from planner.methods.nlp.limits import relief_limit
 from planner.methods.nlp.move import MoveNLP
 from planner.methods.nlp.transcription import STATUS_OK, Layout
 from planner.methods.registry import register
+from planner.trajectory import evaluate
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -42,7 +47,9 @@ if TYPE_CHECKING:
 __all__ = ["MoveNLP", "Layout", "energy_optimal", "pareto_front", "stretch",
            "kinematic_line_nlp", "OBSTACLE_TYPES", "Wall", "Plate", "STATUS_OK", "NLPPlanner"]
 
-OBSTACLE_TYPES = (Wall, Plate)   # the obstacles MoveNLP accepts (re-exported here)
+OBSTACLE_TYPES = (Wall, Plate)
+RELIEF_AUDIT = 1e-3     # the limit excess a relieved move may keep (the library build's audit)
+RELIEF_STRETCHES = 3    # uniform slow-downs tried when it keeps more   # the obstacles MoveNLP accepts (re-exported here)
 
 
 class NLPPlanner(Planner):
@@ -72,15 +79,16 @@ class NLPPlanner(Planner):
                                      "[s] (e.g. 1.2 × the minimum time)")
 
     def built(self, crane: Crane, objective: str, path: str = "free", N: int = 40,
-              obstacles: tuple = (), cache: str | None = None, paid: list | None = None
-              ) -> MoveNLP:
+              obstacles: tuple = (), cache: str | None = None, paid: list | None = None,
+              relief: bool = False) -> MoveNLP:
         """The MoveNLP for this formulation, built (or loaded from the disk cache) on first use
         and kept for the process; a new build appends itself to ``paid``."""
         # keyed by the crane object (kept alive with its NLP, so its id is never reused):
         # variants of one machine with other limits share the spec id but not the NLP
-        key = (id(crane), objective, path, int(N), tuple(obstacles))
+        key = (id(crane), objective, path, int(N), tuple(obstacles), bool(relief))
         if key not in self._built:
-            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles), cache=cache)
+            nlp = MoveNLP(crane, objective, path, N=N, obstacles=tuple(obstacles), cache=cache,
+                          relief=relief)
             self._built[key] = (crane, nlp)
             if paid is not None:
                 paid.append(nlp)
@@ -121,8 +129,13 @@ class NLPPlanner(Planner):
         if request.objective == "energy" and request.path == "free":
             time_nlp = self.built(crane, "time", "free", N, obs, cache, paid)
             energy_nlp = self.built(crane, "energy", "free", N, obs, cache, paid)
+            time_result = request.option("time_result")
+            if time_result is None:   # the minimum time within the relief, as for "time"
+                time_result = self._within_relief(
+                    crane, request, time_nlp.solve(request.start, request.goal), "free", N,
+                    obs, cache, paid)
             res, info = energy_optimal(crane, request.start, request.goal, request.duration,
-                                       time_result=request.option("time_result"),
+                                       time_result=time_result,
                                        time_nlp=time_nlp, energy_nlp=energy_nlp,
                                        judge=request.option("energy_judge", "evaluate"))
             res.stats["energy_winner"] = info.get("winner")
@@ -131,9 +144,62 @@ class NLPPlanner(Planner):
         else:
             main = self.built(crane, request.objective, request.path, N, obs, cache, paid)
             res = main.solve(request.start, request.goal, T_max=request.duration)
+            if request.objective == "time":
+                res = self._within_relief(crane, request, res, request.path, N, obs, cache,
+                                          paid)
         res.stats.update(build_time_s=sum(n.build_time_s for n in paid),
                          nlp_cache=main.cache_status)
         return res
+
+
+    def _within_relief(self, crane: Crane, request: PlanRequest, res: PlanResult, path: str,
+                       N: int, obs, cache, paid) -> PlanResult:
+        """The minimum-time result ``res`` when it asks no chamber for more than the relief
+        pressure (evaluate()'s "pressure", at 200 Hz); else the move solved again with the
+        relief rows (:func:`~planner.methods.nlp.limits.add_relief_rows`), warm from ``res``
+        slowed by √(1 + excess). Most moves of most machines never reach the relief, so the
+        rows (an inverse dynamics per node) are paid only by the moves that need them.
+        Stats ``relief``: the excess before and after, and whether the move was solved again.
+        A relieved solve that fails gives status "limits" with both reasons."""
+        if not res.ok or not math.isfinite(relief_limit(crane.spec)):
+            return res
+        over = evaluate(crane, res.trajectory, rate=200.0).violations.get("pressure", 0.0)
+        if over <= 0.0:
+            return res
+        nlp = self.built(crane, "time", path, N, obs, cache, paid, relief=True)
+        t0 = time.perf_counter()
+        w0 = nlp.guess_from(stretch(res.trajectory, res.duration_s * math.sqrt(1.0 + over)))
+        res2 = nlp.solve(request.start, request.goal, w0=w0)
+        info = dict(excess_before=over, resolved=True, stretched_by=1.0)
+        if res2.ok:
+            # between its check points the relieved move can overshoot the pump limit by a few
+            # per cent (cat215b: up to 4.3 % where a joint reverses at the end); slowed
+            # uniformly, every draw falls by the factor and the inertial pressures with it
+            for _ in range(RELIEF_STRETCHES):
+                worst = evaluate(crane, res2.trajectory).max_limit_violation
+                if worst <= RELIEF_AUDIT:
+                    break
+                k = 1.0 + 1.05 * worst
+                tr = res2.trajectory
+                res2.trajectory = replace(stretch(tr, tr.duration * k), objective=tr.objective,
+                                          meta=dict(tr.meta, relief_stretch=info[
+                                              "stretched_by"] * k))
+                res2.duration_s = res2.trajectory.duration
+                info["stretched_by"] *= k
+            info["excess_after"] = evaluate(crane, res2.trajectory, rate=200.0
+                                            ).violations.get("pressure", 0.0)
+        info["solve_time_s"] = time.perf_counter() - t0
+        if not res2.ok:
+            pmax = crane.spec.pump.max_pressure
+            out = PlanResult(PlanStatus.LIMITS,
+                             f"the minimum-time move asks a chamber for {1 + over:.2f} × the "
+                             f"relief pressure ({pmax / 1e5:.0f} bar); solved again within it: "
+                             f"{res2.reason}", None)
+            out.stats.update(res.stats, relief=info)
+            return out
+        res2.solve_time_s = (res.solve_time_s or 0.0) + (res2.solve_time_s or 0.0)
+        res2.stats["relief"] = info
+        return res2
 
 
 register(NLPPlanner())

@@ -33,13 +33,30 @@ over-estimated by at most :data:`PUMP_SMOOTH` (1 %) of Q_max, only with every ac
 ε (0.1 %) curved the rows so sharply near ẋ = 0 that IPOPT hit max_iter on a umea-lab move
 (0.3 % took 211 iterations, 1 % 49). The slack form it replaces (per check point and actuator
 s ≥ A_a·ẋ, s ≥ −A_b·ẋ, Σ s ≤ Q_max) doubled the variables (1301 vs 653 at N = 40 on umea-lab).
+
+Relief. A joint whose acceleration limit was set for a light pose can ask, at full reach with the
+payload, for more force than its actuator makes at the relief pressure (cat215b's swing: 48 of 48
+random time-optimal moves asked its motor for up to 2.2 × the relief pressure, 8 % in the median
+once its friction was corrected; cranab850's boom 4 of 48, up to 1.44 ×). The machine then lags
+the plan by metres, and no feed-forward can make it follow. :func:`add_relief_rows` bounds, at
+every node, the chamber pressure each actuator needs to carry the inverse-dynamics force (the
+crane's pricing: friction and the outlet's counter-pressure under the machine pricing, F/A_a and
+−F/A_b under the seed's), extending and retracting alike, by :func:`relief_limit`: the relief
+pressure less the load-sensing margin (the compensated meter-in edge still passes its flow).
+Both directions, because a chamber holding an over-running load is capped by the same relief.
 """
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
-__all__ = ["step", "add_velocity_limits", "pump_draw", "PUMP_SMOOTH", "JERK_SMOOTH"]
+if TYPE_CHECKING:
+    from planner.model import Crane
+
+__all__ = ["step", "add_velocity_limits", "pump_draw", "add_relief_rows", "relief_limit",
+           "PUMP_SMOOTH", "JERK_SMOOTH"]
 
 PUMP_SMOOTH = 1e-2   # largest over-estimate of the smooth pump draw, a fraction of Q_max
 JERK_SMOOTH = 1e-2   # ε of the smooth |j| in the velocity check, a fraction of j_max
@@ -86,3 +103,34 @@ def pump_draw(dxdq, v, acts, max_flow: float):
     eps = PUMP_SMOOTH * max_flow / (len(Aa) * c2)
     xd = dxdq * v
     return ca.sum1(c1 * xd + c2 * ca.sqrt(xd ** 2 + eps ** 2)) / max_flow
+
+
+def relief_limit(spec) -> float:
+    """The highest chamber pressure [Pa] a plan may ask for: the pump's ``max_pressure`` less the
+    load-sensing ``margin`` (a constant-pressure pump: its set pressure, when lower); inf when
+    the spec gives no relief pressure."""
+    pu = spec.pump
+    p = float(pu.max_pressure)
+    if pu.kind == "load_sensing":
+        return p - float(pu.margin)
+    return min(p, float(pu.pressure))
+
+
+def add_relief_rows(layout, crane: Crane, acts, pts, payload) -> None:
+    """Relief rows ("relief") into ``layout``: at every node of ``pts`` ((q, q̇, q̈) triples)
+    the chamber pressure each actuator needs to carry its inverse-dynamics force with
+    ``payload`` (a parameter) — extending and, for a double-acting one, retracting — at most
+    :func:`relief_limit` (rows scaled by it: ≤ 1). Each row inside its node's stage."""
+    p_lim = relief_limit(crane.spec)
+    Aa = np.asarray(acts.area_a, float)
+    Ab = np.asarray(acts.area_b, float)
+    dbl = np.flatnonzero(~np.asarray(acts.single, bool))
+    for k, (q, v, a) in enumerate(pts):
+        dxdq = crane.f_stroke(q)[1]
+        F = crane.f_id(q, v, a, payload) / dxdq
+        if crane.pricing == "seed":
+            p_ext, p_ret = F / Aa, -F / np.where(Ab > 0, Ab, 1.0)
+        else:
+            p_ext, p_ret = crane.f_pin(F, dxdq * v)
+        rows = ca.vertcat(p_ext, p_ret[dbl.tolist()]) if dbl.size else p_ext
+        layout.add_con("relief", rows / p_lim, -ca.inf, 1.0, stage=(k, 1))

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import math
 import time as _time
 from functools import partial
 
@@ -60,7 +61,8 @@ from planner.methods.nlp.exact import (ExactMove, certified, certifying_bound, e
                                        exact_result)
 from planner.methods.nlp.guess import Guesses, over_obstacles_guess, vias
 from planner.methods.nlp.hessian import lagrangian_hessian
-from planner.methods.nlp.limits import add_velocity_limits, step
+from planner.methods.nlp.limits import (add_relief_rows, add_velocity_limits, relief_limit,
+                                        step)
 from planner.methods.nlp.pump import PumpRows
 from planner.methods.nlp.stagewise import SOLVERS, stagewise_solver
 from planner.methods.nlp.tip import CHECKS, add_curve, add_line, add_obstacles
@@ -117,7 +119,7 @@ class MoveNLP:
     def __init__(self, crane: Crane, objective: str = "time", path: str = "free", N: int = 40,
                  pump: bool = True, reg: float = 1e-6, pump_margin: float | None = None,
                  obstacles: tuple = (), ipopt_options: dict | None = None,
-                 cache: str | None = None, solver: str = "auto"):
+                 cache: str | None = None, solver: str = "auto", relief: bool = False):
         if objective not in ("time", "energy", "blend"):
             raise ValueError(f"objective must be time, energy or blend, not {objective!r}")
         if pump_margin is None:
@@ -131,6 +133,7 @@ class MoveNLP:
         elif path not in ("free", "line"):
             raise ValueError(f"path must be 'free', 'line' or a Curve, not {path!r}")
         self.crane, self.objective, self.path, self.N, self.pump = crane, objective, path, N, pump
+        self.relief = bool(relief) and math.isfinite(relief_limit(crane.spec))
         self.obstacles = tuple(obstacles)
         self.L = crane.limit_arrays()
         self.acts = actuator_table(crane.spec)   # hydraulic constants (model.flows)
@@ -139,8 +142,6 @@ class MoveNLP:
         t0 = _time.perf_counter()
         if solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, not {solver!r}")
-        # FATROP (stage-wise) serves minimum time on a free path or the tip line; the other
-        # formulations (slacks, curve parameters) have no stage structure: IPOPT
         # FATROP serves minimum time on a free path or the tip line ("auto": without the pump,
         # where it won; with the pump its solves had a failure tail, see SOLVERS)
         stagewise = objective == "time" and path != "curve"
@@ -152,11 +153,11 @@ class MoveNLP:
         self.twins = SolverTwins(
             partial(type(self), crane, objective, self.curve if self.curve is not None else path,
                     N=N, pump=pump, reg=reg, pump_margin=pump_margin, obstacles=obstacles,
-                    ipopt_options=ipopt_options, cache=cache),
+                    ipopt_options=ipopt_options, cache=cache, relief=self.relief),
             objective, ipopt_options)
         formulation = dict(objective=objective, path=path, N=N, pump=pump, reg=reg,
                            pump_margin=pump_margin, obstacles=self.obstacles, ipopt=ipopt,
-                           solver=self.solver_name)
+                           solver=self.solver_name, relief=self.relief)
         self.cache_status = build_or_load(
             self, "off" if path == "curve" else cache, formulation,
             lambda: self._build(reg, pump_margin, ipopt))
@@ -239,6 +240,8 @@ class MoveNLP:
                              stagewise=self.solver_name == "fatrop")
         lifted = {}
         energy = pump_rows.add(lay, pts, mids, hs[0], par["payload"], par["activity"], lifted)
+        if self.relief:
+            add_relief_rows(lay, crane, self.acts, pts, par["payload"])
         # ---- objective. ε·∫j² dt: joints that do not decide the time would otherwise be free
         # (a flat, non-unique optimum where IPOPT stalls); ε = 1e-6 moves T by ~1e-5 relative
         smooth = reg * sum(hs[k] * ca.sumsqr(U[:, k]) for k in range(N))
@@ -485,7 +488,8 @@ class MoveNLP:
         traj = Trajectory(t, X[:n].T, X[n:2 * n].T, X[2 * n:].T, joint_names=tuple(crane.names),
                           method="nlp", objective=self.objective,
                           limits=("position", "velocity", "acceleration", "jerk")
-                          + (("pump_flow",) if self.pump else ()),
+                          + (("pump_flow",) if self.pump else ())
+                          + (("pressure",) if self.relief else ()),
                           meta=dict(N=N, path=self.path, ipopt_status=ist))
         self._last = w
         E = float(self.energy_fn(w, P)) if self.objective != "time" else float("nan")

@@ -43,11 +43,14 @@ def test_a_move_beyond_the_relief_is_planned_again_within_it(cat215b):
     assert res.ok, res.reason
     assert "pressure" in res.trajectory.limits
     ev = evaluate(cat215b, res.trajectory)
-    assert np.max(np.maximum(ev.hyd["p_a"], ev.hyd["p_b"])) <= pmax
+    assert np.max(np.maximum(ev.hyd["p_a"], ev.hyd["p_b"])) <= 1.01 * relief_limit(
+        cat215b.spec) < pmax
     assert ev.max_limit_violation <= 1e-3
     assert res.duration_s >= plain.duration_s * (1 - 1e-6)
     assert res.stats["relief"]["excess_before"] > 0.1
-    assert res.stats["relief"]["excess_after"] == 0.0
+    # the rows hold at the nodes; between them it may pass the limit by a hair (the LS margin,
+    # 20 of 300 bar, stays between it and the relief itself)
+    assert res.stats["relief"]["excess_after"] <= 0.01
     # the ends are the ones asked for
     np.testing.assert_allclose(cat215b.tip(res.trajectory.q[0]), CAT_START, atol=1e-5)
     np.testing.assert_allclose(cat215b.tip(res.trajectory.q[-1]), CAT_GOAL, atol=1e-5)

@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING
 
 import math
 import time
+
+import numpy as np
 from dataclasses import replace
 
 from planner.geometry.obstacles import Plate, Wall
@@ -154,8 +156,8 @@ class NLPPlanner(Planner):
 
     def _within_relief(self, crane: Crane, request: PlanRequest, res: PlanResult, path: str,
                        N: int, obs, cache, paid) -> PlanResult:
-        """The minimum-time result ``res`` when it asks no chamber for more than the relief
-        pressure (evaluate()'s "pressure", at 200 Hz); else the move solved again with the
+        """The minimum-time result ``res`` when it asks no chamber for more than
+        :func:`~planner.methods.nlp.limits.relief_limit` (:func:`relief_excess`); else the move solved again with the
         relief rows (:func:`~planner.methods.nlp.limits.add_relief_rows`), warm from ``res``
         slowed by √(1 + excess). Most moves of most machines never reach the relief, so the
         rows (an inverse dynamics per node) are paid only by the moves that need them.
@@ -163,7 +165,7 @@ class NLPPlanner(Planner):
         A relieved solve that fails gives status "limits" with both reasons."""
         if not res.ok or not math.isfinite(relief_limit(crane.spec)):
             return res
-        over = evaluate(crane, res.trajectory, rate=200.0).violations.get("pressure", 0.0)
+        over = relief_excess(crane, res.trajectory)
         if over <= 0.0:
             return res
         nlp = self.built(crane, "time", path, N, obs, cache, paid, relief=True)
@@ -186,8 +188,7 @@ class NLPPlanner(Planner):
                                               "stretched_by"] * k))
                 res2.duration_s = res2.trajectory.duration
                 info["stretched_by"] *= k
-            info["excess_after"] = evaluate(crane, res2.trajectory, rate=200.0
-                                            ).violations.get("pressure", 0.0)
+            info["excess_after"] = relief_excess(crane, res2.trajectory)
         info["solve_time_s"] = time.perf_counter() - t0
         if not res2.ok:
             pmax = crane.spec.pump.max_pressure
@@ -200,6 +201,17 @@ class NLPPlanner(Planner):
         res2.solve_time_s = (res.solve_time_s or 0.0) + (res2.solve_time_s or 0.0)
         res2.stats["relief"] = info
         return res2
+
+
+def relief_excess(crane: Crane, traj, rate: float = 200.0) -> float:
+    """How far the highest chamber pressure of ``traj`` (evaluate()'s hydraulics at ``rate``
+    [Hz]) rises above :func:`~planner.methods.nlp.limits.relief_limit`, as a fraction of it (0
+    when below): above it the meter-in compensator starves and the machine lags the plan."""
+    p_lim = relief_limit(crane.spec)
+    if not math.isfinite(p_lim):
+        return 0.0
+    hyd = evaluate(crane, traj, rate=rate).hyd
+    return max(0.0, float(np.max(np.maximum(hyd["p_a"], hyd["p_b"]))) / p_lim - 1.0)
 
 
 register(NLPPlanner())

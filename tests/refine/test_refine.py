@@ -352,3 +352,48 @@ def test_an_energy_weight_lowers_the_pump_work_on_the_twin(crane, twin, move):
         X = np.column_stack([run.q, run.qd, run.p_a, run.p_b, run.p_s, run.spool])
         out[w] = float(np.sum(f(X, twin.P[None, :])[0][:, 0]) * (run.t[1] - run.t[0]))
     assert out[300.0] < out[0.0]
+
+
+def test_a_cycle_refines_each_move_from_the_state_the_one_before_leaves(crane, twin, move):
+    """refine_cycle on a move and its way back: the second move's start is the twin's own
+    replay of the first refined move (its commands, then the valves closed until the next
+    start), not the rest state; from there its refined commands land the twin better than its
+    nominal ones do; and a refinement given the rest state as ``x0`` is the plain one."""
+    from planner.refine import refine_cycle
+    back = _move(crane, 0.65, 0.35)
+    opts = RefineOptions(iterations=8, settle=1.5)
+    moves = [(m, *stored_commands(m)) for m in (move, back)]
+    gap = 0.5
+    refs, starts = refine_cycle(crane, moves, twin=twin, options=opts, gap=gap)
+    assert starts[0] is None and starts[1] is not None
+    r0 = refs[0]
+    t_r = r0.t_u - move.t[0]
+    span = round((max(move.duration, t_r[-1] + 0.02) + gap) * 50) / 50
+    run = twin.simulate(np.append(t_r, t_r[-1] + 0.02), np.vstack([r0.u, np.zeros((1, crane.n))]),
+                        move.q[0], t_end=span)
+    n = crane.n
+    np.testing.assert_allclose(starts[1][:n], run.q[-1], atol=1e-12)
+    np.testing.assert_allclose(starts[1][2 * n:3 * n], run.p_a[-1], rtol=1e-12)
+    rest = twin.rest_state(starts[1][:n])
+    assert np.max(np.abs(starts[1][2 * n:4 * n] - rest[2 * n:4 * n])) > 1e5   # trapped ≠ rest
+    r1 = refs[1]
+    assert r1.status == RefineStatus.IMPROVED, r1.reason
+    assert r1.predicted["refined"]["rest_offset_m"] < r1.predicted["nominal"]["rest_offset_m"]
+    # its prediction starts where the first move left the twin: the nominal commands replayed
+    # from that state give the same rest offset (from rest they would not)
+    t_b, u_b = stored_commands(back)
+    tb = np.append(t_b, t_b[-1] + 0.02)
+    ub = np.vstack([u_b, np.zeros((1, n))])
+    goal = crane.fk(back.q[-1:])[0]
+    for x0, same in ((starts[1], True), (None, False)):
+        rb = twin.simulate(tb, ub, back.q[0], t_end=back.t[-1] + opts.tail + opts.settle,
+                           x0=x0)
+        off = np.linalg.norm(crane.fk(rb.q[rb.t >= rb.t[-1] - opts.rest_window]).mean(axis=0)
+                             - goal)
+        assert (abs(off - r1.predicted["nominal"]["rest_offset_m"]) < 1e-4) == same
+    plain = refine_commands(crane, move, *stored_commands(move), twin=twin,
+                            options=RefineOptions(iterations=3, settle=1.5))
+    given = refine_commands(crane, move, *stored_commands(move), twin=twin,
+                            options=RefineOptions(iterations=3, settle=1.5),
+                            x0=twin.rest_state(move.q[0]))
+    np.testing.assert_array_equal(plain.u, given.u)

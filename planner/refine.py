@@ -104,7 +104,12 @@ class RefineOptions:
     [s], ``rest_window`` [s] the end of the record whose mean is the rest point,
     ``swing_weight`` on the grapple's swing after the plan's end (0: no swing term),
     ``coarse_step`` [s] the twin's step for all but the last ``polish`` iterations (0, or
-    not above ``step``: every iteration on the twin at ``step``)."""
+    not above ``step``: every iteration on the twin at ``step``), ``periods``: ``settle`` is
+    lengthened to this many periods of the slowest oil-spring mode at the goal
+    (:meth:`Twin.oil_spring_frequencies <planner.model.twin.Twin.oil_spring_frequencies>`)
+    and ``tail`` to a quarter of that, where they are shorter (0: never) — the cost must see
+    the ringing it is to calm: cat215b's swing rings at 0.22–0.30 Hz, a 2 s settle saw half a
+    period of it; the forwarders' slowest modes (0.67 Hz and up) keep 2 s and 0.5 s."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -117,6 +122,7 @@ class RefineOptions:
     coarse_step: float = 0.0
     polish: int = 40
     energy_weight: float = 0.0
+    periods: float = 1.0
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
@@ -126,7 +132,8 @@ class RefineOptions:
                   ("swing_weight", self.swing_weight, 0.0, 1e6),
                   ("coarse_step", self.coarse_step, 0.0, 0.01),
                   ("polish", self.polish, 0, 10000),
-                  ("energy_weight", self.energy_weight, 0.0, 1e6))
+                  ("energy_weight", self.energy_weight, 0.0, 1e6),
+                  ("periods", self.periods, 0.0, 10.0))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -318,13 +325,14 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         if h > 0 and abs(R * h - dt) > 1e-9 * dt:
             raise ValueError(f"refine: {what} {h:g} s does not divide the control period "
                              f"{dt:g} s")
-    Ku = t_u.size + int(round(opts.tail * opts.rate))
+    tail, settle, f_slow = _horizon(twin, traj, opts)
+    Ku = t_u.size + int(round(tail * opts.rate))
     pend = twin.pendulum if opts.swing_weight > 0 else None
 
     def problem(tw):
         sh = Shooting(tw)
         R = int(round(dt / tw.step))
-        K = sh.steps((Ku + 1) * R + int(round(opts.settle / tw.step)))
+        K = sh.steps((Ku + 1) * R + int(round(settle / tw.step)))
         return _Cost(sh, traj, Ku, R, K, opts, crane, pend, x0), K
 
     cost, K = problem(twin)
@@ -336,6 +344,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     U0[U0 == 0.0] = _DITHER
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
+    horizon = dict(tail_s=tail, settle_s=settle, slowest_mode_Hz=f_slow)
     nominal = _predict(crane, twin, traj, t_all, U0, K, opts, x0)
     if nominal is None:
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
@@ -363,7 +372,8 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     evals += cost.evaluations
     U = res.x.reshape(Ku, n)
     refined = _predict(crane, twin, traj, t_all, U, K, opts, x0) if res.fun < J0 else None
-    pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)))
+    pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)),
+                horizon=horizon)
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
                "the twin diverged on the optimised commands")
@@ -413,6 +423,16 @@ def refine_cycle(crane: Crane, moves, *, twin: Twin | None = None,
                             run.spool[-1]] + ([run.swing[-1]] if run.swing is not None
                                                else []))
     return out, starts
+
+
+def _horizon(twin: Twin, traj: Trajectory, opts: RefineOptions):
+    """(tail [s], settle [s], the slowest oil-spring frequency at the goal [Hz] or None): the
+    options' own, lengthened to a quarter and to ``periods`` periods of that mode."""
+    if opts.periods <= 0:
+        return opts.tail, opts.settle, None
+    f = float(np.min(twin.oil_spring_frequencies(traj.q[-1])))
+    T = opts.periods / f if f > 0 else 0.0
+    return max(opts.tail, min(0.25 * T, 10.0)), max(opts.settle, min(T, 60.0)), f
 
 
 @dataclass

@@ -13,8 +13,8 @@ from planner.methods.nlp.limits import relief_limit
 from planner.methods.registry import get
 from planner.trajectory import evaluate
 
-# a 2.3 s cat215b move (stick folding 0.64 rad at 6.8 m reach with the 2.2 t load): the plain
-# minimum-time move asks the stick's rod side for ~1.2 × the 300-bar relief
+# a 2.3 s cat215b move (stick folding 0.64 rad at 6.8 m reach with the 2.2 t load, the swing
+# 0.09 rad): the plain minimum-time move asks the swing motor for ~1.2 × the 300-bar relief
 CAT_START = (6.829, 0.211, -0.766)
 CAT_GOAL = (5.817, -0.444, -0.673)
 

@@ -112,3 +112,27 @@ def test_agrees_with_the_exudyn_plant_on_a_short_move(crane_id):
         rng = np.maximum(np.ptp(ex_p, axis=0), 1e6)
         assert np.max(np.abs(p - ex_p) / rng) < 0.03
         assert np.abs(p[-1] - ex_p[-1]).max() < 0.1e6
+
+
+@pytest.mark.parametrize("crane_id, joint", [("cat215b", 0), ("s100f", 0)])
+def test_the_oil_spring_frequency_is_the_one_the_twin_rings_at(crane_id, joint):
+    """A short valve pulse on one joint, then closed valves: the twin's free oscillation (zero
+    crossings of the joint about its rest, after the pulse) has the period
+    oil_spring_frequencies names (linearised: a few per cent)."""
+    crane = Crane.from_id(crane_id)
+    tw = Twin(crane)
+    L = crane.limit_arrays()
+    q = (L["q_min"] + L["q_max"]) / 2
+    f = tw.oil_spring_frequencies(q)[joint]
+    T = 1.0 / f
+    n = crane.n
+    t_u = np.array([0.0, 0.1 * T, 0.2 * T])
+    u = np.zeros((3, n))
+    u[0, joint], u[1, joint] = 0.05, -0.05
+    run = tw.simulate(t_u, u, q, t_end=8 * T)
+    assert run.ok
+    y = run.q[:, joint] - run.q[run.t > 4 * T, joint].mean()
+    w = run.t > T
+    z = np.flatnonzero(np.diff(np.sign(y[w])) != 0)
+    period = 2 * np.mean(np.diff(run.t[w][z]))
+    assert period == pytest.approx(T, rel=0.05)

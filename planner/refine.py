@@ -91,7 +91,7 @@ _MEMORY = 50
 SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
-           "tip_levers",
+           "tip_levers", "refine_cycle", "after_move",
            "SWING_WEIGHT"]
 
 
@@ -395,34 +395,39 @@ def refine_cycle(crane: Crane, moves, *, twin: Twin | None = None,
                  options: RefineOptions | None = None, gap: float = 3.0):
     """A work cycle refined as one: ``moves`` ((traj, t_u, u) per move, in the order the
     machine runs them, each move's nominal commands) each refined (:func:`refine_commands`)
-    from the twin's state that the refined move before it leaves — its commands, then the
-    valves closed until the next move starts ``gap`` s after the later of its plan's end and its
-    last command: its position, residual motion and the chamber pressures it trapped (a
-    forwarder's slew stops with 10–40 bar in both chambers, its telescope's rod side climbs to
-    250 bar over a cycle on the twin, where a move refined alone assumes the unloaded chamber
-    at tank). The first move starts at rest. Returns (refinements, start states: None for rest,
-    else the twin's state at that move's start)."""
+    from the twin's state that the refined move before it leaves (:func:`after_move`): its
+    position, residual motion and the chamber pressures it trapped (a forwarder's slew stops
+    with 10–40 bar in both chambers, its telescope's rod side climbs to 250 bar over a cycle on
+    the twin, where a move refined alone assumes the unloaded chamber at tank). The first move
+    starts at rest. Returns (refinements, start states: None for rest, else the twin's state
+    at that move's start)."""
     from planner.model.twin import Twin
     opts = options or RefineOptions()
     twin = twin if twin is not None else Twin(crane, step=opts.step)
-    n, dt = crane.n, 1.0 / opts.rate
     x, out, starts = None, [], []
     for traj, t_u, u in moves:
         r = refine_commands(crane, traj, t_u, u, twin=twin, options=opts, x0=x)
         out.append(r)
         starts.append(x)
-        t_r = np.asarray(r.t_u, float) - traj.t[0]
-        span = round((max(traj.duration, t_r[-1] + dt) + gap) * opts.rate) / opts.rate
-        run = twin.simulate(np.append(t_r, t_r[-1] + dt),
-                            np.vstack([np.asarray(r.u, float), np.zeros((1, n))]),
-                            traj.q[0] if x is None else x[:n], t_end=span, x0=x)
-        if not run.ok:      # the twin cannot say what the machine is left in: from rest
-            x = None
-            continue
-        x = np.concatenate([run.q[-1], run.qd[-1], run.p_a[-1], run.p_b[-1], [run.p_s[-1]],
-                            run.spool[-1]] + ([run.swing[-1]] if run.swing is not None
-                                               else []))
+        x = after_move(twin, traj, r.t_u, r.u, x, gap, opts.rate)
     return out, starts
+
+
+def after_move(twin: Twin, traj: Trajectory, t_u, u, x0, gap: float, rate: float = 50.0):
+    """The twin's state when the next move of a work cycle starts: commands ``u`` held from
+    ``t_u`` (on ``traj``'s clock) from the state ``x0`` (None: rest at the plan's start), then
+    the valves closed until ``gap`` s after the later of the plan's end and the last command
+    (on the ``rate`` [Hz] grid). None when the twin diverges (it cannot say)."""
+    n, dt = twin.crane.n, 1.0 / rate
+    t_r = np.asarray(t_u, float) - traj.t[0]
+    span = round((max(traj.duration, t_r[-1] + dt) + gap) * rate) / rate
+    run = twin.simulate(np.append(t_r, t_r[-1] + dt),
+                        np.vstack([np.asarray(u, float), np.zeros((1, n))]),
+                        traj.q[0] if x0 is None else x0[:n], t_end=span, x0=x0)
+    if not run.ok:
+        return None
+    return np.concatenate([run.q[-1], run.qd[-1], run.p_a[-1], run.p_b[-1], [run.p_s[-1]],
+                           run.spool[-1]] + ([run.swing[-1]] if run.swing is not None else []))
 
 
 def _horizon(twin: Twin, traj: Trajectory, opts: RefineOptions):

@@ -23,6 +23,10 @@ def cmd_library_refine(args):
         raise CLIError(str(e).replace("refine option 'iterations'", "--iterations")
                        .replace("refine option 'tail'", "--tail")
                        .replace("refine option 'energy_weight'", "--energy-weight")) from None
+    if args.cycle is not None:
+        return _cycle(args, opts)
+    if args.gap is not None:
+        raise CLIError("--gap: only with --cycle (the valves closed between a cycle's moves)")
     try:
         s = refine_library(args.library, model=args.model, workers=args.workers,
                            scheduler=args.scheduler, limit=args.limit, options=opts,
@@ -48,6 +52,33 @@ def cmd_library_refine(args):
               f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
         for f in s["failed"]:
             print(f"  warning: entry {f['id']}: {f['reason']}", file=sys.stderr)
+    return 0
+
+
+def _cycle(args, opts) -> int:
+    """``--cycle ID,ID,…``: the entries refined as one work cycle (planner.library.cycle)."""
+    import numpy as np
+
+    from planner.library.cycle import refine_cycle_library
+    from planner.library.workers import Interrupted
+    ids = [i.strip() for i in args.cycle.split(",") if i.strip()]
+    try:
+        s = refine_cycle_library(args.library, ids, model=args.model,
+                                 gap=3.0 if args.gap is None else args.gap, options=opts,
+                                 force=args.force)
+    except Interrupted as e:
+        print(f"crane-planner: interrupted ({e}); the moves refined so far are kept: rerun "
+              "the same command to resume", file=sys.stderr)
+        return e.exit_code
+    except (ValueError, FileNotFoundError) as e:
+        raise CLIError(str(e)) from None
+    emit(args, s)
+    if not args.json:
+        offs = [e["rest_offset_m"] for e in s["entries"] if e["rest_offset_m"] is not None]
+        med = f"; the twin's rest offset median {1e3 * np.median(offs):.1f} mm" if offs else ""
+        print(f"{s['library']}: a cycle of {len(s['cycle'])} entries refined on the twin of "
+              f"{s['model']} ({s['refined']} refined, {s['kept']} kept), gap "
+              f"{s['gap_s']:g} s, {s['seconds']:.1f} s{med}")
     return 0
 
 
@@ -100,6 +131,12 @@ def add_refine_parser(lsub) -> None:
     p.add_argument("--energy-weight", type=float, default=0.0, metavar="W",
                    help="weight of the twin's pump work in the refine cost, mm²·s per kJ "
                         "(0: tracking and landing only; energy entries: see planner/refine.py)")
+    p.add_argument("--cycle", metavar="ID,ID,...",
+                   help="refine these entries as one work cycle, in this order: each from the "
+                        "state (trapped pressures, residual motion) the one before leaves on "
+                        "the twin; they must chain (see planner/library/cycle.py)")
+    p.add_argument("--gap", type=float, metavar="S",
+                   help="with --cycle: seconds with the valves closed between moves (3)")
     p.add_argument("--force", action="store_true",
                    help="refine entries already refined by the same twin again")
     add_json_arg(p)

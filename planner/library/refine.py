@@ -28,7 +28,7 @@ from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool
 
-__all__ = ["refine_library", "refine_task", "model_crane"]
+__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin"]
 
 _TWINS: dict = {}   # per process: (spec text, options) -> (crane, twin)
 
@@ -42,7 +42,8 @@ def model_crane(spec_text: str, where: str):
     return Crane(parse_spec(tomllib.loads(spec_text), where, spec_text))
 
 
-def _twin(spec_text: str, where: str, step: float):
+def spec_twin(spec_text: str, where: str, step: float):
+    """(crane, twin) of a spec TOML text at the twin ``step`` [s], built once per process."""
     from planner.simulation.twin_plant import twin_of
     key = (spec_text, step)
     if key not in _TWINS:
@@ -61,9 +62,9 @@ def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str,
     c0 = _time.process_time()
     try:
         opts = RefineOptions(**options)
-        crane, _ = _twin(lib_spec, "<library spec>", opts.step)
-        _, twin = _twin(model_spec, model_where, opts.step) if model_spec != lib_spec \
-            else _twin(lib_spec, "<library spec>", opts.step)
+        crane, _ = spec_twin(lib_spec, "<library spec>", opts.step)
+        _, twin = spec_twin(model_spec, model_where, opts.step) if model_spec != lib_spec \
+            else spec_twin(lib_spec, "<library spec>", opts.step)
         traj = Trajectory(t=arrays["t"], q=arrays["q"], qd=arrays["qd"], qdd=arrays["qdd"],
                           joint_names=tuple(arrays["joint_names"]))
         r = refine_commands(crane, traj, arrays["t_u"], arrays["u"], twin=twin, options=opts)
@@ -100,8 +101,8 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
         model_spec = Path(model).read_text(encoding="utf-8")
     else:
         model_where, model_spec = "<library spec>", lib_spec
-    crane, _ = _twin(lib_spec, "<library spec>", opts.step)
-    m_crane, twin = _twin(model_spec, model_where, opts.step)
+    crane, _ = spec_twin(lib_spec, "<library spec>", opts.step)
+    m_crane, twin = spec_twin(model_spec, model_where, opts.step)
     if tuple(m_crane.names) != tuple(crane.names):
         raise ValueError(f"model {model}: joints {list(m_crane.names)}; the library's "
                          f"machine has {list(crane.names)} (a model of the same machine is "

@@ -397,3 +397,44 @@ def test_a_cycle_refines_each_move_from_the_state_the_one_before_leaves(crane, t
                             options=RefineOptions(iterations=3, settle=1.5),
                             x0=twin.rest_state(move.q[0]))
     np.testing.assert_array_equal(plain.u, given.u)
+
+
+def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib, tmp_path):
+    """``library refine --cycle``: each entry refined from where the one before left the twin
+    (its stored provenance says so); a run that lost its second entry, rerun, keeps the first
+    and gives the uninterrupted file; an order that does not chain, or --gap without --cycle,
+    is refused in one line naming it (exit 2)."""
+    import shutil
+
+    from planner.library.cycle import refine_cycle_library
+    from planner.library.refined import GROUP
+    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5)
+    whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
+    shutil.copy(lib, whole)
+    s = refine_cycle_library(whole, ["m0:time", "m1:time"], gap=0.5, options=opts)
+    assert (s["refined"], s["kept"]) == (2, 0)
+    shutil.copy(whole, part)
+    with LibraryStore.open(part, "a") as db:
+        del db.group("m1:time")[GROUP]
+        db.commit()
+    s2 = refine_cycle_library(part, ["m0:time", "m1:time"], gap=0.5, options=opts)
+    assert (s2["refined"], s2["kept"]) == (1, 1)
+    with LibraryStore.open(whole) as a, LibraryStore.open(part) as b:
+        for k, i in enumerate(["m0:time", "m1:time"]):
+            ra, rb = read_refined(a, i), read_refined(b, i)
+            np.testing.assert_array_equal(ra[1], rb[1])
+            assert ra[2]["cycle"] == dict(ids=["m0:time", "m1:time"], position=k, gap_s=0.5,
+                                          from_rest=k == 0)
+    # the second move's prediction starts from the trapped state, not from rest
+    plain = tmp_path / "plain.h5"
+    shutil.copy(lib, plain)
+    refine_library(plain, options=opts, show_progress=False)
+    with LibraryStore.open(whole) as a, LibraryStore.open(plain) as b:
+        pa = read_refined(a, "m1:time")[2]["predicted"]["nominal"]["rest_offset_m"]
+        pb = read_refined(b, "m1:time")[2]["predicted"]["nominal"]["rest_offset_m"]
+        assert abs(pa - pb) > 1e-5
+    r = _cli("library", "refine", str(whole), "--cycle", "m1:time,m0:time")
+    assert r.returncode == 2
+    assert "--cycle: entry 'm0:time' starts" in r.stderr and len(r.stderr.splitlines()) == 1
+    r = _cli("library", "refine", str(whole), "--gap", "2")
+    assert r.returncode == 2 and "--gap" in r.stderr

@@ -71,7 +71,10 @@ def _cycle(args, opts) -> int:
               "the same command to resume", file=sys.stderr)
         return e.exit_code
     except (ValueError, FileNotFoundError) as e:
-        raise CLIError(str(e)) from None
+        msg = str(e)
+        msg = ("--" + msg if msg.startswith("cycle:") else
+               msg.replace("gap = ", "--gap ", 1) if msg.startswith("gap = ") else msg)
+        raise CLIError(msg) from None
     emit(args, s)
     if not args.json:
         offs = [e["rest_offset_m"] for e in s["entries"] if e["rest_offset_m"] is not None]

@@ -47,22 +47,22 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     opts = options or RefineOptions()
     path, ids = Path(path), [str(i) for i in ids]
     if len(ids) < 2:
-        raise ValueError(f"--cycle: {len(ids)} entries; a cycle needs at least 2")
+        raise ValueError(f"cycle: {len(ids)} entries; a cycle needs at least 2")
     if not (np.isfinite(gap) and 0.0 <= gap <= 600.0):
-        raise ValueError(f"--gap {gap!r}: allowed 0 .. 600 s (the valves closed between moves)")
+        raise ValueError(f"gap = {gap!r} s; allowed 0 .. 600 s (the valves closed between moves)")
     t0 = _time.perf_counter()
     with LibraryStore.open(path, "r") as db:
         lib_spec = db.spec_toml
         ok = {r["id"]: r["status"] for r in db.index_rows()}
         for i in ids:
             if ok.get(i) != "ok":
-                raise ValueError(f"--cycle: entry '{i}' is {ok.get(i, 'not in the library')}; "
+                raise ValueError(f"cycle: entry '{i}' is {ok.get(i, 'not in the library')}; "
                                  "allowed: ok entries of this library")
         trajs = [db.trajectory(i) for i in ids]
     for k in range(1, len(ids)):
         gapq = np.abs(trajs[k].q[0] - trajs[k - 1].q[-1])
         if np.max(gapq) > CHAIN_TOL:
-            raise ValueError(f"--cycle: entry '{ids[k]}' starts {np.max(gapq):.3g} from where "
+            raise ValueError(f"cycle: entry '{ids[k]}' starts {np.max(gapq):.3g} from where "
                              f"'{ids[k - 1]}' ends (joint {int(np.argmax(gapq))}); allowed: "
                              f"{CHAIN_TOL:g} (the entries of a cycle chain)")
     model_where, model_spec = ("<library spec>", lib_spec) if model is None else (

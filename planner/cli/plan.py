@@ -66,6 +66,8 @@ def cmd_plan(args):
         raise CLIError(str(e)) from None
     if "energy_winner" in res.stats:
         out["energy_winner"] = res.stats["energy_winner"]
+    if "relief" in res.stats:
+        out["relief"] = res.stats["relief"]
     # what the call paid: building the method's solver (0 when loaded or reused) and solving
     build = float(res.stats.get("build_time_s", 0.0))
     out["build_time_s"] = build

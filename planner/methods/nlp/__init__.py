@@ -19,7 +19,9 @@
 - :mod:`~planner.methods.nlp.energy`: :func:`energy_optimal`, :func:`pareto_front`;
 - :mod:`~planner.methods.nlp.kinematic`: :func:`kinematic_line_nlp` (seed 000's setting).
 
-:class:`NLPPlanner` is registered as ``nlp`` when this package is imported.
+:class:`NLPPlanner` is registered as ``nlp`` when this package is imported. A minimum-time
+move whose chambers would pass the relief pressure less the LS margin (:func:`relief_excess`)
+is solved again with :func:`~planner.methods.nlp.limits.add_relief_rows` (stats ``relief``).
 """
 from __future__ import annotations
 
@@ -27,9 +29,9 @@ from typing import TYPE_CHECKING
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
-from dataclasses import replace
 
 from planner.geometry.obstacles import Plate, Wall
 from planner.methods.base import (Planner, PlanRequest, PlanResult, PlanStatus,
@@ -47,11 +49,12 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["MoveNLP", "Layout", "energy_optimal", "pareto_front", "stretch",
-           "kinematic_line_nlp", "OBSTACLE_TYPES", "Wall", "Plate", "STATUS_OK", "NLPPlanner"]
+           "kinematic_line_nlp", "OBSTACLE_TYPES", "Wall", "Plate", "STATUS_OK", "NLPPlanner",
+           "relief_excess"]
 
-OBSTACLE_TYPES = (Wall, Plate)
+OBSTACLE_TYPES = (Wall, Plate)   # the obstacles MoveNLP accepts (re-exported here)
 RELIEF_AUDIT = 1e-3     # the limit excess a relieved move may keep (the library build's audit)
-RELIEF_STRETCHES = 3    # uniform slow-downs tried when it keeps more   # the obstacles MoveNLP accepts (re-exported here)
+RELIEF_STRETCHES = 3    # uniform slow-downs tried when it keeps more
 
 
 class NLPPlanner(Planner):
@@ -153,12 +156,11 @@ class NLPPlanner(Planner):
                          nlp_cache=main.cache_status)
         return res
 
-
     def _within_relief(self, crane: Crane, request: PlanRequest, res: PlanResult, path: str,
                        N: int, obs, cache, paid) -> PlanResult:
         """The minimum-time result ``res`` when it asks no chamber for more than
-        :func:`~planner.methods.nlp.limits.relief_limit` (:func:`relief_excess`); else the move solved again with the
-        relief rows (:func:`~planner.methods.nlp.limits.add_relief_rows`), warm from ``res``
+        :func:`~planner.methods.nlp.limits.relief_limit` (:func:`relief_excess`); else the
+        move solved again with the relief rows (:func:`~planner.methods.nlp.limits.add_relief_rows`), warm from ``res``
         slowed by √(1 + excess). Most moves of most machines never reach the relief, so the
         rows (an inverse dynamics per node) are paid only by the moves that need them.
         Stats ``relief``: the excess before and after, and whether the move was solved again.
@@ -191,11 +193,11 @@ class NLPPlanner(Planner):
             info["excess_after"] = relief_excess(crane, res2.trajectory)
         info["solve_time_s"] = time.perf_counter() - t0
         if not res2.ok:
-            pmax = crane.spec.pump.max_pressure
+            p_lim = relief_limit(crane.spec)
             out = PlanResult(PlanStatus.LIMITS,
                              f"the minimum-time move asks a chamber for {1 + over:.2f} × the "
-                             f"relief pressure ({pmax / 1e5:.0f} bar); solved again within it: "
-                             f"{res2.reason}", None)
+                             f"relief pressure less the LS margin ({p_lim / 1e5:.0f} bar); "
+                             f"solved again within it: {res2.reason}", None)
             out.stats.update(res.stats, relief=info)
             return out
         res2.solve_time_s = (res.solve_time_s or 0.0) + (res2.solve_time_s or 0.0)

@@ -99,6 +99,7 @@ def _excitation_csv(tmp_path, crane, seed=3, dur=DUR):
     return path
 
 
+@pytest.mark.slow   # 13 s: simulate → discrepancy → saved model; the README tour runs the same chain
 def test_cli_simulate_then_discrepancy_end_to_end(tmp_path, capsys):
     crane = Crane.from_id("cat215b")
     exc = _excitation_csv(tmp_path, crane)

@@ -78,6 +78,7 @@ def test_seal_friction_is_named_on_its_joint(lab):
         assert res.parameters["force"] == pytest.approx(500.0, rel=0.25)
 
 
+@pytest.mark.slow   # 9 s: the CLI path; a clean log explained in-process: test_twin_anchors.py
 def test_clean_twin_log_is_explained_through_the_cli(lab, tmp_path, capsys):
     rec = twin_log(lab, {})
     rec.to_csv(tmp_path / "log.csv", lab)

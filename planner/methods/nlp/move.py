@@ -224,10 +224,11 @@ class MoveNLP:
             for k, (q, _, _) in enumerate(mids):
                 lay.add_con("position", q, L["q_min"], L["q_max"], stage=(k, 1))
         # the per-interval jerk bound (exact at a cruise) stalls IPOPT where the problem is
-        # already hard: the curve mode (seed 003's circle at max_iter) and obstacles (forwarder
-        # moves over the headboard: 300-800 iterations instead of 34-60, same durations)
+        # already hard: the curve mode (seed 003's circle at max_iter), obstacles (forwarder
+        # moves over the headboard: 300-800 iterations instead of 34-60, same durations) and
+        # the tip line (seed 002's v-cycle preliminary section: max_iter, uniform 38 it.)
         add_velocity_limits(lay, L, jmax, pts, mids, ends, U, hs,
-                            uniform=path == "curve" or bool(self.obstacles))
+                            uniform=path != "free" or bool(self.obstacles))
         if self.obstacles:
             add_obstacles(lay, crane.f_fk, self.obstacles,
                           [(k, c) for k in range(N + 1) for c in

@@ -125,6 +125,7 @@ def test_excite_designs_within_limits_and_refuses_bad_input(tmp_path, capsys):
     assert "unknown joint 'arm'" in capsys.readouterr().err and not (tmp_path / "x.csv").exists()
 
 
+@pytest.mark.slow   # 8 s; the default run names a hidden effect in test_discrepancy (flow_gain)
 def test_drift_is_named_by_the_new_effect(cat, clean):
     q = clean.q.copy()
     i = list(cat.names).index("stick")

@@ -102,11 +102,11 @@ def test_check_flags_a_stale_notebook_and_sync_rewrites_it(tmp_path):
     assert run.main(["--check"]) == 0                        # the repository's own pairs
 
 
-# the calibration notebook (16 s), the energy one (9 s) and seed 000's (6 s) run with the slow
-# studies: their workflows are what tests/calibration, tests/methods and tests/bench (the
-# seed000-abc suite) cover in the default run
-RUN = [pytest.param(n, marks=pytest.mark.slow)
-       if n in ("d_calibration", "b_energy", "a_seed000_revisited") else n for n in NAMES]
+# the notebooks run with the slow studies: the calibration one (16 s), the energy one (9 s),
+# seed 000's (6 s), the open-loop one (12 s: TOPP-RA, a twin refine, two Exudyn replays); their
+# workflows are what tests/calibration, tests/methods, tests/refine, tests/simulation and
+# tests/bench (the seed000-abc suite) cover in the default run
+RUN = [pytest.param(n, marks=pytest.mark.slow) for n in NAMES]
 
 
 @pytest.mark.parametrize("name", RUN)

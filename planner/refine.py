@@ -42,13 +42,21 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
 * **Solver**: L-BFGS-B (scipy, a memory of 50 pairs) from the nominal commands, at most
   ``iterations`` iterations. With ``coarse_step`` (off by default) all but the last
   ``polish`` run on the twin at that step and the last ones on the twin at its own step from
-  where the coarse ones ended. Measured on three s100f entries (150 iterations, 4 ms then
-  2 ms): 12–32 % less CPU, but a higher final cost on two of them (the largest tip error
-  during the move 17.7 → 21.8 and 27.0 → 33.4 mm): at 4 ms the twin's Newton iteration
-  fails more often on fast moves (substeps), and the polish restarts L-BFGS-B's memory.
-  A command that is exactly 0 starts at 10⁻⁶ instead: a closed valve is a kink of the flow
-  (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while the
-  others move, a telescope that creeps off its stroke end — would otherwise never be used.
+  where the coarse ones ended (three s100f entries: 12–32 % less CPU, a higher final cost on
+  two: at 4 ms the twin's Newton iteration fails more often, and the polish restarts the
+  memory). A free command that is exactly 0 starts at 10⁻⁶: a closed valve is a kink of the
+  flow (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while
+  the others move, a telescope that creeps off its stroke end — would otherwise never be used.
+* **Valves the plan keeps closed** (``keep_closed``, off by default): a joint the plan holds
+  still (its nominal commands all at most ``idle``, 0.1 % of the range: the NLP's creep is a
+  few 10⁻⁶) keeps its valve closed until ``lead`` s before the tail. An open valve
+  load-senses: refined freely, a telescope held on its stroke end, its valve cracked to stop
+  it creeping, holds the load-sensing pump at its holding pressure through the whole move
+  (s100f d03-p16:energy on the twin: pump line 10.1 MPa on average against 3.2 with the
+  nominal commands; on Exudyn its pump work 3.5 × the plan's). Closed, its creep is put right
+  in the tail. Measured on the twin, it is a trade, not a fix: d03-p16, pump work 1.10 × the
+  nominal commands' (was 3.5 ×) but ringing 6.5 mm; d03-p01, 35 kJ against 54 (nominal 20),
+  the tip error during the move 77 mm against 17.
 
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its
@@ -69,6 +77,7 @@ from enum import Enum
 
 import numpy as np
 
+from planner.landing import landing_measures, tip_levers
 from planner.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -91,7 +100,7 @@ _MEMORY = 50
 SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
-           "tip_levers", "refine_cycle", "after_move",
+           "tip_levers", "refine_cycle", "after_move", "closed_valves",
            "SWING_WEIGHT"]
 
 
@@ -123,6 +132,9 @@ class RefineOptions:
     polish: int = 40
     energy_weight: float = 0.0
     periods: float = 1.0
+    keep_closed: bool = False
+    lead: float = 0.3
+    idle: float = 1e-3
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
@@ -133,10 +145,14 @@ class RefineOptions:
                   ("coarse_step", self.coarse_step, 0.0, 0.01),
                   ("polish", self.polish, 0, 10000),
                   ("energy_weight", self.energy_weight, 0.0, 1e6),
-                  ("periods", self.periods, 0.0, 10.0))
+                  ("periods", self.periods, 0.0, 10.0), ("lead", self.lead, 0.0, 10.0),
+                  ("idle", self.idle, 0.0, 0.1))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
+        if not isinstance(self.keep_closed, bool):
+            raise ValueError(f"refine option 'keep_closed' = {self.keep_closed!r}; allowed: "
+                             "True, False")
         if self.rest_window > self.settle:
             raise ValueError(f"refine option 'rest_window' = {self.rest_window!r}; allowed: at "
                              f"most settle = {self.settle:g} s")
@@ -184,43 +200,6 @@ class Refinement:
                     evaluations=self.evaluations, predicted=self.predicted,
                     lengthened_s=self.lengthened_s, model=self.model, options=self.options,
                     wall_s=self.wall_s)
-
-
-def tip_levers(crane: Crane, q) -> np.ndarray:
-    """|∂tip/∂q_j| at ``q`` (n,) or at each row of ``q`` (K, n) [m per rad | m] (central
-    differences of the forward kinematics); the shape of ``q``."""
-    n, eps = crane.n, 1e-6
-    q = np.asarray(q, float)
-    Qs = np.atleast_2d(q)
-    Q = np.repeat(Qs[:, None, :], 2 * n, axis=1)       # (K, 2n, n)
-    for j in range(n):
-        Q[:, 2 * j, j] += eps
-        Q[:, 2 * j + 1, j] -= eps
-    tip = crane.fk(Q.reshape(-1, n)).reshape(Qs.shape[0], 2 * n, -1)
-    L = np.linalg.norm(tip[:, 0::2] - tip[:, 1::2], axis=2) / (2 * eps)
-    return L.reshape(q.shape)
-
-
-def landing_measures(crane: Crane, t, q, traj: Trajectory, rest_window: float = 1.0) -> dict:
-    """How a run lands (the twin's prediction here, a plant's replay in ``simulate
-    --settle``): tip measures of the run (joints ``q`` (K, n) at ``t`` (K,)) against the plan ``traj``:
-    ``track_m`` the largest tip error during the move, ``rest_offset_m`` the distance from the
-    goal of the rest point (mean tip over the last ``rest_window`` s),
-    ``residual_oscillation_m`` the largest distance from the rest point after the plan's end,
-    ``final_m`` the tip error at the end of the record."""
-    t = np.asarray(t, float)
-    tip = crane.fk(np.asarray(q, float))
-    ref = crane.fk(traj.sample(np.clip(t, traj.t[0], traj.t[-1]))[0])
-    goal = crane.fk(traj.q[-1:])[0]
-    t_end = traj.t[-1]
-    err = np.linalg.norm(tip - ref, axis=1)
-    rest = tip[t >= t[-1] - rest_window].mean(axis=0)
-    after = t >= t_end - 1e-9
-    return dict(track_m=float(err[t <= t_end + 1e-9].max()),
-                rest_offset_m=float(np.linalg.norm(rest - goal)),
-                residual_oscillation_m=float(np.linalg.norm(tip[after] - rest, axis=1).max())
-                if after.any() else float("nan"),
-                final_m=float(err[-1]))
 
 
 class _Cost:
@@ -341,7 +320,9 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
     # a command that starts at exactly 0 (an idle joint, the tail) would never move; a
     # hair's opening gives it a slope (the optimiser crosses zero where the other side pays)
-    U0[U0 == 0.0] = _DITHER
+    shut = closed_valves(u, Ku, opts) if opts.keep_closed else np.zeros((Ku, n), bool)
+    U0[shut] = 0.0
+    U0[(U0 == 0.0) & ~shut] = _DITHER
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
     horizon = dict(tail_s=tail, settle_s=settle, slowest_mode_Hz=f_slow)
@@ -359,12 +340,12 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         coarse, _ = problem(twin.at_step(opts.coarse_step))
         Jc0, _ = coarse(z)
         coarse.fail = 100.0 * Jc0 + 1.0
-        r1 = _minimize(coarse, z, opts.iterations - opts.polish)
+        r1 = _minimize(coarse, z, opts.iterations - opts.polish, shut.ravel())
         nit, evals, fine = int(r1.nit), coarse.evaluations, int(opts.polish)
         if r1.fun < Jc0:
             z = np.clip(r1.x, -1.0, 1.0)
     if fine > 0:
-        res = _minimize(cost, z, fine)
+        res = _minimize(cost, z, fine, shut.ravel())
         res.x = np.clip(res.x, -1.0, 1.0)
     else:
         res = _Result(z, cost(z)[0], 0, "coarse iterations only")
@@ -448,12 +429,23 @@ class _Result:
     message: str
 
 
-def _minimize(cost, z0, iterations: int) -> _Result:
-    """L-BFGS-B on ``cost`` from the commands ``z0`` (flat), |u| ≤ 1, at most ``iterations``
-    iterations. The unknowns are scaled: L-BFGS-B's first step is a unit step along −g, which
-    in command units can swing a valve across its range (the twin then leaves its range);
-    ``_STEP`` is the size of that first step in commands, later steps follow the curvature it
-    learns."""
+def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
+    """(Ku, n) True where a command must stay 0 (module doc, ``keep_closed``): the joints
+    whose nominal commands ``u`` (M, n) are all at most ``idle``, up to ``lead`` s before
+    the tail (rows M and on, free)."""
+    u = np.atleast_2d(np.asarray(u, float))
+    shut = np.zeros((Ku, u.shape[1]), bool)
+    held = np.all(np.abs(u) <= opts.idle, axis=0)
+    shut[:max(u.shape[0] - int(round(opts.lead * opts.rate)), 0), held] = True
+    return shut
+
+
+def _minimize(cost, z0, iterations: int, shut=None) -> _Result:
+    """L-BFGS-B on ``cost`` from the commands ``z0`` (flat), |u| ≤ 1 (0 where ``shut``), at
+    most ``iterations`` iterations. The unknowns are scaled: L-BFGS-B's first step is a unit
+    step along −g, which in command units can swing a valve across its range (the twin then
+    leaves its range); ``_STEP`` is the size of that first step in commands, later steps
+    follow the curvature it learns."""
     from scipy.optimize import minimize
     s = _STEP
 
@@ -461,8 +453,11 @@ def _minimize(cost, z0, iterations: int) -> _Result:
         J, g = cost(z * s)
         return J, g * s
 
+    hi = np.full(len(z0), 1.0 / s)
+    if shut is not None:
+        hi[np.asarray(shut, bool)] = 0.0
     res = minimize(f, np.asarray(z0, float) / s, jac=True, method="L-BFGS-B",
-                   bounds=[(-1.0 / s, 1.0 / s)] * len(z0),
+                   bounds=list(zip(-hi, hi)),
                    options=dict(maxiter=int(iterations), maxfun=2 * int(iterations),
                                 ftol=_FTOL, maxcor=_MEMORY))
     return _Result(res.x * s, float(res.fun), int(res.nit), str(res.message))

@@ -24,7 +24,7 @@ LAYERS = {
     "problems": 0,  # locates the shipped TOML files; the model reads them
     "units": 0, "io": 0, "plots": 0, "version": 0,
     "model": 1,
-    "geometry": 2, "trajectory": 2, "bounds": 2, "feedforward": 2, "refine": 2, "tasks": 2,
+    "geometry": 2, "trajectory": 2, "bounds": 2, "feedforward": 2, "refine": 2, "landing": 2, "tasks": 2,
     "methods": 3,
     "simulation": 4,
     "calibration": 5, "library": 5,

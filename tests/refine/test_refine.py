@@ -10,6 +10,8 @@ import json
 import subprocess
 import sys
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.signal import butter, filtfilt
@@ -105,7 +107,10 @@ def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin
                                        (dict(settle=float("nan")), "settle"),
                                        (dict(settle=0.5, rest_window=1.0), "rest_window"),
                                        (dict(coarse_step=-1e-3), "coarse_step"),
-                                       (dict(polish=-1), "polish")])
+                                       (dict(polish=-1), "polish"),
+                                       (dict(lead=-0.1), "lead"),
+                                       (dict(keep_closed="yes"), "keep_closed"),
+                                       (dict(idle=0.5), "idle")])
 def test_bad_options_name_the_field(kw, field):
     with pytest.raises(ValueError, match=f"'{field}'"):
         RefineOptions(**kw)
@@ -265,6 +270,29 @@ def test_an_idle_joint_is_refined_too(crane, twin):
     nominal, refined = jib_end(t_u, u), jib_end(r.t_u, r.u)
     assert nominal > 5e-4                             # the oil gives: ~1.6 mrad
     assert refined < nominal / 3
+    # with keep_closed the jib's valve opens only in the tail (and the lead before it): an
+    # open valve load-senses the jib's holding pressure
+    kc = replace(opts, keep_closed=True)
+    r = refine_commands(crane, move, t_u, u, twin=twin, options=kc)
+    lead = int(round(kc.lead * kc.rate))
+    assert np.all(r.u[:t_u.size - lead, 2] == 0.0)
+    assert np.abs(r.u[t_u.size - lead:, 2]).max() > 1e-4
+    assert jib_end(r.t_u, r.u) < nominal / 3
+
+
+def test_closed_valves_are_the_joints_the_plan_holds_until_the_lead_before_the_tail():
+    """Hand-made commands at 10 Hz, lead 0.2 s (2 rows), 12 plan rows and a 3-row tail: joint
+    0 opens in rows 5-6, joint 1 creeps at 4e-6 (idle), joint 2 never opens."""
+    from planner.refine import closed_valves
+    u = np.zeros((12, 3))
+    u[5:7, 0] = 0.3
+    u[:, 1] = 4e-6
+    shut = closed_valves(u, 15, RefineOptions(rate=10.0, lead=0.2))
+    assert shut.shape == (15, 3)
+    assert not shut[:, 0].any()
+    for j in (1, 2):
+        assert np.flatnonzero(shut[:, j]).tolist() == list(range(10))
+    assert closed_valves(u, 15, RefineOptions(rate=10.0, lead=0.0))[:, 1].sum() == 12
 
 
 def test_the_cost_weighs_each_joint_by_its_lever_along_the_path():

@@ -9,7 +9,6 @@ resumed one must reproduce exactly), and the arguments' documented ranges.
 import json
 import subprocess
 import sys
-
 from dataclasses import replace
 
 import numpy as np

@@ -39,6 +39,9 @@ def test_each_hidden_effect_is_named(cat215b, name):
     rec, _, _, truth = hidden_trial(cat215b, name, seed, DUR)
     res = Discrepancy(cat215b, second=False).fit(rec)
     assert res.effect == name, (truth, res.message, res.ranking[:3])
+    if name in FAST:                            # the verdict as the CLI reports it
+        assert res.verdict == "named" and res.confidence is not None and res.confidence > 0.99
+        assert res.to_json()["verdict"] == "named"
     if truth.joint:
         assert res.joint == truth.joint
     assert res.gap_reduction >= 0.5

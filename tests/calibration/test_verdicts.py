@@ -57,6 +57,8 @@ def test_clean_recording_is_explained(cat, clean):
     assert all(res.rms_before[c] < 2 * res.noise[c] for c in res.rms_before)
 
 
+@pytest.mark.slow   # the same check (verdict, confidence, JSON) runs in the default suite in
+# test_discrepancy's test_each_hidden_effect_is_named[flow_gain], on another seed (~12 s)
 def test_in_catalogue_effect_is_named(cat):
     rec, _, _, truth = hidden_trial(cat, "flow_gain", 303, DUR)
     res = Discrepancy(cat, second=False).fit(rec)

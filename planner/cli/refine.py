@@ -2,6 +2,7 @@
 (:mod:`planner.library.refine`), stored beside the nominal commands of every entry."""
 from __future__ import annotations
 
+import math
 import shlex
 import sys
 
@@ -27,10 +28,14 @@ def cmd_library_refine(args):
         return _cycle(args, opts)
     if args.gap is not None:
         raise CLIError("--gap: only with --cycle (the valves closed between a cycle's moves)")
+    if args.swing_weight is not None and not (math.isfinite(args.swing_weight)
+                                              and args.swing_weight >= 0):
+        raise CLIError(f"--swing-weight {args.swing_weight:g}: allowed >= 0 (0: the tip alone)")
     try:
         s = refine_library(args.library, model=args.model, workers=args.workers,
                            scheduler=args.scheduler, limit=args.limit, options=opts,
-                           force=args.force, show_progress=not (args.json == "-"))
+                           force=args.force, show_progress=not (args.json == "-"),
+                           swing_weight=args.swing_weight)
     except Interrupted as e:
         s = getattr(e, "summary", None)
         if s:
@@ -47,8 +52,10 @@ def cmd_library_refine(args):
         c = s["cpu_per_entry_s"]
         cost = (f", {c['median']:.1f} s CPU per entry (median; p90 {c['p90']:.1f} s)"
                 if c["median"] is not None else "")
+        swing = (f"; {s['with_swing']} with the load on its grapple link"
+                 if s.get("with_swing") else "")
         print(f"{s['library']}: {s['refined']} entries refined on the twin of {s['model']} "
-              f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}), "
+              f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}{swing}), "
               f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
         for f in s["failed"]:
             print(f"  warning: entry {f['id']}: {f['reason']}", file=sys.stderr)
@@ -110,6 +117,8 @@ def _rerun(args) -> str:
     words = ["crane-planner", "library", "refine", args.library, "--workers", str(args.workers),
              "--iterations", str(args.iterations), "--tail", str(args.tail)]
     words += ["--energy-weight", str(args.energy_weight)] if args.energy_weight else []
+    words += ["--swing-weight", f"{args.swing_weight:g}"] if args.swing_weight is not None \
+        else []
     words += ["--model", args.model] if args.model else []
     words += ["--limit", str(args.limit)] if args.limit is not None else []
     words += ["--scheduler", args.scheduler] if args.scheduler else []
@@ -134,6 +143,11 @@ def add_refine_parser(lsub) -> None:
     p.add_argument("--energy-weight", type=float, default=0.0, metavar="W",
                    help="weight of the twin's pump work in the refine cost, mm²·s per kJ "
                         "(0: tracking and landing only; energy entries: see planner/refine.py)")
+    p.add_argument("--swing-weight", type=float, metavar="W",
+                   help="entries planned with a grapple (library build --grapple): the weight "
+                        "of the load's swing after the plan's end, refined on the twin that "
+                        "carries the load on its link (default 10: a swing costs a third of a "
+                        "tip error of its size; 0: the tip alone)")
     p.add_argument("--cycle", metavar="ID,ID,...",
                    help="refine these entries as one work cycle, in this order: each from the "
                         "state (trapped pressures, residual motion) the one before leaves on "

@@ -28,7 +28,7 @@ from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool
 
-__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin"]
+__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
 
 _TWINS: dict = {}   # per process: (spec text, options) -> (crane, twin)
 
@@ -42,29 +42,53 @@ def model_crane(spec_text: str, where: str):
     return Crane(parse_spec(tomllib.loads(spec_text), where, spec_text))
 
 
-def spec_twin(spec_text: str, where: str, step: float):
-    """(crane, twin) of a spec TOML text at the twin ``step`` [s], built once per process."""
+def spec_twin(spec_text: str, where: str, step: float, grapple: tuple | None = None):
+    """(crane, twin) of a spec TOML text at the twin ``step`` [s], built once per process;
+    ``grapple`` (link length [m], pin damping as a share of critical or None): the twin that
+    carries the load on that link (:mod:`planner.model.twin.coupled`)."""
     from planner.simulation.twin_plant import twin_of
-    key = (spec_text, step)
+    key = (spec_text, step, grapple)
     if key not in _TWINS:
         crane = model_crane(spec_text, where)
-        _TWINS[key] = (crane, twin_of(crane, step=step))
+        if grapple is None:
+            _TWINS[key] = (crane, twin_of(crane, step=step))
+        else:
+            from planner.model.pendulum import Pendulum
+            from planner.model.twin import Twin
+            if crane.spec.effects:
+                raise ValueError(f"model {where}: [[effects]] with a grapple entry: the swing "
+                                 "is refined on the bare twin with its link; allowed: a model "
+                                 "without effects, or swing weight 0 (--swing-weight 0)")
+            pend = Pendulum.of(crane, grapple[0], zeta=grapple[1])
+            _TWINS[key] = (crane, Twin(crane, step=step, grapple=pend))
     return _TWINS[key]
 
 
+def entry_grapple(attrs: dict) -> tuple | None:
+    """The link an entry was planned with (``library build --grapple``: its ``grapple_m`` and
+    ``grapple_zeta``), or None."""
+    g = attrs.get("grapple_m")
+    if g is None or not np.isfinite(g) or g <= 0:
+        return None
+    z = attrs.get("grapple_zeta")
+    return float(g), (None if z is None or not np.isfinite(z) else float(z))
+
+
 def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str, arrays: dict,
-                options: dict) -> dict:
+                options: dict, grapple: tuple | None = None) -> dict:
     """One entry refined (runs in a worker): ``arrays`` holds the trajectory (t, q, qd, qdd,
-    joint_names) and the nominal commands (t_u, u). Never raises: a failure comes back as a
-    status "failed" with its reason."""
+    joint_names) and the nominal commands (t_u, u); ``grapple``: the twin carries the load
+    on that link (:func:`spec_twin`). Never raises: a failure comes back as a status "failed"
+    with its reason."""
     from planner.refine import RefineOptions, refine_commands
     from planner.trajectory import Trajectory
     c0 = _time.process_time()
     try:
         opts = RefineOptions(**options)
         crane, _ = spec_twin(lib_spec, "<library spec>", opts.step)
-        _, twin = spec_twin(model_spec, model_where, opts.step) if model_spec != lib_spec \
-            else spec_twin(lib_spec, "<library spec>", opts.step)
+        _, twin = spec_twin(model_spec, model_where, opts.step, grapple) \
+            if model_spec != lib_spec else spec_twin(lib_spec, "<library spec>", opts.step,
+                                                     grapple)
         traj = Trajectory(t=arrays["t"], q=arrays["q"], qd=arrays["qd"], qdd=arrays["qdd"],
                           joint_names=tuple(arrays["joint_names"]))
         r = refine_commands(crane, traj, arrays["t_u"], arrays["u"], twin=twin, options=opts)
@@ -78,17 +102,26 @@ def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str,
 
 def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None = None,
                    limit: int | None = None, options=None, force: bool = False,
-                   show_progress: bool = True) -> dict:
+                   show_progress: bool = True, swing_weight: float | None = None) -> dict:
     """Refine the ok entries of the library ``path`` (the first ``limit``) on the twin of
     ``model`` (a spec file; default the library's spec) with
-    :class:`~planner.refine.RefineOptions` ``options``. Returns a summary dict; SIGINT /
+    :class:`~planner.refine.RefineOptions` ``options``. An entry planned with a grapple
+    (``library build --grapple``, :func:`entry_grapple`) is refined on the twin that carries
+    the load on that link, its swing after the plan's end costing ``swing_weight`` (None:
+    :data:`planner.refine.SWING_WEIGHT`; 0: the tip alone, the twin without the link): the
+    refined commands end with the load at rest under the tip. Returns a summary dict; SIGINT /
     SIGTERM stop it promptly (the entry being written completed) and raise
     :class:`~planner.library.workers.Interrupted` with the summary so far."""
+    from dataclasses import replace
+
     from planner.feedforward import stored_commands
     from planner.library.refined import refined_info, write_refined
     from planner.library.store import LibraryStore
-    from planner.refine import RefineOptions
+    from planner.refine import SWING_WEIGHT, RefineOptions
     opts = options or RefineOptions()
+    sw = SWING_WEIGHT if swing_weight is None else float(swing_weight)
+    if not (np.isfinite(sw) and sw >= 0):
+        raise ValueError(f"swing_weight = {swing_weight!r}; allowed: >= 0")
     path = Path(path)
     if workers < 1:
         raise ValueError(f"workers = {workers}; allowed: >= 1")
@@ -109,7 +142,7 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                          "needed)")
     fingerprint = twin.provenance()["fingerprint"]
     ids = ids[:limit] if limit is not None else ids
-    state = dict(written=0, skipped=0, counts={}, failed=[], cpu=[])
+    state = dict(written=0, skipped=0, counts={}, failed=[], cpu=[], swing=0)
     with SignalGuard() as guard:
         pool = None
         if scheduler:
@@ -124,9 +157,14 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                         tasks = []
                         for i in ids:
                             info = refined_info(db, i)
+                            link = entry_grapple(db.entry_attrs(i)) if sw > 0 else None
+                            o = replace(opts, swing_weight=sw) if link else opts
+                            fp = (fingerprint if link is None else spec_twin(
+                                model_spec, model_where, opts.step, link)[1]
+                                .provenance()["fingerprint"])
                             if (not force and info is not None
-                                    and info.get("model", {}).get("fingerprint") == fingerprint
-                                    and info.get("options") == asdict(opts)):
+                                    and info.get("model", {}).get("fingerprint") == fp
+                                    and info.get("options") == asdict(o)):
                                 state["skipped"] += 1
                                 continue
                             tr = db.trajectory(i)
@@ -139,7 +177,8 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                                           joint_names=list(tr.joint_names),
                                           t_u=cmd[0], u=cmd[1])
                             tasks.append((lib_spec, model_spec, model_where, i, arrays,
-                                          asdict(opts)))
+                                          asdict(o), link))
+                            state["swing"] += link is not None
                         state["todo"] = len(tasks)
                         bar = progress(len(tasks), f"refine {path.name}", "entry",
                                        enabled=show_progress)
@@ -181,6 +220,7 @@ def _summary(path, model_where, fingerprint, ids, state, t0, **kw) -> dict:
     cpu = cpu[np.isfinite(cpu)]
     return dict(library=str(path), model=model_where, twin_fingerprint=fingerprint,
                 entries=len(ids), refined=state["written"], skipped_existing=state["skipped"],
+                with_swing=state["swing"],
                 statuses=state["counts"], failed=state["failed"],
                 cpu_per_entry_s=dict(median=float(np.median(cpu)) if cpu.size else None,
                                      p90=float(np.percentile(cpu, 90)) if cpu.size else None),

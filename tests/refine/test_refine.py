@@ -154,6 +154,32 @@ def test_library_refine_resumes_with_identical_results(lib, tmp_path):
             np.testing.assert_array_equal(u_n, stored_commands(tr)[1])
 
 
+def test_library_refine_calms_the_load_of_an_entry_planned_with_a_grapple(tmp_path, crane):
+    """An entry built with a grapple link (``grapple_m``, as ``library build --grapple``
+    stores it) is refined on the twin that carries the load on that link, with the swing in
+    the cost: the predicted swing after the plan's end is smaller than the nominal commands';
+    a plain entry beside it is refined on the plain twin."""
+    path = tmp_path / "g.h5"
+    with LibraryStore.create(path, crane.spec) as db:
+        for k, (a, b) in enumerate([(0.35, 0.65), (0.6, 0.4)]):
+            tr = _move(crane, a, b, scale=1.0)
+            db.add(f"m{k}:time", tr, start=crane.tip(tr.q[0]), goal=crane.tip(tr.q[-1]),
+                   objective="time", method="ruckig", status="ok",
+                   attrs=dict(grapple_m=0.5) if k == 0 else {})
+    opts = RefineOptions(iterations=4, settle=1.0, rest_window=0.5)
+    s = refine_library(path, options=opts, show_progress=False)
+    assert (s["refined"], s["with_swing"]) == (2, 1)
+    with LibraryStore.open(path) as db:
+        info = read_refined(db, "m0:time")[2]
+        plain = read_refined(db, "m1:time")[2]
+    assert info["options"]["swing_weight"] == 10.0 and plain["options"]["swing_weight"] == 0.0
+    assert info["model"]["grapple"]["length_m"] == 0.5 and "grapple" not in plain["model"]
+    nom, ref = info["predicted"]["nominal"], info["predicted"]["refined"]
+    assert ref["swing_after_m"] < 0.5 * nom["swing_after_m"], (nom, ref)
+    with pytest.raises(ValueError, match="swing_weight"):
+        refine_library(path, options=opts, show_progress=False, swing_weight=-1.0)
+
+
 def _cli(*args):
     return subprocess.run([sys.executable, "-m", "planner", *args], capture_output=True,
                           text=True, timeout=600)
@@ -465,3 +491,6 @@ def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib,
     assert "--cycle: entry 'm0:time' starts" in r.stderr and len(r.stderr.splitlines()) == 1
     r = _cli("library", "refine", str(whole), "--gap", "2")
     assert r.returncode == 2 and "--gap" in r.stderr
+    r = _cli("library", "refine", str(whole), "--swing-weight", "-1")
+    assert r.returncode == 2 and r.stderr.startswith("crane-planner: error: --swing-weight -1")
+    assert len(r.stderr.splitlines()) == 1

@@ -3,7 +3,8 @@
 swing after arrival and the duration of the sway-blind minimum-time plan (``nlp``), its ZV and
 ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side. s100f.
 
-    python benchmarks/bench_sway.py [--moves 12 | --only ID,ID] [--length 1.5] [--zeta 0.05]
+    python benchmarks/bench_sway.py [--moves 12 | --only ID,ID] [--suite claims|full]
+                                    [--length 1.5] [--zeta 0.05]
                                     [--settle 6] [--methods nlp,zv,zvd,nlp-sway,nlp-sway+ffs]
                                     [--plant-length 1.8] [--plant-mass 1.2]
                                     [--ff-iterations 150] [--swing-weight 10]
@@ -55,6 +56,7 @@ from planner.io import atomic_write_text, dumps  # noqa: E402
 from planner.methods import PlanRequest, plan  # noqa: E402
 from planner.model.effects import make  # noqa: E402
 from planner.model.pendulum import Pendulum, predict_swing  # noqa: E402
+from planner.problems import task_path  # noqa: E402
 from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
@@ -67,17 +69,22 @@ def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
 
-def sway_moves(work: Path, n: int, only: str | None = None):
-    """(suite, moves): the claims subset of the forwarder cycle (its suite file in ``work``)
-    and ``n`` of its moves spread evenly over the pick-up → drop and the drop → pick-up ones,
-    or the ids of ``only`` (a comma list)."""
+def sway_moves(work: Path, n: int, only: str | None = None, full: bool = False):
+    """(suite, moves): the claims subset of the forwarder cycle (its suite file in ``work``;
+    ``full``: the shipped forwarder cycle itself, 200 moves) and ``n`` of its moves spread
+    evenly over the pick-up → drop and the drop → pick-up ones, or the ids of ``only`` (a
+    comma list)."""
     work.mkdir(parents=True, exist_ok=True)
-    suite = build_suite(str(subset_suite(work / "forwarder-cycle-claims.toml")),
-                        Settings(forwarder_moves=10 ** 6))
+    src = (str(task_path("forwarder-cycle")) if full
+           else str(subset_suite(work / "forwarder-cycle-claims.toml")))
+    suite = build_suite(src, Settings(forwarder_moves=10 ** 6))
     moves = []
     for first in ("p", "d"):
         ms = sorted((m for m in suite.moves if m.id.startswith(first)), key=lambda m: m.id)
         want = n // 2 if first == "p" else n - n // 2
+        if want > len(ms):
+            raise SystemExit(f"--moves {n}: the suite has {len(ms)} moves from "
+                             f"{'pick-up' if first == 'p' else 'drop'} points; use --suite full")
         moves += [ms[int(i)] for i in np.linspace(0, len(ms) - 1, want).round()]
     if only:
         moves = [m for m in suite.moves if m.id in only.split(",")]
@@ -122,6 +129,9 @@ def plant_load_clearance(plant, rec, obstacles):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--moves", type=int, default=12)
+    ap.add_argument("--suite", choices=("claims", "full"), default="claims",
+                    help="the moves' suite: the forwarder cycle's claims subset (36 moves) or "
+                         "the whole shipped cycle (200)")
     ap.add_argument("--length", type=float, default=1.5, help="link length [m]")
     ap.add_argument("--plant-length", type=float, default=None,
                     help="the plant's link length [m] when it differs from the one planned "
@@ -163,7 +173,7 @@ def main(argv=None):
         effects.append(make("payload_mass", mass=round((args.plant_mass - 1.0)
                                                        * crane.spec.payload.total, 1)))
     plant = make_plant("exudyn", crane, effects)
-    suite, moves = sway_moves(args.work, args.moves, args.only)
+    suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full")
     obstacles = tuple(suite.obstacles)
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []

@@ -57,6 +57,7 @@ from planner.methods import PlanRequest, plan  # noqa: E402
 from planner.model.effects import make  # noqa: E402
 from planner.model.pendulum import Pendulum, predict_swing  # noqa: E402
 from planner.problems import task_path  # noqa: E402
+from planner.tasks.suites import load_task_file  # noqa: E402
 from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
@@ -69,12 +70,22 @@ def log(*a):
     print(*a, file=sys.stderr, flush=True)
 
 
-def sway_moves(work: Path, n: int, only: str | None = None, full: bool = False):
+def sway_moves(work: Path, n: int, only: str | None = None, full: bool = False,
+               tasks: str | None = None):
     """(suite, moves): the claims subset of the forwarder cycle (its suite file in ``work``;
     ``full``: the shipped forwarder cycle itself, 200 moves) and ``n`` of its moves spread
     evenly over the pick-up → drop and the drop → pick-up ones, or the ids of ``only`` (a
-    comma list)."""
+    comma list); ``tasks``: another suite file (e.g. ``random_suite.py``'s), ``n`` of its
+    moves spread evenly."""
     work.mkdir(parents=True, exist_ok=True)
+    if tasks:
+        suite = load_task_file(tasks)
+        ms = list(suite.moves)
+        if only:
+            return suite, [m for m in ms if m.id in only.split(",")]
+        if n > len(ms):
+            raise SystemExit(f"--moves {n}: {tasks} has {len(ms)} moves")
+        return suite, [ms[int(i)] for i in np.linspace(0, len(ms) - 1, n).round()]
     src = (str(task_path("forwarder-cycle")) if full
            else str(subset_suite(work / "forwarder-cycle-claims.toml")))
     suite = build_suite(src, Settings(forwarder_moves=10 ** 6))
@@ -129,6 +140,10 @@ def plant_load_clearance(plant, rec, obstacles):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--moves", type=int, default=12)
+    ap.add_argument("--crane", default="s100f", help="the machine (s100f)")
+    ap.add_argument("--tasks", default=None, metavar="FILE",
+                    help="another suite file of the machine (benchmarks/random_suite.py's), "
+                         "instead of the forwarder cycle")
     ap.add_argument("--suite", choices=("claims", "full"), default="claims",
                     help="the moves' suite: the forwarder cycle's claims subset (36 moves) or "
                          "the whole shipped cycle (200)")
@@ -164,7 +179,7 @@ def main(argv=None):
         return merge(args.merge, args.out, args.tag)
     t_start = time.perf_counter()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    crane = Crane.from_id("s100f")
+    crane = Crane.from_id(args.crane)
     pend = Pendulum.of(crane, args.length, zeta=args.zeta)
     plant_length = args.plant_length or args.length    # the plant's link: off when asked
     effect = make("grapple_swing", length=plant_length, damping=round(pend.damping, 1))
@@ -173,7 +188,8 @@ def main(argv=None):
         effects.append(make("payload_mass", mass=round((args.plant_mass - 1.0)
                                                        * crane.spec.payload.total, 1)))
     plant = make_plant("exudyn", crane, effects)
-    suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full")
+    suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full",
+                              args.tasks)
     obstacles = tuple(suite.obstacles)
     opts = {"grapple": args.length, "grapple_zeta": args.zeta}
     rows = []
@@ -318,16 +334,21 @@ def markdown(res) -> list:
          + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
             f"{a.get('swing_weight', 10.0):g}"
             if "+ff" in a["methods"] else "")
+         + (f" --crane {a['crane']}" if a.get("crane", "s100f") != "s100f" else "")
+         + (f" --tasks {a['tasks']}" if a.get("tasks") else "")
+         + (f" --suite {a['suite']}" if a.get("suite", "claims") != "claims" else "")
          + (f" --only {a['only']}" if a.get("only") else "")
          + f" --tag {a.get('tag', 'sway')}` ({res['wall_s'] / 60:.1f} min"
          + (f" of CPU-bound wall time summed over {a['processes']} parallel processes"
-            if a.get("processes") else "") + "). s100f, "
+            if a.get("processes") else "") + f"). {a.get('crane', 's100f')}, "
          f"its {res['effect'].get('length', a['length'])} m grapple link "
          + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
          + (f"and {a['plant_mass']:g} × the spec's load + tool mass (the planners and the "
             "twin assume the spec's) " if a.get("plant_mass") else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
-         f"{len(res['moves'])} forwarder moves over the headboard; every plan's "
+         + (f"{len(res['moves'])} moves of `{a['tasks']}` (no headboard); every plan's "
+            if a.get("tasks") else
+            f"{len(res['moves'])} forwarder moves over the headboard; every plan's ")
          + ("valve commands refined on the dynamic twin (planner.refine)" if a.get("refine")
             else "nominal 50 Hz feed-forward (`+ff`: its valve commands refined on the dynamic "
                  "twin, planner.refine, tip tracking and landing only; `+ffs`: with the swing "

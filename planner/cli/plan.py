@@ -221,6 +221,10 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
         r = refine_commands(crane, traj, ff.t, ff.u, twin=Twin(crane, grapple=pend),
                             options=RefineOptions(swing_weight=SWING_WEIGHT))
     else:
+        if pend is not None:   # said, not dropped silently
+            print(f"crane-planner: note: --feedforward twin: crane '{crane.spec.id}' carries "
+                  "[[effects]], which the twin with the grapple link does not take; the "
+                  "commands are refined for the tip alone (no swing cost)", file=sys.stderr)
         r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane))
     out["feedforward"] = dict(commands="refined" if r.status == "improved" else "nominal",
                               **r.info())

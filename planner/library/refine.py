@@ -58,7 +58,7 @@ def spec_twin(spec_text: str, where: str, step: float, grapple: tuple | None = N
             if crane.spec.effects:
                 raise ValueError(f"model {where}: [[effects]] with a grapple entry: the swing "
                                  "is refined on the bare twin with its link; allowed: a model "
-                                 "without effects, or swing weight 0 (--swing-weight 0)")
+                                 "without effects, or swing_weight 0")
             pend = Pendulum.of(crane, grapple[0], zeta=grapple[1])
             _TWINS[key] = (crane, Twin(crane, step=step, grapple=pend))
     return _TWINS[key]

@@ -5,7 +5,8 @@ integrator with piecewise-constant jerk integrated exactly, velocity and pump ro
 nodes and midpoints — the same rows, from the same helpers) with the grapple pendulum of
 :mod:`planner.model.pendulum` added: its four states (α, β, α̇, β̇) per node, integrated over
 each interval by ``substeps`` RK4 steps of the model's ``swing_rhs`` driven by the tip's
-Cartesian acceleration (``tip_motion``, evaluated on the interval's exact cubic), so the swing
+Cartesian acceleration and the last link's turning (``tip_motion``'s drive, evaluated on the
+interval's exact cubic), so the swing
 is a function of the joint motion the NLP chooses. Constraints beyond the sway-blind move:
 
 - the load hangs still at the start (all four states zero);
@@ -126,7 +127,7 @@ class SwayNLP:
 
         def acc(k, tau):
             q, qd, qdd = at(k, tau)
-            return f_acc(q, qd, qdd)[2]
+            return f_acc(q, qd, qdd)[3]      # the drive: the tip and the last link
         inner = []   # (interval, joints, swing angles) at the RK4 steps inside intervals
         for k in range(N):
             lay.add_con("dynamics", X[:, k + 1] - ca.vertcat(*at(k, hs[k])), 0.0, 0.0)

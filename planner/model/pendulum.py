@@ -14,21 +14,39 @@ the once-turned y axis; the link's direction from pivot to centre of mass is
     d(α, β) = L · (sin β, −sin α cos β, −cos α cos β),
 
 so (0, 0) hangs straight down and the load's horizontal offset from under the tip is
-(d_x, d_y) = (L sin β, −L sin α cos β). The body's angular speed is |ω|² = α̇² + β̇²
-(the two pin axes stay perpendicular). With θ = (α, β) and J = ∂d/∂θ:
+(d_x, d_y) = (L sin β, −L sin α cos β).
 
-    M(θ) θ̈ + h(θ, θ̇) = m Jᵀ g_eff − c θ̇,      M = m (JᵀJ + k² I),
-    h = (∂(M θ̇)/∂θ) θ̇ − ½ ∂(θ̇ᵀ M θ̇)/∂θ            (Lagrange's equations).
+**The body turns with the boom.** The link hangs on two pins carried by the boom's last link:
+the first about the boom's pitch axis e₁ (fixed in the last link), the second about e₂, square
+to e₁ and to the link. So the body's angular velocity is ω_b = ω_L + ȧ e₁ + ḃ e₂ (ω_L the last
+link's, ȧ, ḃ the pin rates): the load spins with the slew, and the pins' damping acts on the
+rates relative to the boom. The pin rates follow from the world angles without the pin angles
+themselves: u = d/L turns as u̇ = ω_b × u, so (ȧ, ḃ) solves
+[e₁ × u, e₂ × u]·(ȧ, ḃ) = u̇ − ω_L × u (two equations in the plane square to u). With
+θ = (α, β), J = ∂d/∂θ and T_rot = ½ m k² |ω_b|² (the grapple's inertia m k² about every axis
+through its centre of mass), Lagrange's equations in the pivot's frame are
+
+    (m JᵀJ) θ̈ + h(θ, θ̇) + d/dt(∂T_rot/∂θ̇) − ∂T_rot/∂θ = m Jᵀ g_eff − c Gᵀ (ȧ, ḃ),
+    h = (∂(m JᵀJ θ̇)/∂θ) θ̇ − ½ ∂(θ̇ᵀ m JᵀJ θ̇)/∂θ,      G = ∂(ȧ, ḃ)/∂θ̇,
+
+where d/dt(∂T_rot/∂θ̇) is taken through θ, θ̇, the pin axis (ė₁ = ω_L × e₁) and ω_L
+(ω̇_L given). The **drive** (:data:`DRIVE`, 12 numbers, frame 0) is what the crane hands the
+link: the pivot's acceleration a_tip, the first pin's axis e₁ and the last link's ω_L and ω̇_L
+(:func:`tip_motion` computes it from q, q̇, q̈). A three-number drive is a pivot that moves
+without turning, its first pin about world y.
+
+Why it matters (``benchmarks/sway_twin_gap.py``, s100f, 880 kg on 1.5 m, k = 0.3 m, the
+Exudyn plant's recorded joints driving the model): with the body not turning with the boom the
+model's swing was up to 34 mm from the plant's over a forwarder move and its slew (the load's
+spin couples into the swing like a gyroscope); with the pins on the boom 0.2 mm.
 
 Small angles: ω₀ = √(g L / (L² + k²)) (1.5 m, k = 0.3 m: 2.51 rad/s, 0.40 Hz), damping ratio
-ζ = c / (2 m √(g L (L² + k²))). The plant's pins damp the link's rate *relative to the boom*
-(they turn with the slew); here they damp the world-aligned rates, which differs only while
-the crane slews and by a share ζ of the swing.
+ζ = c / (2 m √(g L (L² + k²))).
 
 The swing's right-hand side is written once in CasADi (:attr:`Pendulum.f_swing`, a named
 ``casadi.Function`` an NLP calls on symbols); :meth:`Pendulum.rhs` is its numeric face.
 :func:`predict_swing` integrates it (RK4 on a fine grid, one CasADi ``mapaccum`` call) along a
-planned trajectory's tip acceleration (:func:`tip_motion`: the crane's own forward kinematics
+planned trajectory's drive (:func:`tip_motion`: the crane's own forward kinematics
 differentiated twice) and reports the swing during the move and the residual swing amplitude
 after it: the largest horizontal offset the free, undamped pendulum reaches with the energy it
 holds at the end of the move (the tip at rest), L·sin θ_max with m g L (1 − cos θ_max) = E
@@ -46,16 +64,23 @@ import casadi as ca
 import numpy as np
 
 from planner.model.dynamics_spec import GYRATION
+from planner.model.kinematics import joint_transforms
 
 if TYPE_CHECKING:
     from planner.model import Crane
     from planner.trajectory import Trajectory
 
 __all__ = ["Pendulum", "SwingPrediction", "predict_swing", "tip_motion", "swing_rhs_expr",
-           "STATE"]
+           "STATE", "DRIVE", "DRIVE_SIZE", "as_drive", "pin_axis_joint"]
 
 #: the swing state's entries, in order
 STATE = ("alpha", "beta", "alpha_dot", "beta_dot")
+#: the drive's entries (three numbers each, frame 0): the pivot's acceleration [m/s²], the
+#: first pin's axis (unit), the last link's angular velocity [rad/s] and its rate [rad/s²]
+DRIVE = ("a_tip", "pin_axis", "omega_link", "omega_link_dot")
+DRIVE_SIZE = 12
+#: the first pin's axis of a three-number drive (a pivot that moves without turning)
+STILL_AXIS = (0.0, 1.0, 0.0)
 _TIP_MOTION: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()   # crane -> functions
 
 
@@ -141,26 +166,29 @@ class Pendulum:
     # ------------------------------------------------------------------ the dynamics, once
     @cached_property
     def f_swing(self) -> ca.Function:
-        """``swing_rhs(x[4], a_tip[3]) -> xdot[4]``: the swing's ODE (x = α, β, α̇, β̇)."""
-        x, a = ca.SX.sym("x", 4), ca.SX.sym("a_tip", 3)
+        """``swing_rhs(x[4], drive[12]) -> xdot[4]``: the swing's ODE (x = α, β, α̇, β̇;
+        the drive of :data:`DRIVE`)."""
+        x, a = ca.SX.sym("x", 4), ca.SX.sym("drive", DRIVE_SIZE)
         xdot = swing_rhs_expr(x, a, self.length, self.mass, self.gyration, self.damping,
                               self.gravity)
-        return ca.Function("swing_rhs", [x, a], [xdot], ["x", "a_tip"], ["xdot"])
+        return ca.Function("swing_rhs", [x, a], [xdot], ["x", "drive"], ["xdot"],
+                           {"cse": True})
 
     def values(self) -> np.ndarray:
         """(length, mass, gyration, damping): the link's data in the order
         :func:`swing_rhs_expr` takes them (a compiled twin's parameter inputs)."""
         return np.array([self.length, self.mass, self.gyration, self.damping], float)
 
-    def rhs(self, x, a_tip) -> np.ndarray:
-        """Numeric face of :attr:`f_swing`: (4,) or (N, 4) states, (3,) or (N, 3) tip
-        accelerations [m/s²] -> state derivatives of the same leading shape."""
-        x, a = np.asarray(x, float), np.asarray(a_tip, float)
+    def rhs(self, x, drive) -> np.ndarray:
+        """Numeric face of :attr:`f_swing`: (4,) or (N, 4) states, (12,) or (N, 12) drives
+        (:data:`DRIVE`; or (3,) / (N, 3) tip accelerations [m/s²]: :func:`as_drive`) ->
+        state derivatives of the same leading shape."""
+        x, a = np.asarray(x, float), as_drive(drive)
         single = x.ndim == 1 and a.ndim == 1
         X, A = np.atleast_2d(x), np.atleast_2d(a)
         N = max(len(X), len(A))
         out = np.array(self.f_swing.map(N)(np.broadcast_to(X, (N, 4)).T,
-                                            np.broadcast_to(A, (N, 3)).T)).T
+                                            np.broadcast_to(A, (N, DRIVE_SIZE)).T)).T
         return out[0] if single else out
 
     def link(self, x) -> np.ndarray:
@@ -175,14 +203,27 @@ class Pendulum:
         dx, dy, _ = _direction(self.length, x[..., 0], x[..., 1])
         return np.stack([dx, dy], -1)
 
-    def energy(self, x) -> np.ndarray:
-        """(…,) swing energy [J] in the tip's frame with the tip at rest: kinetic
-        ½ θ̇ᵀ M θ̇ plus m g (L + d_z) (zero hanging at rest)."""
+    def energy(self, x, pin_axis=STILL_AXIS) -> np.ndarray:
+        """(…,) swing energy [J] in the tip's frame with the tip and the boom at rest: kinetic
+        ½ m |ḋ|² + ½ m k² |ω_b|² (ω_b the pin rates', module doc) plus m g (L + d_z) (zero
+        hanging at rest); ``pin_axis`` the first pin's (frame 0; it changes the energy by
+        the k² share of the spin only: fourth order in the swing angles)."""
         x = np.asarray(x, float)
         a, b, ad, bd = (x[..., i] for i in range(4))
         L, m, k = self.length, self.mass, self.gyration
-        # JᵀJ = L² diag(cos² β, 1) (the columns of J are perpendicular)
-        T = 0.5 * m * ((L * L * np.cos(b) ** 2 + k * k) * ad ** 2 + (L * L + k * k) * bd ** 2)
+        u = np.stack(_direction(1.0, a, b), -1)
+        # u̇ = ∂u/∂α α̇ + ∂u/∂β β̇
+        ua = np.stack([np.zeros_like(a), -np.cos(a) * np.cos(b), np.sin(a) * np.cos(b)], -1)
+        ub = np.stack([np.cos(b), np.sin(a) * np.sin(b), np.cos(a) * np.sin(b)], -1)
+        ud = ua * ad[..., None] + ub * bd[..., None]
+        e1 = np.broadcast_to(np.asarray(pin_axis, float), u.shape)
+        e2 = np.cross(u, e1)
+        e2 = e2 / np.linalg.norm(e2, axis=-1, keepdims=True)
+        A = np.stack([np.cross(e1, u), np.cross(e2, u)], -1)            # (…, 3, 2)
+        AtA = np.einsum("...ki,...kj->...ij", A, A)
+        r = np.linalg.solve(AtA, np.einsum("...ki,...k->...i", A, ud)[..., None])[..., 0]
+        wb = r[..., :1] * e1 + r[..., 1:] * e2
+        T = 0.5 * m * (L * L * np.sum(ud * ud, -1) + k * k * np.sum(wb * wb, -1))
         return T + m * self.gravity * L * (1 - np.cos(a) * np.cos(b))
 
     def amplitude(self, x) -> np.ndarray:
@@ -195,10 +236,11 @@ class Pendulum:
 
     # ------------------------------------------------------------------ integration
     def step_function(self) -> ca.Function:
-        """``rk4(x, a0, a_half, a1, dt) -> x⁺``: one RK4 step of :attr:`f_swing`."""
+        """``rk4(x, d0, d_half, d1, dt) -> x⁺``: one RK4 step of :attr:`f_swing` (drives at
+        the step's start, middle and end)."""
         if "rk4" not in self._cache:
             x, dt = ca.SX.sym("x", 4), ca.SX.sym("dt")
-            a0, ah, a1 = ca.SX.sym("a0", 3), ca.SX.sym("ah", 3), ca.SX.sym("a1", 3)
+            a0, ah, a1 = (ca.SX.sym(f"d{i}", DRIVE_SIZE) for i in range(3))
             f = self.f_swing
             k1 = f(x, a0)
             k2 = f(x + 0.5 * dt * k1, ah)
@@ -209,12 +251,13 @@ class Pendulum:
         return self._cache["rk4"]
 
     def integrate(self, t, a_of_t, x0=(0.0, 0.0, 0.0, 0.0)) -> np.ndarray:
-        """(K, 4) states at the times ``t`` (K,) [s] from ``x0``, driven by the tip
-        acceleration ``a_of_t(times) -> (…, 3)`` [m/s²] (RK4 on the steps of ``t``)."""
+        """(K, 4) states at the times ``t`` (K,) [s] from ``x0``, driven by
+        ``a_of_t(times) -> (…, 12)`` (the drive, :data:`DRIVE`) or ``(…, 3)`` (the tip's
+        acceleration [m/s²] alone, :func:`as_drive`) (RK4 on the steps of ``t``)."""
         t = np.asarray(t, float)
         mid = 0.5 * (t[1:] + t[:-1])
-        A = np.asarray(a_of_t(t), float)
-        Ah = np.asarray(a_of_t(mid), float)
+        A = as_drive(a_of_t(t))
+        Ah = as_drive(a_of_t(mid))
         K = len(t)
         if K < 2:
             return np.asarray(x0, float)[None, :]
@@ -223,35 +266,92 @@ class Pendulum:
         return np.vstack([np.asarray(x0, float), X.T])
 
 
-def swing_rhs_expr(x, a, length, mass, gyration, damping, gravity):
+def as_drive(a) -> np.ndarray:
+    """(…, 12) drives from (…, 12) drives or (…, 3) tip accelerations [m/s²]: those get the
+    drive of a pivot that moves without turning (pin axis :data:`STILL_AXIS`, ω_L = 0)."""
+    a = np.asarray(a, float)
+    if a.shape[-1] == DRIVE_SIZE:
+        return a
+    if a.shape[-1] != 3:
+        raise ValueError(f"pendulum drive: {a.shape[-1]} numbers per row; allowed 12 "
+                         f"({', '.join(DRIVE)}) or 3 (a_tip)")
+    rest = np.zeros(a.shape[:-1] + (DRIVE_SIZE - 3,))
+    rest[..., :3] = STILL_AXIS
+    return np.concatenate([a, rest], -1)
+
+
+def swing_rhs_expr(x, drive, length, mass, gyration, damping, gravity):
     """The swing's ODE as a CasADi expression (the module doc's Lagrange equations, the one
-    definition): state ``x`` (α, β, α̇, β̇), tip acceleration ``a`` (3) [m/s²] and the link's
-    data, numbers or symbols (a compiled twin takes them as inputs) -> ẋ (4)."""
+    definition): state ``x`` (α, β, α̇, β̇), ``drive`` (:data:`DRIVE`: 12, or 3 for a tip
+    acceleration alone) and the link's data, numbers or symbols (a compiled twin takes them
+    as inputs) -> ẋ (4)."""
+    if drive.numel() == 3:
+        drive = ca.vertcat(drive, ca.DM(STILL_AXIS), ca.DM.zeros(6))
+    given, drive = drive, ca.SX.sym("drive", DRIVE_SIZE)    # derivatives need pure symbols
     th, thd = x[:2], x[2:]
     m, k, c = mass, gyration, damping
+    a, e1, wl, wld = drive[0:3], drive[3:6], drive[6:9], drive[9:12]
     d = ca.vertcat(*_direction(length, th[0], th[1]))
     J = ca.jacobian(d, th)
-    M = m * (J.T @ J + k * k * ca.SX.eye(2))
-    Mv = M @ thd
+    Mt = m * (J.T @ J)
+    Mv = Mt @ thd
     h = ca.jacobian(Mv, th) @ thd - 0.5 * ca.gradient(ca.dot(thd, Mv), th)
     g_eff = ca.vertcat(0, 0, -gravity) - a
-    thdd = ca.solve(M, m * J.T @ g_eff - h - c * thd)
-    return ca.vertcat(thd, thdd)
+    # the pin rates (ȧ, ḃ): u̇ − ω_L × u = ȧ e₁ × u + ḃ e₂ × u
+    u, ud = d / length, (J @ thd) / length
+    e2 = ca.cross(u, e1)
+    e2 = e2 / ca.norm_2(e2)
+    A = ca.horzcat(ca.cross(e1, u), ca.cross(e2, u))
+    rates = ca.solve(A.T @ A, A.T @ (ud - ca.cross(wl, u)))
+    wb = wl + rates[0] * e1 + rates[1] * e2
+    Trot = 0.5 * m * k * k * ca.dot(wb, wb)
+    p = ca.gradient(Trot, thd)
+    H = ca.jacobian(p, thd)
+    dp_rest = (ca.jacobian(p, th) @ thd + ca.jacobian(p, e1) @ ca.cross(wl, e1)
+               + ca.jacobian(p, wl) @ wld)
+    Q = (m * J.T @ g_eff - h - dp_rest + ca.gradient(Trot, th)
+         - c * ca.jacobian(rates, thd).T @ rates)
+    return ca.substitute(ca.vertcat(thd, ca.solve(Mt + H, Q)), drive, ca.SX(given))
+
+
+def pin_axis_joint(crane: Crane) -> int:
+    """Index of the joint whose axis the grapple's first pin shares: the first revolute joint
+    after the slew (the boom's pitch axis), as the plant hangs it."""
+    j = next((i for i in range(1, crane.n) if crane.spec.joints[i].revolute), None)
+    if j is None:
+        raise ValueError(f"grapple link: {crane.spec.id} has no revolute joint after the first "
+                         "(no boom pitch axis to hang the grapple's first pin on)")
+    return j
 
 
 def tip_motion(crane: Crane) -> ca.Function:
-    """``tip_motion(q, qd, qdd) -> (p, v, a)``: the tip's Cartesian position [m], velocity
-    [m/s] and acceleration [m/s²] in frame 0 (the crane's forward kinematics, J q̈ + J̇ q̇)."""
+    """``tip_motion(q, qd, qdd) -> (p, v, a, drive, axis, omega)``: the tip's Cartesian
+    position [m], velocity [m/s] and acceleration [m/s²] in frame 0 (the crane's forward
+    kinematics, J q̈ + J̇ q̇), the grapple link's drive (:data:`DRIVE`), and of it the first
+    pin's axis and the last link's angular velocity [rad/s] (functions of q, q̇ only)."""
     cache = _TIP_MOTION.setdefault(crane, {})
     if "tip_motion" not in cache:
         n = crane.n
         q, qd, qdd = ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("qdd", n)
-        p = crane.f_fk(q)[0]
+        T, R, rots = ca.SX.eye(4), None, []
+        for A in joint_transforms(crane.spec, q):
+            T = T @ A
+            rots.append(T[:3, :3])
+        p, R = T[:3, 3], rots[-1]
         J = ca.jacobian(p, q)
         v = J @ qd
         a = J @ qdd + ca.jacobian(v, q) @ qd
-        cache["tip_motion"] = ca.Function("tip_motion", [q, qd, qdd], [p, v, a],
-                                          ["q", "qd", "qdd"], ["p", "v", "a"])
+        try:                             # the pitch axis: z of the frame before that joint
+            axis = rots[pin_axis_joint(crane) - 1][:, 2]
+        except ValueError:               # no pitch joint: a pin about world y (still axis)
+            axis = ca.SX(ca.DM(STILL_AXIS))
+        Rd = ca.reshape(ca.jacobian(ca.reshape(R, 9, 1), q) @ qd, 3, 3)
+        W = Rd @ R.T                     # skew(ω_L)
+        w = ca.vertcat(W[2, 1], W[0, 2], W[1, 0])
+        wd = ca.jacobian(w, ca.vertcat(q, qd)) @ ca.vertcat(qd, qdd)
+        cache["tip_motion"] = ca.Function(
+            "tip_motion", [q, qd, qdd], [p, v, a, ca.vertcat(a, axis, w, wd), axis, w],
+            ["q", "qd", "qdd"], ["p", "v", "a", "drive", "axis", "omega"], {"cse": True})
     return cache["tip_motion"]
 
 
@@ -272,7 +372,7 @@ class SwingPrediction:
 def predict_swing(crane: Crane, traj: Trajectory, pendulum: Pendulum,
                   rate: float = 200.0) -> SwingPrediction:
     """Integrate the swing along ``traj`` (from hanging at rest) at ``rate`` [Hz] (plus every
-    sample of the plan) with the tip acceleration of the crane's kinematics."""
+    sample of the plan) with the drive of the crane's kinematics."""
     f = tip_motion(crane)
     fm = {}
 
@@ -281,7 +381,7 @@ def predict_swing(crane: Crane, traj: Trajectory, pendulum: Pendulum,
         N = len(q)
         if N not in fm:
             fm[N] = f.map(N)
-        return np.array(fm[N](q.T, qd.T, qdd.T)[2]).T
+        return np.array(fm[N](q.T, qd.T, qdd.T)[3]).T
 
     t = traj.resample(rate)
     x = pendulum.integrate(t, acc)

@@ -6,11 +6,12 @@ driven one way — the tip drives the swing, the swing does not act back — by 
 given on a fine uniform grid (a twin run, a plant's record), as the planner's own swing
 model is driven by a plan:
 
-* over step k (h) the tip's acceleration is held at
-  a_k = (v(q_{k+1}, q̇_{k+1}) − v(q_k, q̇_k)) / h, v = J(q)·q̇ the tip velocity of the model's
-  forward kinematics (:func:`planner.model.pendulum.tip_motion`): the mean acceleration of the
-  step, second-order accurate at its middle;
-* one RK4 step of ``swing_rhs`` with that acceleration advances (α, β, α̇, β̇) (ω₀h ≈ 0.005 at
+* over step k (h) the drive (:data:`planner.model.pendulum.DRIVE`) is held at the step's
+  means: the tip's acceleration a_k = (v(q_{k+1}, q̇_{k+1}) − v(q_k, q̇_k)) / h, v = J(q)·q̇
+  the tip velocity of the model's forward kinematics
+  (:func:`planner.model.pendulum.tip_motion`), the last link's ω̇ likewise from its ω, the
+  pin axis and ω at the mean of the two ends: second-order accurate at the step's middle;
+* one RK4 step of ``swing_rhs`` with that drive advances (α, β, α̇, β̇) (ω₀h ≈ 0.005 at
   2 ms: far below the twin's own error).
 
 The step is compiled over a chunk of steps (``mapaccum``,
@@ -69,9 +70,9 @@ def _chunk_function(crane: Crane, pend: Pendulum, h: float, chunk: int):
     s = ca.SX.sym("s", 4)
     x0, x1 = ca.SX.sym("x0", 2 * n), ca.SX.sym("x1", 2 * n)    # (q, q̇) at k and k + 1
     z = ca.SX.zeros(n)
-    v0 = tm(x0[:n], x0[n:], z)[1]
-    v1 = tm(x1[:n], x1[n:], z)[1]
-    a = (v1 - v0) / h
+    m0, m1 = tm(x0[:n], x0[n:], z), tm(x1[:n], x1[n:], z)
+    a = ca.vertcat((m1[1] - m0[1]) / h, 0.5 * (m0[4] + m1[4]), 0.5 * (m0[5] + m1[5]),
+                   (m1[5] - m0[5]) / h)
     f = pend.f_swing
     k1 = f(s, a)
     k2 = f(s + 0.5 * h * k1, a)

@@ -4,6 +4,7 @@ the Exudyn plant off by ±20 % from what the planners (and the twin that refines
 assume; the residual swing after arrival reported per plant.
 
     python benchmarks/bench_sway_robust.py [--moves 12 | --only ID,ID] [--length 1.5]
+                                           [--methods nlp,zvd,nlp-sway+ffs]
                                            [--zeta 0.05] [--off 0.2] [--settle 6]
                                            [--ff-iterations 80] [--swing-weight 10]
                                            [--out benchmarks/results] [--tag sway_robust]
@@ -46,6 +47,19 @@ from planner.refine import RefineOptions, refine_commands  # noqa: E402
 from planner.simulation.plants import load_swing, make_plant  # noqa: E402
 
 METHODS = ("nlp", "zvd", "nlp-sway+ffs")
+
+
+def method_of(name: str, opts: dict) -> tuple:
+    """(registered method, request options) of a bench method name: ``METHOD[+OPT=VALUE…][+ffs]``
+    (``+ffs``: the commands refined on the coupled twin, :func:`move_commands`)."""
+    parts = name.split("+")
+    extra = {}
+    for p in parts[1:]:
+        if "=" in p:
+            k, v = p.split("=", 1)
+            extra[k] = float(v)
+    base = {} if parts[0] == "nlp" else dict(opts)
+    return parts[0], {**base, **extra}
 
 
 def log(*a):
@@ -93,6 +107,9 @@ def main(argv=None):
     ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
     ap.add_argument("--off", type=float, default=0.2, help="the plants' share off (0.2)")
     ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
+    ap.add_argument("--methods", default=",".join(METHODS),
+                    help="methods, each METHOD[+OPTION=VALUE…][+ffs] (e.g. "
+                         "nlp-sway+swing_robust=0.1+ffs)")
     ap.add_argument("--ff-iterations", type=int, default=80)
     ap.add_argument("--swing-weight", type=float, default=10.0)
     ap.add_argument("--out", type=Path, default=HERE / "results")
@@ -127,10 +144,10 @@ def main(argv=None):
     for i_mv, mv in enumerate(moves):
         if i_mv:
             save(moves[:i_mv])
-        for name in METHODS:
-            method = name.split("+")[0]
+        for name in args.methods.split(","):
+            method, options = method_of(name, opts)
             res = plan(crane, PlanRequest(mv.start, mv.goal, obstacles=obstacles,
-                                          options={} if method == "nlp" else opts), method)
+                                          options=options), method)
             if not res.ok:
                 rows.append(dict(method=name, move=mv.id, status=str(res.status),
                                  reason=res.reason))

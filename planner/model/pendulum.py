@@ -21,19 +21,23 @@ the first about the boom's pitch axis e₁ (fixed in the last link), the second 
 to e₁ and to the link. So the body's angular velocity is ω_b = ω_L + ȧ e₁ + ḃ e₂ (ω_L the last
 link's, ȧ, ḃ the pin rates): the load spins with the slew, and the pins' damping acts on the
 rates relative to the boom. The pin rates follow from the world angles without the pin angles
-themselves: u = d/L turns as u̇ = ω_b × u, so (ȧ, ḃ) solves
-[e₁ × u, e₂ × u]·(ȧ, ḃ) = u̇ − ω_L × u (two equations in the plane square to u). With
-θ = (α, β), J = ∂d/∂θ and T_rot = ½ m k² |ω_b|² (the grapple's inertia m k² about every axis
-through its centre of mass), Lagrange's equations in the pivot's frame are
+themselves: u = d/L turns as u̇ = ω_b × u, so r = (ȧ, ḃ) solves
+[e₁ × u, e₂ × u]·r = u̇ − ω_L × u (two equations in the plane square to u). The equations of
+motion are Newton's and Euler's for the body (the grapple's inertia m k² about every axis
+through its centre of mass), the pivot force eliminated, projected on the two pin axes, which
+pass no torque but their damping:
 
-    (m JᵀJ) θ̈ + h(θ, θ̇) + d/dt(∂T_rot/∂θ̇) − ∂T_rot/∂θ = m Jᵀ g_eff − c Gᵀ (ȧ, ḃ),
-    h = (∂(m JᵀJ θ̇)/∂θ) θ̇ − ½ ∂(θ̇ᵀ m JᵀJ θ̇)/∂θ,      G = ∂(ȧ, ḃ)/∂θ̇,
+    e_i · [ (k² + L² (1 − u uᵀ)) ω̇_b + L² (u·ω_b) u × ω_b + L u × (a_tip − g) ] = −(c/m) r_i,
 
-where d/dt(∂T_rot/∂θ̇) is taken through θ, θ̇, the pin axis (ė₁ = ω_L × e₁) and ω_L
-(ω̇_L given). The **drive** (:data:`DRIVE`, 12 numbers, frame 0) is what the crane hands the
-link: the pivot's acceleration a_tip, the first pin's axis e₁ and the last link's ω_L and ω̇_L
-(:func:`tip_motion` computes it from q, q̇, q̈). A three-number drive is a pivot that moves
-without turning, its first pin about world y.
+with ω̇_b = ω̇_L + ṙ₁ e₁ + ṙ₂ e₂ + r₁ ω_L × e₁ + r₂ (ω_L + r₁ e₁) × e₂ (e₁ turns with the
+link, e₂ with the cross between the pins): two linear equations for ṙ, then θ̈ (θ = (α, β))
+from ü = ω̇_b × u + ω_b × (ω_b × u) = J_u θ̈ + J̇_u θ̇. The **drive** (:data:`DRIVE`, 12
+numbers, frame 0) is what the crane hands the link: the pivot's acceleration a_tip, the
+first pin's axis e₁ and the last link's ω_L and ω̇_L (:func:`tip_motion` computes it from q,
+q̇, q̈). A three-number drive is a pivot that moves without turning, its first pin about
+world y. (The tests check these equations against Lagrange's, derived by CasADi's own
+differentiation of the kinetic energy, to machine precision; they are a quarter of the
+operations.)
 
 Why it matters (``benchmarks/sway_twin_gap.py``, s100f, 880 kg on 1.5 m, k = 0.3 m, the
 Exudyn plant's recorded joints driving the model): with the body not turning with the boom the
@@ -280,38 +284,52 @@ def as_drive(a) -> np.ndarray:
     return np.concatenate([a, rest], -1)
 
 
+def _solve2(M, b):
+    """The 2×2 system M·x = b in closed form (CasADi expressions)."""
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return ca.vertcat(M[1, 1] * b[0] - M[0, 1] * b[1], M[0, 0] * b[1] - M[1, 0] * b[0]) / det
+
+
 def swing_rhs_expr(x, drive, length, mass, gyration, damping, gravity):
-    """The swing's ODE as a CasADi expression (the module doc's Lagrange equations, the one
+    """The swing's ODE as a CasADi expression (the module doc's equations, the one
     definition): state ``x`` (α, β, α̇, β̇), ``drive`` (:data:`DRIVE`: 12, or 3 for a tip
     acceleration alone) and the link's data, numbers or symbols (a compiled twin takes them
     as inputs) -> ẋ (4)."""
     if drive.numel() == 3:
         drive = ca.vertcat(drive, ca.DM(STILL_AXIS), ca.DM.zeros(6))
-    given, drive = drive, ca.SX.sym("drive", DRIVE_SIZE)    # derivatives need pure symbols
     th, thd = x[:2], x[2:]
-    m, k, c = mass, gyration, damping
+    L, m, k, c = length, mass, gyration, damping
     a, e1, wl, wld = drive[0:3], drive[3:6], drive[6:9], drive[9:12]
-    d = ca.vertcat(*_direction(length, th[0], th[1]))
-    J = ca.jacobian(d, th)
-    Mt = m * (J.T @ J)
-    Mv = Mt @ thd
-    h = ca.jacobian(Mv, th) @ thd - 0.5 * ca.gradient(ca.dot(thd, Mv), th)
-    g_eff = ca.vertcat(0, 0, -gravity) - a
-    # the pin rates (ȧ, ḃ): u̇ − ω_L × u = ȧ e₁ × u + ḃ e₂ × u
-    u, ud = d / length, (J @ thd) / length
+    sa, cs_a, sb, cs_b = ca.sin(th[0]), ca.cos(th[0]), ca.sin(th[1]), ca.cos(th[1])
+    u = ca.vertcat(sb, -sa * cs_b, -cs_a * cs_b)                 # d / L
+    Ju = ca.horzcat(ca.vertcat(0, -cs_a * cs_b, sa * cs_b),      # ∂u/∂α, ∂u/∂β
+                    ca.vertcat(cs_b, sa * sb, cs_a * sb))
+    ud = Ju @ thd
     e2 = ca.cross(u, e1)
     e2 = e2 / ca.norm_2(e2)
+    E = (e1, e2)
+    # the pin rates r: u̇ − ω_L × u = r₁ e₁ × u + r₂ e₂ × u
     A = ca.horzcat(ca.cross(e1, u), ca.cross(e2, u))
-    rates = ca.solve(A.T @ A, A.T @ (ud - ca.cross(wl, u)))
-    wb = wl + rates[0] * e1 + rates[1] * e2
-    Trot = 0.5 * m * k * k * ca.dot(wb, wb)
-    p = ca.gradient(Trot, thd)
-    H = ca.jacobian(p, thd)
-    dp_rest = (ca.jacobian(p, th) @ thd + ca.jacobian(p, e1) @ ca.cross(wl, e1)
-               + ca.jacobian(p, wl) @ wld)
-    Q = (m * J.T @ g_eff - h - dp_rest + ca.gradient(Trot, th)
-         - c * ca.jacobian(rates, thd).T @ rates)
-    return ca.substitute(ca.vertcat(thd, ca.solve(Mt + H, Q)), drive, ca.SX(given))
+    r = _solve2(A.T @ A, A.T @ (ud - ca.cross(wl, u)))
+    wb = wl + r[0] * e1 + r[1] * e2
+    # ω̇_b = w0 + ṙ₁ e₁ + ṙ₂ e₂ (e₁ turns with the link, e₂ with the cross)
+    w0 = wld + r[0] * ca.cross(wl, e1) + r[1] * ca.cross(wl + r[0] * e1, e2)
+
+    def inertial(w):     # (k² + L² (1 − u uᵀ)) w: the body's inertia about the pivot / m
+        return k * k * w + L * L * (w - ca.dot(u, w) * u)
+    rest = (inertial(w0) + L * L * ca.dot(u, wb) * ca.cross(u, wb)
+            + L * ca.cross(u, a - ca.vertcat(0, 0, -gravity)))
+    Mr = ca.vertcat(*[ca.horzcat(*[ca.dot(E[i], inertial(E[j])) for j in range(2)])
+                      for i in range(2)])
+    rd = _solve2(Mr, ca.vertcat(*[-c / m * r[i] - ca.dot(E[i], rest) for i in range(2)]))
+    wbd = w0 + rd[0] * e1 + rd[1] * e2
+    # θ̈ from ü = ω̇_b × u + ω_b × (ω_b × u) = J_u θ̈ + J̇_u θ̇
+    udd = ca.cross(wbd, u) + ca.cross(wb, ca.cross(wb, u))
+    Jd = ca.horzcat(ca.vertcat(0, sa * cs_b * thd[0] + cs_a * sb * thd[1],
+                               cs_a * cs_b * thd[0] - sa * sb * thd[1]),
+                    ca.vertcat(-sb * thd[1], cs_a * sb * thd[0] + sa * cs_b * thd[1],
+                               -sa * sb * thd[0] + cs_a * cs_b * thd[1]))
+    return ca.vertcat(thd, _solve2(Ju.T @ Ju, Ju.T @ (udd - Jd @ thd)))
 
 
 def pin_axis_joint(crane: Crane) -> int:

@@ -182,3 +182,43 @@ def test_the_plants_load_swings_as_the_model_says_when_the_pins_turn_with_the_bo
     blind = pend.offset(pend.integrate(pred.t, acc))
     at = np.column_stack([np.interp(t, pred.t, blind[:, i]) for i in range(2)])
     assert np.linalg.norm(at - swing, axis=1).max() > 5 * max(gap, 2e-3)
+
+
+def _lagrange_rhs(x, drive, L, m, k, c, g):
+    """A second derivation of the swing's equations (the oracle): Lagrange's equations of the
+    kinetic energy ½ m |ḋ|² + ½ m k² |ω_b|² in the pivot's frame, differentiated by CasADi,
+    the pins' damping as a Rayleigh function ½ c |r|² of the pin rates."""
+    th, thd = x[:2], x[2:]
+    a, e1, wl, wld = drive[0:3], drive[3:6], drive[6:9], drive[9:12]
+    d = L * ca.vertcat(ca.sin(th[1]), -ca.sin(th[0]) * ca.cos(th[1]),
+                       -ca.cos(th[0]) * ca.cos(th[1]))
+    J = ca.jacobian(d, th)
+    u, ud = d / L, J @ thd / L
+    e2 = ca.cross(u, e1) / ca.norm_2(ca.cross(u, e1))
+    A = ca.horzcat(ca.cross(e1, u), ca.cross(e2, u))
+    r = ca.solve(A.T @ A, A.T @ (ud - ca.cross(wl, u)))
+    wb = wl + r[0] * e1 + r[1] * e2
+    T = 0.5 * m * ca.dot(J @ thd, J @ thd) + 0.5 * m * k * k * ca.dot(wb, wb)
+    p = ca.gradient(T, thd)
+    dp = (ca.jacobian(p, th) @ thd + ca.jacobian(p, e1) @ ca.cross(wl, e1)
+          + ca.jacobian(p, wl) @ wld)
+    Q = m * J.T @ (ca.vertcat(0, 0, -g) - a) - c * ca.jacobian(r, thd).T @ r
+    return ca.solve(ca.jacobian(p, thd), Q - dp + ca.gradient(T, th))
+
+
+def test_the_swing_equations_are_lagranges():
+    """Oracle: Lagrange's equations of the same body (above), on random swing states and
+    drives (the pivot accelerating, the boom turning about a tilted axis): the model's
+    Newton–Euler right-hand side agrees to round-off."""
+    x, dv = ca.SX.sym("x", 4), ca.SX.sym("d", 12)
+    L, m, k, c, g = 1.5, 880.0, 0.3, 516.0, 9.81
+    oracle = ca.Function("lagrange", [x, dv], [_lagrange_rhs(x, dv, L, m, k, c, g)])
+    p = Pendulum(length=L, mass=m, damping=c, gyration=k, gravity=g)
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        s = rng.normal(0.0, 0.3, 4)
+        e1 = np.array([-np.sin(rng.uniform(0, 6)), np.cos(rng.uniform(0, 6)), 0.1])
+        drive = np.concatenate([rng.normal(0, 1, 3), e1 / np.linalg.norm(e1),
+                                rng.normal(0, 0.5, 3), rng.normal(0, 1, 3)])
+        want = np.array(oracle(s, drive)).ravel()
+        assert np.allclose(p.rhs(s, drive)[2:], want, rtol=1e-9, atol=1e-9)

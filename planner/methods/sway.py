@@ -13,7 +13,9 @@ is a function of the joint motion the NLP chooses. Constraints beyond the sway-b
 - at the goal (tip at rest) the free swing's small-angle amplitude
   L·√(α² + β² + (α̇² + β̇²)/ω₀²) ≤ ``swing_tol`` (default 10 mm): the residual swing;
 - during the move the load's horizontal offset L·√(sin²α + sin²β) ≤ ``swing_max`` [m] at the
-  nodes (an operator's limit; default none: only |α|, |β| ≤ 1 rad, where the model stays valid);
+  nodes (an operator's limit: the request's option, else the spec's
+  ``[dynamics.grapple] swing_max``; default none: only |α|, |β| ≤ 1 rad, where the model
+  stays valid);
 - obstacles: the tip's clearance at the nodes and midpoints (as the sway-blind NLP, and checked
   afterwards on a 1 kHz resampling at 0.96 × the clearance); with ``load_clearance`` the load's
   centre of mass (tip + link) keeps the clearance at the nodes and at the RK4 steps inside each
@@ -301,6 +303,9 @@ class SwayPlanner(Planner):
         N = request.option("intervals", 40)
         tol = float(request.option("swing_tol", SWING_TOL))
         smax = request.option("swing_max")
+        grapple = crane.spec.dynamics.grapple if crane.spec.dynamics is not None else None
+        if smax is None and grapple is not None:
+            smax = grapple.swing_max           # the operator's limit from the spec
         load = bool(request.option("load_clearance", False))
         robust = float(request.option("swing_robust", 0.0))
         key = (id(crane), pend, N, tol, smax, load, robust, request.obstacles, substeps)

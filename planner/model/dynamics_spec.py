@@ -25,6 +25,8 @@ leakage = 0.0                   # m³/(s·Pa), loaded chamber to tank (optional,
 link_length = 1.2               # m, pivot at the boom tip to the centre of mass of grapple + load
 damping = 800.0                 # N·m·s/rad about each of the two pins
 gyration = 0.3                  # m, radius of gyration of grapple + load about their centre
+swing_max = 0.5                 # m, optional: the operator's limit on the load's horizontal
+                                #   offset from under the tip during a move (sway-free plans)
 ```
 Without ``[dynamics.grapple]`` the grapple and its load are a point mass fixed at the tip.
 """
@@ -42,7 +44,7 @@ DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "p
 #: [Pa] the atmosphere in the pressure law of the bulk modulus (pressures are gauge)
 P_ATM = 1.0e5
 _JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "leakage", "source"}
-_GRAPPLE_KEYS = {"link_length", "damping", "gyration", "source"}
+_GRAPPLE_KEYS = {"link_length", "damping", "gyration", "swing_max", "source"}
 #: assumed radius of gyration [m] of grapple + load about their centre of mass: a forestry
 #: grapple with its rotator is about 1 m tall and its logs spread ~0.5 m around the axis
 GYRATION = 0.3
@@ -65,11 +67,14 @@ class GrappleLink:
     """The passive two-axis link the grapple hangs on: pivot-to-centre-of-mass ``length``
     [m], viscous ``damping`` [N·m·s/rad] about each pin, radius of ``gyration`` [m] of grapple
     + load about their centre of mass. One pin is parallel to the boom's pitch axis (swing in
-    the boom plane), the other perpendicular to it (swing out of the plane)."""
+    the boom plane), the other perpendicular to it (swing out of the plane). ``swing_max`` [m]:
+    the operator's limit on the load's horizontal offset from under the tip during a move
+    (None: none; ``nlp-sway`` keeps it unless the request names another)."""
     length: float
     damping: float = 0.0
     gyration: float = GYRATION
     source: str = ""
+    swing_max: float | None = None
 
 
 @dataclass(frozen=True)
@@ -147,5 +152,7 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
         g = GrappleLink(length=R.num(g, "link_length", gw, lo=0, lo_open=True, hi=5.0),
                         damping=R.num(g, "damping", gw, default=0.0, lo=0.0, hi=1e6),
                         gyration=R.num(g, "gyration", gw, default=GYRATION, lo=0.0, hi=2.0),
-                        source=R.text(g, "source", gw, default=""))
+                        source=R.text(g, "source", gw, default=""),
+                        swing_max=(R.num(g, "swing_max", gw, lo=0.0, lo_open=True, hi=5.0)
+                                   if "swing_max" in g else None))
     return DynamicsSpec(joints=joints, grapple=g, **kw)

@@ -84,3 +84,21 @@ def test_plan_grapple_reports_the_predicted_swing(tmp_path, capsys):
                  "--method", "zvd"]) == 2
     err = capsys.readouterr().err.strip()
     assert "--grapple" in err and "umea-lab" in err and "\n" not in err
+
+
+@pytest.mark.slow     # one more sway-free NLP with the exact Hessian (~10 s)
+def test_the_operators_swing_limit_from_the_spec_bounds_the_swing_during_the_move(s100f, plans):
+    """``[dynamics.grapple] swing_max``: the plan keeps the load's horizontal offset under it
+    (oracle: the fine 200 Hz integration, 3 % over the NLP's nodes allowed), where the
+    unbounded sway-free plan of the same move goes past it; the goal still calm."""
+    from dataclasses import replace
+    from planner.model.dynamics_spec import GrappleLink
+    free = plans["nlp-sway"].stats["swing_peak_m"]
+    limit = round(0.7 * free, 3)
+    dyn = replace(s100f.spec.dynamics, grapple=GrappleLink(1.5, swing_max=limit))
+    crane = Crane(replace(s100f.spec, dynamics=dyn))
+    res = plan(crane, PlanRequest(*MOVE, options=OPTS), "nlp-sway")
+    assert res.ok, res.reason
+    fine = predict_swing(crane, res.trajectory, Pendulum.of(crane, 1.5, zeta=0.05))
+    assert fine.peak_during_m <= 1.03 * limit < free
+    assert fine.residual_m <= 0.012

@@ -44,6 +44,7 @@ def _raw(cid):
     (("joint", "nope"), {"hose_volume": [1e-3, 1e-3]}, "dynamics.joint.nope"),
     (("grapple",), {"link_length": -1.0}, "dynamics.grapple.link_length"),
     (("grapple",), {"link_length": 1.0, "swing": 2.0}, "dynamics.grapple.swing"),
+    (("grapple",), {"link_length": 1.0, "swing_max": 0.0}, "dynamics.grapple.swing_max"),
 ])
 def test_bad_dynamics_parameters_are_refused_naming_the_field(path, value, field):
     data = copy.deepcopy(_raw("s100f"))
@@ -54,6 +55,14 @@ def test_bad_dynamics_parameters_are_refused_naming_the_field(path, value, field
     with pytest.raises(SpecError) as e:
         parse_spec(data, "s100f.toml")
     assert field in str(e.value)
+
+
+def test_the_operators_swing_limit_is_read_from_the_spec():
+    data = copy.deepcopy(_raw("s100f"))
+    data["dynamics"]["grapple"] = {"link_length": 1.5, "swing_max": 0.4}
+    assert parse_spec(data, "s100f.toml").dynamics.grapple.swing_max == 0.4
+    del data["dynamics"]["grapple"]["swing_max"]
+    assert parse_spec(data, "s100f.toml").dynamics.grapple.swing_max is None
 
 
 def test_missing_dynamics_section_is_refused_by_the_plant():

@@ -154,6 +154,10 @@ def main(argv=None):
     ap.add_argument("--plant-mass", type=float, default=None, metavar="SCALE",
                     help="the plant's load + tool mass as a multiple of the spec's, while the "
                          "planners assume the spec's (robustness; the payload_mass effect)")
+    ap.add_argument("--plant-machine", type=int, default=None, metavar="SEED",
+                    help="judge on an Exudyn machine whose dynamic parameters are drawn within "
+                         "±30 %% of the spec's with this seed, with a pressure-dependent bulk "
+                         "modulus, leakage and dead bands (bench_refine_robust.py's draw)")
     ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
     ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
     ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
@@ -187,7 +191,13 @@ def main(argv=None):
     if args.plant_mass is not None:   # the plant's load off from the planners' assumption
         effects.append(make("payload_mass", mass=round((args.plant_mass - 1.0)
                                                        * crane.spec.payload.total, 1)))
-    plant = make_plant("exudyn", crane, effects)
+    if args.plant_machine is None:
+        plant = make_plant("exudyn", crane, effects)
+    else:   # a machine the planners and the twin were not told: its dynamics drawn ±30 %
+        from bench_refine_robust import draw_machines, machine_plant
+        drawn = draw_machines(crane.spec.dynamics, 1, args.plant_machine, 0.3)[-1]
+        plant = machine_plant(crane, drawn, effects)
+        args.machine_drawn = drawn
     suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full",
                               args.tasks)
     obstacles = tuple(suite.obstacles)
@@ -331,6 +341,8 @@ def markdown(res) -> list:
          + (f" --refine {a['refine']}" if a.get("refine") else "")
          + (f" --plant-length {a['plant_length']:g}" if a.get("plant_length") else "")
          + (f" --plant-mass {a['plant_mass']:g}" if a.get("plant_mass") else "")
+         + (f" --plant-machine {a['plant_machine']}" if a.get("plant_machine") is not None
+            else "")
          + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
             f"{a.get('swing_weight', 10.0):g}"
             if "+ff" in a["methods"] else "")
@@ -345,6 +357,10 @@ def markdown(res) -> list:
          + (f"(the planners assume {a['length']:g} m) " if a.get("plant_length") else "")
          + (f"and {a['plant_mass']:g} × the spec's load + tool mass (the planners and the "
             "twin assume the spec's) " if a.get("plant_mass") else "")
+         + (f"on an Exudyn machine drawn with seed {a['plant_machine']} (bulk modulus, hoses, "
+            "spool and pump lags, friction within ±30 % of the spec's, leakage, dead bands, "
+            "β(p); the values in the JSON's args.machine_drawn; the planners and the twin "
+            "were given the spec's) " if a.get("plant_machine") is not None else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
          + (f"{len(res['moves'])} moves of `{a['tasks']}` (no headboard); every plan's "
             if a.get("tasks") else

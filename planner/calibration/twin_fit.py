@@ -20,13 +20,26 @@ chamber measured beside one carried leaves a locked cylinder with the wrong trap
 log without pressures starts each segment from the model's holding pressures (or the carried
 state). A log without holds is one segment.
 
+**Windows (the first stage).** A long segment simulated open loop from one start makes a
+narrow valley: on a drawn s100f machine the misfit falls monotonically along the straight
+line from the spec's values to the truth, yet 90 % of the way there it is still 3.4 × the
+truth's, and the fit from the spec stalled at 3–8 × (the ringing's phase and the trapped
+pressures carry every early error through the segment). The first stage therefore cuts each
+segment into windows of :attr:`TwinFit.WINDOW` seconds (multiple shooting on the log): a
+window after a segment's first starts from the log's own state there — positions and
+velocities, both chamber pressures, from a Savitzky–Golay fit (order 2 over
+:data:`_SG_SAMPLES` samples) — and the twin's own pump and spools, carried from the window
+before. Each window then sees one second of error, not the segment's history; the valley is
+wide. The second stage fits the whole segments (the samples as logged) from there, which is
+what the refined feed-forward relies on: the twin run open loop for a whole move.
+
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
 5 % of seed 001's sensor accuracies (:data:`planner.simulation.recording.NOISE_DEFAULTS`) so
 that a noiseless synthetic log stays finite. A twin run that diverges scores
 :data:`DIVERGED` per remaining sample.
 
-**Fit.** scipy's trust-region reflective least squares on the scaled parameters (bounded), its
+**Fit.** Both stages: scipy's trust-region reflective least squares on the scaled parameters (bounded), its
 Jacobian by forward differences of whole twin runs (one run per parameter; the twin's
 parameters are inputs of its compiled step, so nothing is recompiled). **Intervals**: the
 Gauss–Newton covariance s²·(JᵀJ)⁻¹ at the solution, s² the misfit per degree of freedom
@@ -44,6 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planner.calibration.log_state import log_state
 from planner.calibration.noise import noise_floor_at
 from planner.calibration.twin_params import machine_of, select, twin_parameters
 from planner.model.twin import Twin
@@ -62,6 +76,7 @@ _FD_STEP = 1e-2         # forward-difference step in the scaled parameters: the 
 #                         sticks and slips in holds, so a smaller step puts a jump of the
 #                         base run into every column (excite_information.py measured it)
 _Z95 = 1.959964
+_SG_SAMPLES = 9         # Savitzky–Golay window of a window's start state (0.16 s at 50 Hz)
 
 
 @dataclass
@@ -77,6 +92,7 @@ class Segment:
     p_b0: np.ndarray | None
     sd_a: np.ndarray | None = None     # spread of the pressures over the anchor window
     sd_b: np.ndarray | None = None
+    window: bool = False               # a window of the first stage (module doc)
 
 
 def segments(rec: Recording, index: int = 0, hold: float = 0.5,
@@ -169,6 +185,9 @@ class TwinFit:
     #: [s] moving-average window of the first stage: longer than a hydraulic mode's period
     #: (0.7–3 Hz on the machines here), so the stage sees the settled compression, not the phase
     SMOOTH = 0.5
+    #: [s] the first stage's windows (module doc): a few periods of the slowest hydraulic
+    #: mode would let its phase error grow again, one is short enough
+    WINDOW = 1.0
     #: the bulk-modulus factors tried before the raw stage (6 % apart: the valley of the raw
     #: misfit is about ±15 % wide on the machines here)
     SCAN = np.geomspace(0.5, 2.0, 25)
@@ -187,6 +206,8 @@ class TwinFit:
             raise ValueError("measured: the logs hold no motion after their first sample; "
                              "allowed: a log of commanded moves")
         self.use_p = pressures and all(r.p_a is not None for r in self.recs)
+        self.full_segs = self.segs
+        self.windows = windows(self.recs, self.segs, self.WINDOW)
         self.sig = [_noise(crane, r) for r in self.recs]
         #: single-acting cylinders: the rod side is vented (the twin holds it at tank)
         self.vented = np.array([j.actuator.acting == "single" for j in crane.spec.joints])
@@ -257,6 +278,8 @@ class TwinFit:
         anchor window (spread under twice its noise: not ringing)."""
         n = self.crane.n
         x0 = tw.rest_state(s.q0)
+        if s.window:
+            return self._window_start(x0, s, carry)
         if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
             run = carry[2]
             x0[n:2 * n] = run.qd[-1]
@@ -274,6 +297,21 @@ class TwinFit:
             qb = quiet & ~self.vented   # a single-acting rod side stays at tank (no sensor noise)
             x0[2 * n:3 * n][quiet] = s.p_a0[quiet]
             x0[3 * n:4 * n][qb] = s.p_b0[qb]
+        return x0
+
+    def _window_start(self, x0, s: Segment, carry) -> np.ndarray:
+        """A window's start (module doc): the log's positions, velocities and pressures at
+        its first sample, the twin's own pump and spools from the window before."""
+        n = self.crane.n
+        if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
+            run = carry[2]
+            x0[4 * n] = run.p_s[-1]
+            x0[4 * n + 1:4 * n + 1 + n] = run.spool[-1]
+        sg = log_state(self.recs[s.rec], s.k0, _SG_SAMPLES)
+        x0[:n], x0[n:2 * n] = sg["q"], sg["qd"]
+        if self.use_p:
+            x0[2 * n:3 * n] = sg["p_a"]
+            x0[3 * n:4 * n][~self.vented] = sg["p_b"][~self.vented]
         return x0
 
     def _low(self, Y, t):
@@ -372,13 +410,14 @@ class TwinFit:
         def jac(z):
             return self.jacobian(z, fun(z))
         z = z0
-        # stage 1 on the moving averages (the ringing's phase removed: a smooth valley),
-        # stage 2 on the samples as logged, from there (module doc)
-        stages = ((self.SMOOTH, max(max_iterations // 2, 1)),
-                  (0.0, max(max_iterations - max_iterations // 2, 1)))
-        for smooth, iters in stages:
-            self.smooth = smooth
-            if smooth == 0.0:
+        # stage 1 on one-second windows from the log's own states (a wide valley), stage 2
+        # on the whole segments, the samples as logged, from there (module doc)
+        stages = ((self.windows, max(max_iterations // 2, 1)),
+                  (self.full_segs, max(max_iterations - max_iterations // 2, 1)))
+        for segs, iters in stages:
+            self.segs = segs
+            cache.clear()
+            if segs is self.full_segs:
                 z = self.scan_oil(z, lb, ub)
             sol = least_squares(fun, z, jac=jac, bounds=(lb, ub), method="trf", x_scale=1.0,
                                 max_nfev=iters, ftol=tol, xtol=tol, gtol=1e-8)
@@ -411,6 +450,26 @@ class TwinFit:
                              message=str(sol.message), dynamics=dyn, deadband=db,
                              segments=len(self.segs),
                              samples=int(sum(s.k1 - s.k0 for s in self.segs)), units=units)
+
+
+def windows(recs, segs: list[Segment], length: float) -> list[Segment]:
+    """``segs`` cut into windows of about ``length`` s (module doc); a segment's first window
+    keeps its start, a last piece shorter than a fifth of ``length`` joins the window before."""
+    out = []
+    for s in segs:
+        t = recs[s.rec].t
+        k, first = s.k0, True
+        while k < s.k1:
+            e = min(int(np.searchsorted(t, t[k] + length - 1e-9)), s.k1)
+            if t[s.k1] - t[e] < 0.2 * length:
+                e = s.k1
+            e = max(e, k + 1)
+            out.append(s if first and e == s.k1 else
+                       Segment(s.rec, k, e, s.q0, s.p_a0, s.p_b0, s.sd_a, s.sd_b)
+                       if first else Segment(s.rec, k, e, recs[s.rec].q[k], None, None,
+                                             window=True))
+            k, first = e, False
+    return out
 
 
 def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,

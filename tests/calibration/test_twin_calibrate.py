@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from planner.calibration.trials import excitation
-from planner.calibration.twin_fit import TwinFit, TwinFitResult, segments
+from planner.calibration.log_state import log_state
+from planner.calibration.twin_fit import TwinFit, TwinFitResult, segments, windows
 from planner.calibration.twin_params import machine_of, select, twin_parameters
 from planner.calibration.twin_spec import calibrated_twin_text
 from planner.cli import main
@@ -39,7 +40,7 @@ def twin_log(crane, truth, duration=4.0, seed=3, noise_seed=2):
 
 def test_fit_finds_the_oil_and_a_dead_band_it_was_not_told(lab):
     """β × 0.6 lies two valleys of the raw misfit away from the spec's β (the ringing's
-    phase): the smoothed stage and the scan must bring the fit there."""
+    phase): the window stage and the scan must bring the fit there."""
     boom = lab.names[1]
     truth = {"bulk_modulus": 0.6 * lab.spec.dynamics.bulk_modulus, f"deadband.{boom}": 0.02}
     rec = twin_log(lab, truth)
@@ -78,6 +79,48 @@ def test_segments_start_at_the_end_of_each_hold(lab):
     for s in segs:
         assert still[s.k0] and not still[s.k0 + 1]   # the hold's last sample, then motion
         np.testing.assert_allclose(s.q0, rec.q[s.k0], atol=0.01)
+
+
+def test_windows_cut_every_segment_into_seconds_and_cover_it(lab):
+    rec = twin_log(lab, {}, duration=4.0)
+    segs = segments(rec, hold=0.5)
+    wins = windows([rec], segs, 1.0)
+    for s in segs:
+        mine = [w for w in wins if s.k0 <= w.k0 < s.k1]
+        assert mine[0].k0 == s.k0 and mine[-1].k1 == s.k1 and not mine[0].window
+        assert all(a.k1 == b.k0 for a, b in zip(mine, mine[1:]))     # contiguous, no gap
+        assert all(w.window for w in mine[1:])                       # the log's own state
+        for w in mine:
+            assert rec.t[w.k1] - rec.t[w.k0] <= 1.2 + 1e-9           # a last short piece joins
+        assert len(mine) == max(1, round((rec.t[s.k1] - rec.t[s.k0]) / 1.0 + 0.3))
+
+
+def test_log_state_is_exact_on_a_parabola_and_follows_a_sine():
+    from types import SimpleNamespace
+    t = np.arange(0.0, 2.0, 0.02)
+    q = np.c_[0.3 + 0.5 * t - 0.7 * t ** 2, np.sin(2.0 * t)]
+    rec = SimpleNamespace(t=t, q=q, p_a=None, p_b=None)
+    for k in (0, 3, 50, 99):          # the log's ends too (the window shifts inward)
+        s = log_state(rec, k)
+        assert s["q"][0] == pytest.approx(q[k, 0], abs=1e-12)
+        assert s["qd"][0] == pytest.approx(0.5 - 1.4 * t[k], abs=1e-10)
+        assert s["qd"][1] == pytest.approx(2.0 * np.cos(2.0 * t[k]), abs=5e-3 if 3 < k < 96 else 0.03)
+    assert "p_a" not in log_state(rec, 10)
+    with pytest.raises(ValueError, match="sample: 100; allowed: 0 .. 99"):
+        log_state(rec, 100)
+
+
+def test_windows_see_the_truth_and_not_the_spec(lab):
+    """On the twin's own log with β × 0.6, the window stage's misfit is noise at the truth
+    and far above it at the spec's β: the stage can tell them apart without the history."""
+    truth = {"bulk_modulus": 0.6 * lab.spec.dynamics.bulk_modulus}
+    rec = twin_log(lab, truth)
+    fit = TwinFit(lab, [rec], parameters=["bulk_modulus"])
+    fit.segs = fit.windows
+    assert any(w.window for w in fit.windows)
+    at_truth = np.sqrt(np.mean(fit.residuals(np.array([np.log(0.6)])) ** 2))
+    at_spec = np.sqrt(np.mean(fit.residuals(fit.z0()) ** 2))
+    assert at_truth < 1.3 and at_spec > 3.0 * at_truth
 
 
 def test_parameters_select_and_refuse_by_name(lab):

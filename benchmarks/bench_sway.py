@@ -7,6 +7,7 @@ ZVD shaping (``zv``, ``zvd``) and the sway-free NLP (``nlp-sway``), side by side
                                     [--length 1.5] [--zeta 0.05]
                                     [--settle 6] [--methods nlp,zv,zvd,nlp-sway,nlp-sway+ffs]
                                     [--plant-length 1.8] [--plant-mass 1.2]
+                                    [--plant-machine SEED [--calibrate SECONDS]]
                                     [--ff-iterations 150] [--swing-weight 10]
                                     [--out benchmarks/results] [--tag sway]
     python benchmarks/bench_sway.py --merge A.json B.json --tag NAME   # split runs, one table
@@ -158,6 +159,11 @@ def main(argv=None):
                     help="judge on an Exudyn machine whose dynamic parameters are drawn within "
                          "±30 %% of the spec's with this seed, with a pressure-dependent bulk "
                          "modulus, leakage and dead bands (bench_refine_robust.py's draw)")
+    ap.add_argument("--calibrate", type=float, default=0.0, metavar="SECONDS",
+                    help="with --plant-machine: first log SECONDS of excitation on that machine "
+                         "(the grapple hanging, seed 001's sensor noise), calibrate the twin on "
+                         "the log (planner.calibration.twin_fit) and refine the +ff / +ffs "
+                         "commands on the calibrated twin (kept in --work)")
     ap.add_argument("--zeta", type=float, default=0.05, help="pin damping, share of critical")
     ap.add_argument("--settle", type=float, default=6.0, help="valves closed after arrival [s]")
     ap.add_argument("--methods", default="nlp,zv,zvd,nlp-sway",
@@ -198,6 +204,11 @@ def main(argv=None):
         drawn = draw_machines(crane.spec.dynamics, 1, args.plant_machine, 0.3)[-1]
         plant = machine_plant(crane, drawn, effects)
         args.machine_drawn = drawn
+    ff_crane = crane                  # the twin the +ff / +ffs commands are refined on
+    if args.calibrate:
+        if args.plant_machine is None:
+            ap.error("--calibrate needs --plant-machine (the machine whose log is fitted)")
+        ff_crane, args.calibration = calibrated_crane(crane, plant, args)
     suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full",
                               args.tasks)
     obstacles = tuple(suite.obstacles)
@@ -252,7 +263,7 @@ def main(argv=None):
             if args.refine or ff:   # the twin's feed-forward (planner.refine), not the nominal
                 nom = commands(crane, tr, 50.0)
                 w = args.swing_weight if "ffs" in ff else 0.0   # +ffs: with the swing term
-                ref = refine_commands(crane, tr, nom.t, nom.u, pendulum=pend,
+                ref = refine_commands(ff_crane, tr, nom.t, nom.u, pendulum=pend,
                                       options=RefineOptions(iterations=args.refine
                                                             or args.ff_iterations,
                                                             swing_weight=w))
@@ -293,6 +304,41 @@ def main(argv=None):
     log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
 
 
+def calibrated_crane(crane, plant, args):
+    """(The crane of the twin calibrated on ``args.calibrate`` s of excitation logged on
+    ``plant``, its fit summary): the trials' excitation (seed 1) replayed open loop at 50 Hz,
+    seed 001's sensor noise on the log (seed 2), every twin parameter fitted
+    (:class:`planner.calibration.twin_fit.TwinFit`, 12 iterations); the calibrated spec kept in
+    ``--work`` and read back from there on the next run with the same machine and length."""
+    import json
+
+    from planner.calibration.trials import excitation
+    from planner.calibration.twin_fit import TwinFit
+    from planner.calibration.twin_spec import calibrated_twin_text
+    from planner.library.refine import model_crane
+    from planner.simulation.recording import Recording
+    args.work.mkdir(parents=True, exist_ok=True)
+    stem = args.work / f"cal-{args.crane}-m{args.plant_machine}-{args.calibrate:g}s"
+    path, info = stem.with_suffix(".toml"), stem.with_suffix(".json")
+    if not path.exists():
+        plan_x, ff = excitation(crane, duration=args.calibrate, seed=1)
+        rec = plant.run(ff.t, ff.u, plan_x.q[0], t_end=float(ff.t[-1]), rate=50.0)
+        if not rec.ok:
+            sys.exit(f"calibrate: the excitation failed on the machine: {rec.reason}")
+        log_ = Recording(rec.t, rec.u, rec.q_true, rec.p_a_true, rec.p_b_true).with_noise(
+            crane, True, seed=2)
+        res = TwinFit(crane, [log_], workers=2).solve(12)
+        atomic_write_text(info, dumps(dict(log_s=float(log_.t[-1] - log_.t[0]),
+                                           fit=res.to_dict())))
+        atomic_write_text(path, calibrated_twin_text(
+            crane, res, f"on {args.calibrate:g} s of excitation on machine seed "
+                        f"{args.plant_machine}"))
+        log(f"calibrated on {args.calibrate:g} s: {res.rms_before} -> {res.rms_after}, "
+            f"{res.runtime_s:.0f} s")
+    return model_crane(path.read_text(encoding="utf-8"), str(path)), \
+        dict(json.loads(info.read_text()), spec=str(path))
+
+
 def merge(paths, out: Path, tag: str) -> None:
     """One result of several runs of the same options over different moves (``--only``,
     parallel processes): rows and moves joined, wall times summed, the first run's date,
@@ -309,6 +355,15 @@ def merge(paths, out: Path, tag: str) -> None:
     atomic_write_text(out / f"{tag}.json", dumps(res))
     atomic_write_text(out / f"{tag}.md", "\n".join(markdown(res)) + "\n")
     log(f"wrote {out / (tag + '.md')} ({len(res['rows'])} rows of {len(runs)} runs)")
+
+
+def _fitmsg(c) -> str:
+    if not c:
+        return "–"
+    f = c["fit"]
+    return (f"positions {f['rms_before']['positions']:.2f} → {f['rms_after']['positions']:.2f}, "
+            f"pressures {f['rms_before']['pressures']:.2f} → {f['rms_after']['pressures']:.2f}, "
+            f"{f['runtime_s']:.0f} s")
 
 
 def _q(v, p):
@@ -343,6 +398,7 @@ def markdown(res) -> list:
          + (f" --plant-mass {a['plant_mass']:g}" if a.get("plant_mass") else "")
          + (f" --plant-machine {a['plant_machine']}" if a.get("plant_machine") is not None
             else "")
+         + (f" --calibrate {a['calibrate']:g}" if a.get("calibrate") else "")
          + (f" --ff-iterations {a.get('ff_iterations', 150)} --swing-weight "
             f"{a.get('swing_weight', 10.0):g}"
             if "+ff" in a["methods"] else "")
@@ -361,6 +417,10 @@ def markdown(res) -> list:
             "spool and pump lags, friction within ±30 % of the spec's, leakage, dead bands, "
             "β(p); the values in the JSON's args.machine_drawn; the planners and the twin "
             "were given the spec's) " if a.get("plant_machine") is not None else "")
+         + (f"— the `+ff`/`+ffs` commands refined on the twin calibrated from "
+            f"{a['calibrate']:g} s of excitation logged on that machine (`--calibrate "
+            f"{a['calibrate']:g}`; the fit's misfit in noise units "
+            f"{_fitmsg(a.get('calibration'))}) " if a.get("calibrate") else "")
          + f"(planned: {res['pendulum_hz']:.2f} Hz, {a['zeta']:g} of critical damping at each pin), "
          + (f"{len(res['moves'])} moves of `{a['tasks']}` (no headboard); every plan's "
             if a.get("tasks") else

@@ -123,6 +123,29 @@ def test_windows_see_the_truth_and_not_the_spec(lab):
     assert at_truth < 1.3 and at_spec > 3.0 * at_truth
 
 
+def test_intervals_widen_by_the_residuals_long_run_variance(lab):
+    """White residuals: the factor is 1; an AR(1) residual with ρ = 0.9 along time: the
+    analytic long-run factor (1 + ρ)/(1 − ρ) = 19, less the Bartlett weights' taper."""
+    rec = twin_log(lab, {}, duration=30.0)
+    fit = TwinFit(lab, [rec], parameters=["bulk_modulus"])
+    n, rng = lab.n, np.random.default_rng(0)
+    size = sum(s.k1 - s.k0 for s in fit.segs)
+    white = rng.standard_normal(size * 3 * n)
+    assert fit.long_run(white) == pytest.approx(1.0, abs=0.15)
+    parts = []
+    for w in (n, 2 * n):
+        for s in fit.segs:
+            e = rng.standard_normal((s.k1 - s.k0, w))
+            x = np.zeros_like(e)
+            x[0] = e[0] / np.sqrt(1 - 0.81)
+            for k in range(1, len(e)):
+                x[k] = 0.9 * x[k - 1] + e[k]
+            parts.append(x.ravel())
+    L = int(round(TwinFit.WINDOW / 0.02))
+    expect = 1 + 2 * sum((1 - k / (L + 1)) * 0.9 ** k for k in range(1, L + 1))
+    assert fit.long_run(np.concatenate(parts)) == pytest.approx(expect, rel=0.15)
+
+
 def test_parameters_select_and_refuse_by_name(lab):
     ps = twin_parameters(lab)
     assert {p.name for p in select(ps, "oil")} == {"bulk_modulus", "bulk_low", "bulk_high",

@@ -208,7 +208,7 @@ def main(argv=None):
     if args.calibrate:
         if args.plant_machine is None:
             ap.error("--calibrate needs --plant-machine (the machine whose log is fitted)")
-        ff_crane, args.calibration = calibrated_crane(crane, plant, args)
+        ff_crane, args.calibration = calibrated_crane(crane, plant, pend, args)
     suite, moves = sway_moves(args.work, args.moves, args.only, args.suite == "full",
                               args.tasks)
     obstacles = tuple(suite.obstacles)
@@ -304,12 +304,14 @@ def main(argv=None):
     log(f"wrote {args.out / (args.tag + '.md')} ({res['wall_s'] / 60:.1f} min)")
 
 
-def calibrated_crane(crane, plant, args):
+def calibrated_crane(crane, plant, pend, args):
     """(The crane of the twin calibrated on ``args.calibrate`` s of excitation logged on
-    ``plant``, its fit summary): the trials' excitation (seed 1) replayed open loop at 50 Hz,
-    seed 001's sensor noise on the log (seed 2), every twin parameter fitted
-    (:class:`planner.calibration.twin_fit.TwinFit`, 12 iterations); the calibrated spec kept in
-    ``--work`` and read back from there on the next run with the same machine and length."""
+    ``plant``, its fit summary): the trials' excitation (seed 1) replayed open loop at 50 Hz
+    with the load hanging on its link (the machine as it is), seed 001's sensor noise on the log
+    (seed 2), every twin parameter fitted on the twin that carries the load on ``pend``
+    (:class:`planner.calibration.twin_fit.TwinFit`, 12 iterations: the swinging load moves the
+    slew's pressures by 20 σ, a bare twin fits it with wrong oil); the calibrated spec kept in
+    ``--work`` and read back from there on the next run with the same machine and link."""
     import json
 
     from planner.calibration.trials import excitation
@@ -318,7 +320,8 @@ def calibrated_crane(crane, plant, args):
     from planner.library.refine import model_crane
     from planner.simulation.recording import Recording
     args.work.mkdir(parents=True, exist_ok=True)
-    stem = args.work / f"cal-{args.crane}-m{args.plant_machine}-{args.calibrate:g}s"
+    stem = args.work / (f"cal-{args.crane}-m{args.plant_machine}-{args.calibrate:g}s"
+                        f"-L{pend.length:g}")
     path, info = stem.with_suffix(".toml"), stem.with_suffix(".json")
     if not path.exists():
         plan_x, ff = excitation(crane, duration=args.calibrate, seed=1)
@@ -327,7 +330,7 @@ def calibrated_crane(crane, plant, args):
             sys.exit(f"calibrate: the excitation failed on the machine: {rec.reason}")
         log_ = Recording(rec.t, rec.u, rec.q_true, rec.p_a_true, rec.p_b_true).with_noise(
             crane, True, seed=2)
-        res = TwinFit(crane, [log_], workers=2).solve(12)
+        res = TwinFit(crane, [log_], workers=2, grapple=pend).solve(12)
         atomic_write_text(info, dumps(dict(log_s=float(log_.t[-1] - log_.t[0]),
                                            fit=res.to_dict())))
         atomic_write_text(path, calibrated_twin_text(

@@ -61,6 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planner.calibration.log_segments import Segment, segments, windows
 from planner.calibration.log_state import log_state
 from planner.calibration.noise import noise_floor_at
 from planner.calibration.twin_params import machine_of, select, twin_parameters
@@ -71,7 +72,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.simulation.recording import Recording
 
-__all__ = ["Segment", "segments", "TwinFit", "TwinFitResult", "calibrate_twin",
+__all__ = ["Segment", "segments", "windows", "TwinFit", "TwinFitResult", "calibrate_twin",
            "DIVERGED", "UNIDENTIFIED"]
 
 DIVERGED = 1e3          # [σ] residual per sample after a twin run diverged
@@ -81,57 +82,6 @@ _FD_STEP = 1e-2         # forward-difference step in the scaled parameters: the 
 #                         base run into every column (excite_information.py measured it)
 _Z95 = 1.959964
 _SG_SAMPLES = 9         # Savitzky–Golay window of a window's start state (0.16 s at 50 Hz)
-
-
-@dataclass
-class Segment:
-    """Samples ``k0 … k1`` (inclusive) of recording ``rec`` simulated from the state measured
-    at ``k0`` (``q0``, pressures ``p_a0``, ``p_b0`` or None, their spreads ``sd_a``,
-    ``sd_b`` over the anchor window)."""
-    rec: int
-    k0: int
-    k1: int
-    q0: np.ndarray
-    p_a0: np.ndarray | None
-    p_b0: np.ndarray | None
-    sd_a: np.ndarray | None = None     # spread of the pressures over the anchor window
-    sd_b: np.ndarray | None = None
-    window: bool = False               # a window of the first stage (module doc)
-
-
-def segments(rec: Recording, index: int = 0, hold: float = 0.5,
-             anchor: float = 0.2) -> list[Segment]:
-    """The segments of ``rec`` (module doc): cut at the last sample of every hold of at least
-    ``hold`` s, the start state averaged over the hold's last ``anchor`` s."""
-    t, u = rec.t, rec.u
-    still = np.all(np.abs(u) < 1e-9, axis=1)
-    cuts = []
-    k, N = 0, len(t)
-    while k < N:
-        if still[k]:
-            e = k
-            while e + 1 < N and still[e + 1]:
-                e += 1
-            if t[e] - t[k] >= hold - 1e-9 or k == 0:
-                cuts.append((k, e))
-            k = e + 1
-        else:
-            k += 1
-    if not cuts or cuts[0][0] != 0:
-        cuts.insert(0, (0, 0))
-    out = []
-    for i, (s, e) in enumerate(cuts):
-        k1 = cuts[i + 1][1] if i + 1 < len(cuts) else N - 1
-        if k1 <= e:
-            continue
-        a = max(s, int(np.searchsorted(t, t[e] - anchor)))
-        q0 = rec.q[a:e + 1].mean(axis=0)
-        pa = pb = sa = sb = None
-        if rec.p_a is not None:
-            pa, sa = rec.p_a[a:e + 1].mean(axis=0), rec.p_a[a:e + 1].std(axis=0)
-            pb, sb = rec.p_b[a:e + 1].mean(axis=0), rec.p_b[a:e + 1].std(axis=0)
-        out.append(Segment(index, e, k1, q0, pa, pb, sa, sb))
-    return out
 
 
 def _noise(crane: Crane, rec: Recording) -> tuple[np.ndarray, np.ndarray | None]:
@@ -197,8 +147,14 @@ class TwinFit:
     SCAN = np.geomspace(0.5, 2.0, 25)
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
-                 step: float = 2e-3, pressures: bool = True, workers: int = 1):
+                 step: float = 2e-3, pressures: bool = True, workers: int = 1,
+                 grapple=None):
         self.crane = crane
+        #: the load hanging on its link while the log was made (the twin's ``grapple``:
+        #: True, a length or a Pendulum): its swing loads the boom (an 880 kg load swinging
+        #: on s100f moves the slew's pressures by 20 σ), so the twin must carry it; the swing
+        #: is not logged, each segment and window takes the twin's own, carried
+        self.grapple = grapple
         self.recs = list(recordings)
         if not self.recs:
             raise ValueError("measured: no recording given; allowed: one or more logs")
@@ -225,8 +181,8 @@ class TwinFit:
     # ----------------------------------------------------------------- the model
     def twin(self, values: dict) -> Twin:
         dyn, db = machine_of(self.crane, values)
-        tw = Twin(self.crane, dynamics=dyn, deadband=db, step=self.step)
-        return tw
+        return Twin(self.crane, dynamics=dyn, deadband=db, step=self.step,
+                    grapple=self.grapple)
 
     def values_of(self, z) -> dict:
         return {p.name: p.to_value(float(v)) for p, v in zip(self.params, z)}
@@ -289,7 +245,9 @@ class TwinFit:
             x0[n:2 * n] = run.qd[-1]
             x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
             x0[4 * n] = run.p_s[-1]
-            x0[4 * n + 1:] = run.spool[-1]
+            x0[4 * n + 1:5 * n + 1] = run.spool[-1]
+            if getattr(run, "swing", None) is not None:
+                x0[5 * n + 1:] = run.swing[-1]
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
             # quiet per joint, not per chamber: a cylinder's two chambers ring together (the
@@ -311,6 +269,8 @@ class TwinFit:
             run = carry[2]
             x0[4 * n] = run.p_s[-1]
             x0[4 * n + 1:4 * n + 1 + n] = run.spool[-1]
+            if getattr(run, "swing", None) is not None:
+                x0[5 * n + 1:] = run.swing[-1]
         sg = log_state(self.recs[s.rec], s.k0, _SG_SAMPLES)
         x0[:n], x0[n:2 * n] = sg["q"], sg["qd"]
         if self.use_p:
@@ -477,31 +437,12 @@ class TwinFit:
                              samples=int(sum(s.k1 - s.k0 for s in self.segs)), units=units)
 
 
-def windows(recs, segs: list[Segment], length: float) -> list[Segment]:
-    """``segs`` cut into windows of about ``length`` s (module doc); a segment's first window
-    keeps its start, a last piece shorter than a fifth of ``length`` joins the window before."""
-    out = []
-    for s in segs:
-        t = recs[s.rec].t
-        k, first = s.k0, True
-        while k < s.k1:
-            e = min(int(np.searchsorted(t, t[k] + length - 1e-9)), s.k1)
-            if t[s.k1] - t[e] < 0.2 * length:
-                e = s.k1
-            e = max(e, k + 1)
-            out.append(s if first and e == s.k1 else
-                       Segment(s.rec, k, e, s.q0, s.p_a0, s.p_b0, s.sd_a, s.sd_b)
-                       if first else Segment(s.rec, k, e, recs[s.rec].q[k], None, None,
-                                             window=True))
-            k, first = e, False
-    return out
-
-
 def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,
-                   hold: float = 0.5, step: float = 2e-3, workers: int = 1) -> TwinFitResult:
+                   hold: float = 0.5, step: float = 2e-3, workers: int = 1,
+                   grapple=None) -> TwinFitResult:
     """Fit ``parameters`` of ``crane``'s twin to ``recordings`` (module doc)."""
     return TwinFit(crane, recordings, parameters, hold=hold, step=step,
-                   workers=workers).solve(max_iterations)
+                   workers=workers, grapple=grapple).solve(max_iterations)
 
 
 _ACTIVE: TwinFit | None = None    # the problem the forked workers inherited

@@ -146,6 +146,22 @@ def test_intervals_widen_by_the_residuals_long_run_variance(lab):
     assert fit.long_run(np.concatenate(parts)) == pytest.approx(expect, rel=0.15)
 
 
+def test_a_log_with_the_load_swinging_is_fitted_on_the_twin_that_carries_it(lab):
+    """A log made with the load hanging on a link (the coupled twin, oracle: its own
+    values): the fit's twin with the same link sees noise at those values, the bare twin a
+    misfit it would explain with wrong oil; and the carried swing crosses the segments."""
+    plan, ff = excitation(lab, duration=6.0, seed=3)
+    run = Twin(lab, grapple=1.2).simulate(ff.t, ff.u, plan.q[0], t_end=ff.t[-1])
+    q, pa, pb, u = run.sample(ff.t)
+    rec = Recording(ff.t, u, q, pa, pb).with_noise(lab, True, seed=2)
+    hung = TwinFit(lab, [rec], parameters=["bulk_modulus"], grapple=1.2)
+    bare = TwinFit(lab, [rec], parameters=["bulk_modulus"])
+    assert len(hung.segs) > 1
+    r_hung = np.sqrt(np.mean(hung.residuals(hung.z0()) ** 2))
+    r_bare = np.sqrt(np.mean(bare.residuals(bare.z0()) ** 2))
+    assert r_hung < 1.3 and r_bare > 2.0 * r_hung
+
+
 def test_parameters_select_and_refuse_by_name(lab):
     ps = twin_parameters(lab)
     assert {p.name for p in select(ps, "oil")} == {"bulk_modulus", "bulk_low", "bulk_high",

@@ -37,11 +37,15 @@ def cmd_calibrate(args):
         recs.append(rec)
     if not 1 <= args.workers <= 64:
         raise CLIError(f"--workers {args.workers}: allowed 1 … 64 processes")
+    from planner.cli.plan import grapple_of_args
+    pend = None if args.grapple == 0 else grapple_of_args(args, crane)
     fit = TwinFit(crane, recs, args.parameters, hold=args.hold,
-                  pressures=not args.positions_only, workers=args.workers)
+                  pressures=not args.positions_only, workers=args.workers, grapple=pend)
     if args.json != "-":
         print(f"calibrating {len(fit.params)} parameters of the {crane.spec.id} twin on "
-              f"{len(recs)} log(s), {len(fit.segs)} segments …", file=sys.stderr)
+              f"{len(recs)} log(s), {len(fit.segs)} segments"
+              + (f", the load hanging on its {pend.length:g} m link" if pend else "")
+              + " …", file=sys.stderr)
     res = fit.solve(max_iterations=args.iterations)
     src = "on " + ", ".join(args.measured)
     text = calibrated_twin_text(crane, res, src)
@@ -49,6 +53,7 @@ def cmd_calibrate(args):
     atomic_write_text(args.out, text)
     js = dict(res.to_dict(), crane_id=crane.spec.id, measured=list(args.measured),
               out=args.out, judge="twin vs the logs",
+              grapple_m=pend.length if pend else None,
               next=f"crane-planner library refine LIB.h5 --model {args.out}")
     emit(args, js)
     if args.json != "-":
@@ -91,6 +96,13 @@ def add_parsers(sub) -> None:
                         "(0.5)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes for the twin runs of each Jacobian (1)")
+    p.add_argument("--grapple", type=float, metavar="LENGTH",
+                   help="the load hung on a grapple link of LENGTH m while the logs were made "
+                        "(default: the spec's [dynamics.grapple]; 0: none): the twin carries "
+                        "it, its swing loading the boom as on the machine")
+    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
+                   help="the grapple pins' damping, a share of critical (default: the spec's, "
+                        "else 0)")
     p.add_argument("--positions-only", action="store_true",
                    help="fit to the positions only (ignore logged pressures)")
     add_json_arg(p)

@@ -240,6 +240,24 @@ def test_cli_calibrate_writes_a_machine_that_refine_reads(lab, tmp_path, capsys)
     assert "the same file" in capsys.readouterr().err
 
 
+def test_cli_calibrate_carries_the_grapple_the_log_was_made_with(lab, tmp_path, capsys):
+    plan, ff = excitation(lab, duration=4.0, seed=3)
+    run = Twin(lab, grapple=1.2).simulate(ff.t, ff.u, plan.q[0], t_end=ff.t[-1])
+    q, pa, pb, u = run.sample(ff.t)
+    log = tmp_path / "log.csv"
+    Recording(ff.t, u, q, pa, pb).with_noise(lab, True, seed=2).to_csv(log, lab)
+    js = tmp_path / "cal.json"
+    base = ["calibrate", "umea-lab", "--measured", str(log), "--out", str(tmp_path / "c.toml"),
+            "--parameters", "bulk_modulus", "--iterations", "2"]
+    assert main(base + ["--grapple", "1.2", "--json", str(js)]) == 0
+    r = json.loads(js.read_text())
+    assert r["grapple_m"] == 1.2 and r["rms_after"]["pressures"] < 1.3
+    capsys.readouterr()
+    assert main(base + ["--grapple", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--grapple" in err[0]
+
+
 def test_refine_twin_carries_the_spec_effects_or_refuses_them(lab, tmp_path):
     from planner.simulation.twin_plant import twin_of
     base = lab.spec.text.rstrip()

@@ -96,13 +96,10 @@ def add_parsers(sub) -> None:
                         "(0.5)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes for the twin runs of each Jacobian (1)")
-    p.add_argument("--grapple", type=float, metavar="LENGTH",
-                   help="the load hung on a grapple link of LENGTH m while the logs were made "
+    from planner.cli.plan import add_grapple_args
+    add_grapple_args(p, "the load hung on a grapple link of LENGTH m while the logs were made "
                         "(default: the spec's [dynamics.grapple]; 0: none): the twin carries "
                         "it, its swing loading the boom as on the machine")
-    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
-                   help="the grapple pins' damping, a share of critical (default: the spec's, "
-                        "else 0)")
     p.add_argument("--positions-only", action="store_true",
                    help="fit to the positions only (ignore logged pressures)")
     add_json_arg(p)

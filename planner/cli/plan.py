@@ -145,6 +145,15 @@ def predicted_swing(args, crane: Crane, traj) -> dict | None:
     return out
 
 
+def add_grapple_args(p, length_help: str) -> None:
+    """``--grapple LENGTH`` (with ``length_help``) and ``--grapple-zeta ZETA`` on parser
+    ``p`` (read back by :func:`grapple_of_args`)."""
+    p.add_argument("--grapple", type=float, metavar="LENGTH", help=length_help)
+    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
+                   help="the grapple pins' damping, a share of critical (default: the spec's, "
+                        "else 0)")
+
+
 def grapple_of_args(args, crane: Crane):
     """The grapple's pendulum (:class:`planner.model.pendulum.Pendulum`) of ``--grapple``
     / ``--grapple-zeta`` or the spec's ``[dynamics.grapple]``; None when neither."""
@@ -344,13 +353,9 @@ def add_parsers(sub) -> None:
                         "(refined on the dynamic twin so that the machine lands, and with the "
                         "grapple known the load at rest under the tip: --out keeps them, the "
                         "JSON reports the predicted landing and swing)")
-    p.add_argument("--grapple", type=float, metavar="LENGTH",
-                   help="the grapple hangs on a link of LENGTH m (default: the spec's "
+    add_grapple_args(p, "the grapple hangs on a link of LENGTH m (default: the spec's "
                         "[dynamics.grapple]): zv, zvd and nlp-sway plan with it, and the JSON "
                         "gets the model's predicted swing (swing.residual_swing_m)")
-    p.add_argument("--grapple-zeta", type=float, metavar="ZETA",
-                   help="the grapple pins' damping, a share of critical (default: the spec's, "
-                        "else 0)")
     p.add_argument("--out", metavar="FILE.csv|FILE.h5", type=output_arg,
                    help="write the trajectory CSV, or a one-entry database (.h5; read it back "
                         "as FILE.h5 or FILE.h5#plan:OBJECTIVE)")

@@ -281,7 +281,8 @@ def main(argv=None):
             rec = plant.run(t_u, u, tr.q[0], t_end=float(t_u[-1]), rate=50.0)
             row.update(duration_s=float(tr.duration), model_residual_m=pred.residual_m,
                        model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
-                       load_clearance_m=load_c, plant=rec.status)
+                       load_clearance_m=load_c, plant=rec.status,
+                       plant_reason=getattr(rec, "reason", "") or "")
             if rec.ok:
                 lc, frame = plant_load_clearance(plant, rec, obstacles)
                 row.update(plant_load_clearance_m=lc, plant_frame_m=frame)

@@ -282,7 +282,8 @@ def main(argv=None):
             row.update(duration_s=float(tr.duration), model_residual_m=pred.residual_m,
                        model_peak_m=pred.peak_during_m, tip_clearance_m=tip_c,
                        load_clearance_m=load_c, plant=rec.status,
-                       plant_reason=getattr(rec, "reason", "") or "")
+                       plant_reason=getattr(rec, "reason", "") or "",
+                       plant_t_fail=getattr(rec, "t_fail", None))
             if rec.ok:
                 lc, frame = plant_load_clearance(plant, rec, obstacles)
                 row.update(plant_load_clearance_m=lc, plant_frame_m=frame)

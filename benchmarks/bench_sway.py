@@ -324,7 +324,7 @@ def calibrated_crane(crane, plant, pend, args):
     args.work.mkdir(parents=True, exist_ok=True)
     stem = args.work / (f"cal-{args.crane}-m{args.plant_machine}-{args.calibrate:g}s"
                         f"-L{pend.length:g}")
-    path, info = stem.with_suffix(".toml"), stem.with_suffix(".json")
+    path, info = stem.with_name(stem.name + ".toml"), stem.with_name(stem.name + ".json")
     if not path.exists():
         plan_x, ff = excitation(crane, duration=args.calibrate, seed=1)
         rec = plant.run(ff.t, ff.u, plan_x.q[0], t_end=float(ff.t[-1]), rate=50.0)

@@ -39,7 +39,8 @@ level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`
 that a noiseless synthetic log stays finite. A twin run that diverges scores
 :data:`DIVERGED` per remaining sample.
 
-**Fit.** Both stages: scipy's trust-region reflective least squares on the scaled parameters (bounded), its
+**Fit.** Both stages: scipy's trust-region reflective least squares on the scaled parameters
+(bounded), its
 Jacobian by forward differences of whole twin runs (one run per parameter; the twin's
 parameters are inputs of its compiled step, so nothing is recompiled). **Intervals**: the
 Gauss–Newton covariance s²·(JᵀJ)⁻¹ at the solution, s² the misfit per degree of freedom
@@ -47,7 +48,8 @@ Gauss–Newton covariance s²·(JᵀJ)⁻¹ at the solution, s² the misfit per 
 1 + 2·Σ (1 − k/(L+1))·ρ_k over lags up to :attr:`TwinFit.WINDOW` (Bartlett weights,
 Newey–West): a model error persists over many samples, so the log holds fewer independent
 samples than it has (a drawn s100f machine: × 4.5 on the standard deviations; 22 of 29 truths
-inside the intervals where the white-noise covariance held 7), mapped to values (log-scaled parameters: a factor
+inside the intervals where the white-noise covariance held 7), mapped to values (log-scaled
+parameters: a factor
 interval); a parameter whose scaled standard deviation exceeds :data:`UNIDENTIFIED` (a factor
 e or one typical size) is reported as not identified by these logs.
 """
@@ -244,10 +246,7 @@ class TwinFit:
             run = carry[2]
             x0[n:2 * n] = run.qd[-1]
             x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
-            x0[4 * n] = run.p_s[-1]
-            x0[4 * n + 1:5 * n + 1] = run.spool[-1]
-            if getattr(run, "swing", None) is not None:
-                x0[5 * n + 1:] = run.swing[-1]
+            _carry_machine(x0, run, n)
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
             # quiet per joint, not per chamber: a cylinder's two chambers ring together (the
@@ -266,11 +265,7 @@ class TwinFit:
         its first sample, the twin's own pump and spools from the window before."""
         n = self.crane.n
         if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
-            run = carry[2]
-            x0[4 * n] = run.p_s[-1]
-            x0[4 * n + 1:4 * n + 1 + n] = run.spool[-1]
-            if getattr(run, "swing", None) is not None:
-                x0[5 * n + 1:] = run.swing[-1]
+            _carry_machine(x0, carry[2], n)
         sg = log_state(self.recs[s.rec], s.k0, _SG_SAMPLES)
         x0[:n], x0[n:2 * n] = sg["q"], sg["qd"]
         if self.use_p:
@@ -435,6 +430,15 @@ class TwinFit:
                              message=str(sol.message), dynamics=dyn, deadband=db,
                              segments=len(self.segs),
                              samples=int(sum(s.k1 - s.k0 for s in self.segs)), units=units)
+
+
+def _carry_machine(x0, run, n: int) -> None:
+    """Into start state ``x0``: what the log never shows, from the end of ``run`` — the pump
+    line, the spools and (with the load on its link) the swing."""
+    x0[4 * n] = run.p_s[-1]
+    x0[4 * n + 1:5 * n + 1] = run.spool[-1]
+    if getattr(run, "swing", None) is not None:
+        x0[5 * n + 1:] = run.swing[-1]
 
 
 def calibrate_twin(crane: Crane, recordings, parameters=None, max_iterations: int = 12,

@@ -118,6 +118,41 @@ def test_fast_path_equals_the_numpy_circuit_on_the_stroke_table(cid):
 
 
 @pytest.mark.parametrize("cid", ["s100f", "cat215b"])
+def test_leakage_is_continuous_where_the_two_sides_balance(cid):
+    """A closed valve holding a load that turns to and fro (a slew under a swinging grapple)
+    sits where p_a·A_a = p_b·A_b: the pressure rates must not jump there (a jump made the
+    implicit integrator's Newton iteration fail at every step), and 1 MPa away the loaded
+    side alone leaks, as before. Finite differences across the surface, fast path and numpy."""
+    crane, C, S, evaluate = _fast_path(cid)
+    L = crane.limit_arrays()
+    q = 0.5 * (L["q_min"] + L["q_max"])
+    x, d = (np.array(a) for a in S(q.tolist()))
+    pb = np.full(crane.n, 6e6)
+    o, zero = np.zeros(crane.n), np.zeros(crane.n)
+
+    def rates(dp):
+        pa = pb * C.area_b / C.area_a + dp
+        _, fast = evaluate(q.tolist(), zero.tolist(), pa.tolist() + pb.tolist() + [2e6],
+                           o.tolist(), zero.tolist())
+        np.testing.assert_allclose(fast, _numpy_reference(C, x, d, q, zero, pa, pb, 2e6, o,
+                                                          zero)[1], rtol=1e-9, atol=1e-6)
+        return np.array(fast)
+
+    full = C.beta / C.volumes(x)[0] * C.leak * 6e6     # a whole leak's rate on side a
+    assert np.all(full > 1.0)
+    jump = np.abs(rates(1.0) - rates(-1.0))[:2 * crane.n]
+    assert np.all(jump < 1e-3 * np.concatenate([full, full]))
+    la, lb = C.leak_flows(pb * C.area_b / C.area_a + 1e6, pb)
+    np.testing.assert_allclose(la, C.leak * (pb * C.area_b / C.area_a + 1e6 - C.p_tank),
+                               rtol=1e-9)
+    np.testing.assert_allclose(lb, 0.0, atol=1e-30)
+    la, lb = C.leak_flows(pb * C.area_b / C.area_a - 1e6, pb)
+    np.testing.assert_allclose(la, 0.0, atol=1e-30)
+    np.testing.assert_allclose(lb, np.where(C.single, 0.0, C.leak * (pb - C.p_tank)),
+                               rtol=1e-9)
+
+
+@pytest.mark.parametrize("cid", ["s100f", "cat215b"])
 def test_fast_path_equals_the_numpy_circuit_on_the_exact_stroke_map(cid):
     """Inside the joint limits the table is the model's exact stroke map to within its
     interpolation error: the fast path against the numpy circuit on crane.stroke(q)."""

@@ -59,7 +59,7 @@ from planner.model.valves import valve_params
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["Circuit", "PressureBulk", "root", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING",
+__all__ = ["Circuit", "PressureBulk", "root", "loaded_share", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING",
            "STOP_RAMP", "STOP_SOFT"]
 
 DP_REG = 2.0e4          # [Pa] orifice laminar region
@@ -85,6 +85,16 @@ def root(dp):
     """Signed, regularised square root √|Δp|·sign(Δp) [√Pa] (linear within ±0.2 bar)."""
     dp = np.asarray(dp, float)
     return dp / np.sqrt(np.sqrt(dp * dp + DP_REG ** 2))
+
+
+def loaded_share(dp):
+    """The share w ∈ [0, 1] of the leakage taken from side a at the load's pressure difference
+    dp = p_a − p_b·A_b/A_a [Pa]: 1 where side a carries the load, 0 where side b does, blended
+    over ±0.2 bar (tanh). A hard switch made the right-hand side jump where the two sides
+    balance — a slew holding a swinging load (equal trapped pressures, the load turning it to
+    and fro) slides along that surface, and the implicit integrator's Newton iteration failed
+    there at every step size (s100f, a 1.5 m grapple, 4.7 s into a hold; 2026-11-27)."""
+    return 0.5 * (1.0 + np.tanh(np.asarray(dp, float) / DP_REG))
 
 
 @dataclass(frozen=True)
@@ -259,11 +269,12 @@ class Circuit:
                           self.p_relief)
 
     def leak_flows(self, p_a, p_b):
-        """Leakage out of the loaded chamber to tank (l_a, l_b) ≥ 0 [m³/s]."""
+        """Leakage out of the loaded chamber to tank (l_a, l_b) ≥ 0 [m³/s]: which chamber is
+        loaded blends over ±0.2 bar of p_a − p_b·A_b/A_a (:func:`loaded_share`)."""
         pt = self.p_tank
-        loaded_a = p_a * self.area_a >= p_b * self.area_b
-        la = np.where(loaded_a, self.leak * np.maximum(p_a - pt, 0.0), 0.0)
-        lb = np.where(loaded_a | self.single, 0.0, self.leak * np.maximum(p_b - pt, 0.0))
+        w = loaded_share(p_a - p_b * self.area_b / self.area_a)
+        la = w * self.leak * np.maximum(p_a - pt, 0.0)
+        lb = np.where(self.single, 0.0, (1.0 - w) * self.leak * np.maximum(p_b - pt, 0.0))
         return la, lb
 
     def makeup(self, p):

@@ -124,11 +124,11 @@ def state_function(circuit, strokes):
             xc = lo if x < lo else (hi if x > hi else x)
             va = hose_a + (0.0 if motor else Aa * (xc - lo))
             la = lb = 0.0
-            if leak:
-                if pa * Aa >= pb * Ab:
-                    la = leak * (pa - pt if pa > pt else 0.0)
-                elif not single:
-                    lb = leak * (pb - pt if pb > pt else 0.0)
+            if leak:    # the loaded side's share blended over ±0.2 bar (loaded_share)
+                w = 0.5 * (1.0 + tanh((pa - pb * Ab / Aa) / DP_REG))
+                la = w * leak * (pa - pt if pa > pt else 0.0)
+                if not single:
+                    lb = (1.0 - w) * leak * (pb - pt if pb > pt else 0.0)
             mk = gain / 1e6
             e = pt - pa if pa < pt else 0.0
             ba = beta if law is None else bulk(pa)

@@ -217,6 +217,7 @@ def main(argv=None):
     def save(done):
         """The result of the moves ``done`` so far (written after every move)."""
         res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                   commit=_commit(),
                    machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                                 load=list(os.getloadavg())),
                    args={k: (str(v) if isinstance(v, Path) else v)
@@ -351,8 +352,17 @@ def merge(paths, out: Path, tag: str) -> None:
     import json
     runs = [json.loads(Path(p).read_text()) for p in paths]
     res = dict(runs[0])
-    res["rows"] = [r for run in runs for r in run["rows"]]
-    res["moves"] = [m for run in runs for m in run["moves"]]
+    rows, rerun = {}, []
+    for i, run in enumerate(runs):      # a later run's row replaces an earlier one's
+        for r in run["rows"]:
+            key = (r["method"], r["move"])
+            if key in rows:
+                rerun.append(f"{r['method']} {r['move']} ({Path(paths[i]).stem}"
+                             + (f", at {run['commit']}" if run.get("commit") else "") + ")")
+            rows[key] = r
+    res["rows"] = list(rows.values())
+    res["moves"] = list(dict.fromkeys(m for run in runs for m in run["moves"]))
+    res["rerun"] = rerun
     res["wall_s"] = sum(run["wall_s"] for run in runs)
     res["args"] = dict(res["args"], only=",".join(res["moves"]), tag=tag,
                        processes=len(runs))
@@ -360,6 +370,16 @@ def merge(paths, out: Path, tag: str) -> None:
     atomic_write_text(out / f"{tag}.json", dumps(res))
     atomic_write_text(out / f"{tag}.md", "\n".join(markdown(res)) + "\n")
     log(f"wrote {out / (tag + '.md')} ({len(res['rows'])} rows of {len(runs)} runs)")
+
+
+def _commit() -> str | None:
+    """The checkout's commit (short), the judge's code this run used; None outside git."""
+    import subprocess
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
+                              capture_output=True, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
 
 
 def _fitmsg(c) -> str:
@@ -393,7 +413,8 @@ def markdown(res) -> list:
     a, rows = res["args"], res["rows"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     L = ["# Sway-free moves on the Exudyn plant with the grapple (issue 29)", "",
-         f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
+         f"{res['date']}" + (f", commit {res['commit']}" if res.get("commit") else "")
+         + f", {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
          f"{res['machine']['load'][0]:.1f}. `python benchmarks/bench_sway.py"
          + ("" if a.get("only") else f" --moves {a['moves']}")
          + f" --length {a['length']:g} --zeta {a['zeta']:g} --settle "
@@ -472,6 +493,8 @@ def markdown(res) -> list:
                  f"{_med_mm(ok, 'twin_swing_after_m')} | "
                  f"{_med_mm(ok, 'tip_end_error_m')} | "
                  f"{np.median(sol):.2f} / {_q(sol, 90):.2f} |")
+    if res.get("rerun"):
+        L += ["", "Re-run, the later row kept: " + "; ".join(res["rerun"])]
     fails = [r for r in rows if "swing_after_m" not in r]
     if fails:
         L += ["", "Not replayed: " + "; ".join(f"{r['method']} {r['move']}: {r['status']} "

@@ -159,10 +159,10 @@ def load_clearance(crane: Crane, traj: Trajectory, pend: Pendulum, obstacles,
 
 
 def load_clearance_margin(crane: Crane, traj: Trajectory, pend: Pendulum, obstacles,
-                          rate: float = 1000.0) -> float:
+                          rate: float = 1000.0, share: float = CLEARANCE_SHARE) -> float:
     """As :func:`clearance_margin` for the swinging load: the smallest distance minus
-    CLEARANCE_SHARE × clearance over every obstacle [m] (≥ 0: clear; inf: none)."""
-    return min((d - CLEARANCE_SHARE * c for d, c in
+    ``share`` × clearance over every obstacle [m] (≥ 0: clear; inf: none)."""
+    return min((d - share * c for d, c in
                 load_distances(crane, traj, pend, obstacles, rate)), default=math.inf)
 
 

@@ -144,6 +144,34 @@ def landed(r) -> bool:
             and e.get("peak_osc_m", 1) < TOL)
 
 
+def land_time_ratios(rows) -> list:
+    """Per replayed entry: (planned duration + the time after it until the tip stays within
+    5 mm of the goal) / planned duration — the move's duration as the crane lands it on
+    Exudyn (inf: it never does within the recording)."""
+    out = []
+    for r in rows:
+        e = r.get("exudyn") or {}
+        if r.get("status") == "ok" and r.get("duration_s") and "settle_goal_s" in e:
+            out.append((r["duration_s"] + e["settle_goal_s"]) / r["duration_s"])
+    return out
+
+
+def _land_line(rep) -> str:
+    parts = []
+    for which in ("nominal", "refined"):
+        x = np.asarray(land_time_ratios(rep["runs"][which]["rows"]), float)
+        if not x.size:
+            continue
+        def pc(p):   # a quantile that stays on a sample (inf: not landed)
+            v = float(np.percentile(x, p, method="higher"))
+            return f"{100 * (v - 1):+.1f} %" if np.isfinite(v) else "not landed"
+        parts.append(f"{which}: median {pc(50)}, p90 {pc(90)}, within +5 % "
+                     f"{int((x <= 1.05).sum())} of {x.size}")
+    return ("Time to land (Exudyn: the plan's duration plus the time after it until the tip "
+            "stays within 5 mm of the goal), against the planned duration — "
+            + ("; ".join(parts) if parts else "–") + ".")
+
+
 def markdown(rep) -> str:
     L = [f"# Feed-forward refined on the twin, judged on Exudyn: {rep['crane']} (issue 27)", "",
          f"{rep['date']}, {rep['platform']}, {rep['cpus']} CPUs, load "
@@ -185,6 +213,7 @@ def markdown(rep) -> str:
           f"Lengthening past the plan's end (the commands act up to the tail): median "
           f"{_q(ln, 50):.2f} s, p90 {_q(ln, 90):.2f} s, max {_q(ln, 100):.2f} s; as a share of "
           f"the move: median {100 * _q(rel, 50):.1f} %, p90 {100 * _q(rel, 90):.1f} %.",
+          _land_line(rep),
           f"The twin's own prediction for the refined commands: rest offset median "
           f"{1e3 * _q([p['rest_offset_m'] for p in pred], 50):.1f} mm, ringing median "
           f"{1e3 * _q([p['residual_oscillation_m'] for p in pred], 50):.1f} mm, tip error "

@@ -47,6 +47,14 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   memory). A free command that is exactly 0 starts at 10⁻⁶: a closed valve is a kink of the
   flow (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while
   the others move, a telescope that creeps off its stroke end — would otherwise never be used.
+* **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
+  commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
+  controller's dead-band compensation sends. In command units a valve inside its dead band is
+  flat to the cost (zero slope, the dither's hair included), so an idle joint's valve was never
+  used on a twin with dead bands: on the six machines of ``calibrate_loop.md`` the calibrated
+  twin's own refined commands left a telescope held on its stroke end 5.9 mm crept off it
+  (d01-p00, machine m2: 6.2 mm at the tip on the twin, 7.7 on Exudyn; the twin at the
+  machine's true values 7.7, exactly as Exudyn). With no dead band nothing changes.
 * **Valves the plan keeps closed** (``keep_closed``, off by default): a joint the plan holds
   still (its nominal commands all at most ``idle``, 0.1 % of the range: the NLP's creep is a
   few 10⁻⁶) keeps its valve closed until ``lead`` s before the tail. An open valve
@@ -78,6 +86,7 @@ from enum import Enum
 import numpy as np
 
 from planner.landing import landing_measures, tip_levers
+from planner.model.valves import past_deadband, within_deadband
 from planner.trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -228,6 +237,7 @@ class _Cost:
         self.x0 = shooting.twin.rest_state(traj.q[0]) if x0 is None else np.asarray(x0, float)
         self.n, self.evaluations = n, 0
         self.fail = 1e30
+        self.db = np.asarray(shooting.twin.params.per["deadband"], float)
 
     def steps(self, U):
         us = np.zeros((self.K, self.n))
@@ -235,8 +245,8 @@ class _Cost:
         return us
 
     def __call__(self, z):
-        U = z.reshape(self.Ku, self.n)
-        us = self.steps(U)
+        U = z.reshape(self.Ku, self.n)           # openings; the valves get past_deadband(U)
+        us = self.steps(past_deadband(U, self.db))
         run = self.sh.run(self.x0, us)
         self.evaluations += 1
         e = run.x[:, :self.n] - self.q_ref
@@ -257,7 +267,7 @@ class _Cost:
             J += self.w_energy * float(np.sum(w))
             dJdx += self.w_energy * dw
         g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
-        g = g.reshape(self.Ku, self.R, self.n).sum(axis=1)
+        g = g.reshape(self.Ku, self.R, self.n).sum(axis=1) * (1.0 - self.db)
         dU = np.diff(U, axis=0)
         J += self.smooth * float(np.sum(dU * dU))
         g[1:] += 2.0 * self.smooth * dU
@@ -315,8 +325,9 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         return _Cost(sh, traj, Ku, R, K, opts, crane, pend, x0), K
 
     cost, K = problem(twin)
-    U0 = np.zeros((Ku, n))
-    U0[:t_u.size] = np.clip(u, -1.0, 1.0)
+    db = cost.db
+    U0 = np.zeros((Ku, n))        # the openings the nominal commands ask for
+    U0[:t_u.size] = within_deadband(np.clip(u, -1.0, 1.0), db)
     # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
     # a command that starts at exactly 0 (an idle joint, the tail) would never move; a
     # hair's opening gives it a slope (the optimiser crosses zero where the other side pays)
@@ -326,7 +337,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
     horizon = dict(tail_s=tail, settle_s=settle, slowest_mode_Hz=f_slow)
-    nominal = _predict(crane, twin, traj, t_all, U0, K, opts, x0)
+    nominal = _predict(crane, twin, traj, t_all, past_deadband(U0, db), K, opts, x0)
     if nominal is None:
         return Refinement(t_u, u, RefineStatus.FAILED, "the twin diverged on the nominal commands",
                           wall_s=time.perf_counter() - wall0, **base)
@@ -351,7 +362,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         res = _Result(z, cost(z)[0], 0, "coarse iterations only")
     nit += int(res.nit)
     evals += cost.evaluations
-    U = res.x.reshape(Ku, n)
+    U = past_deadband(res.x.reshape(Ku, n), db)
     refined = _predict(crane, twin, traj, t_all, U, K, opts, x0) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)),
                 horizon=horizon)
@@ -362,7 +373,6 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
                           dict(pred, refined=nominal), 0.0,
                           wall_s=time.perf_counter() - wall0, **base)
     # drop trailing rows that open no valve (inside every dead band)
-    db = np.asarray(twin.params.per["deadband"], float)
     live = np.flatnonzero(np.any(np.abs(U) > db[None, :], axis=1))
     last = max(int(live[-1]) + 1 if live.size else 0, t_u.size)
     U = U[:last]

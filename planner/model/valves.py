@@ -35,7 +35,8 @@ from planner.model.valve_physics import REST_TOL, function
 
 __all__ = ["REST_TOL", "ValveParams", "valve_params", "ValveCircuit", "valve_circuit",
            "command_to_stroke_rate", "steady_flows", "stroke_rate_to_command", "metered_flow",
-           "draws_pump", "opening", "valve_flows", "makeup", "leak_flows"]
+           "draws_pump", "opening", "valve_flows", "makeup", "leak_flows", "past_deadband",
+           "within_deadband"]
 
 
 
@@ -175,6 +176,21 @@ def opening(valves, spool) -> np.ndarray:
     """Effective openings (..., n) from spool positions (``valves``: anything with a
     per-actuator ``deadband``, a :class:`ValveParams` or a :class:`ValveCircuit`)."""
     return _call("valve_opening", spool, valves.deadband)[0]
+
+
+def past_deadband(v, db):
+    """Commands (..., n) that open the valves by ``v`` beyond their dead bands ``db`` (n,):
+    sign(v)·(db + (1 − db)·|v|), 0 where v = 0 — the dead band's inverse, what a valve
+    controller's dead-band compensation sends (planner.refine works in openings)."""
+    v = np.asarray(v, float)
+    return np.sign(v) * (db + (1.0 - db) * np.abs(v))
+
+
+def within_deadband(u, db):
+    """The openings (..., n) that commands ``u`` give past dead bands ``db``:
+    sign(u)·max(|u| − db, 0)/(1 − db) (:func:`past_deadband`'s inverse where it opens)."""
+    u = np.asarray(u, float)
+    return np.sign(u) * np.maximum(np.abs(u) - db, 0.0) / (1.0 - db)
 
 
 def valve_flows(vc: ValveCircuit, p_a, p_b, p_s, o) -> dict:

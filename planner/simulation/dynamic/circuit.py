@@ -90,11 +90,12 @@ def root(dp):
 def loaded_share(dp):
     """The share w ∈ [0, 1] of the leakage taken from side a at the load's pressure difference
     dp = p_a − p_b·A_b/A_a [Pa]: 1 where side a carries the load, 0 where side b does, blended
-    over ±0.2 bar (tanh). A hard switch made the right-hand side jump where the two sides
+    over ±0.2 bar ((1 + tanh)/2). A hard switch made the right-hand side jump where the two sides
     balance — a slew holding a swinging load (equal trapped pressures, the load turning it to
     and fro) slides along that surface, and the implicit integrator's Newton iteration failed
     there at every step size (s100f, a 1.5 m grapple, 4.7 s into a hold; 2026-11-27)."""
-    return 0.5 * (1.0 + np.tanh(np.asarray(dp, float) / DP_REG))
+    x = np.clip(np.asarray(dp, float) / DP_REG, -40.0, 40.0)
+    return 1.0 / (1.0 + np.exp(-2.0 * x))     # (1 + tanh x)/2, exact in relative terms
 
 
 @dataclass(frozen=True)

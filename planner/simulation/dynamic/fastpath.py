@@ -125,7 +125,9 @@ def state_function(circuit, strokes):
             va = hose_a + (0.0 if motor else Aa * (xc - lo))
             la = lb = 0.0
             if leak:    # the loaded side's share blended over ±0.2 bar (loaded_share)
-                w = 0.5 * (1.0 + tanh((pa - pb * Ab / Aa) / DP_REG))
+                w = (pa - pb * Ab / Aa) / DP_REG
+                w = 1.0 / (1.0 + math.exp(-2.0 * (-40.0 if w < -40.0 else
+                                                  (40.0 if w > 40.0 else w))))
                 la = w * leak * (pa - pt if pa > pt else 0.0)
                 if not single:
                     lb = (1.0 - w) * leak * (pb - pt if pb > pt else 0.0)

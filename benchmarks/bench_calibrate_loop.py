@@ -146,10 +146,11 @@ def main():
     ap.add_argument("--delay-max", type=float, default=0.03,
                     help="each machine's command delay drawn from U(0, this) [s]")
     ap.add_argument("--markdown", metavar="JSON")
+    ap.add_argument("--tag", default="calibrate_loop", help="result file name stem")
     a = ap.parse_args()
     if a.markdown:
         rep = json.loads(Path(a.markdown).read_text())
-        atomic_write_text(RESULTS / "calibrate_loop.md", markdown(rep))
+        atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
         return
     work = Path(a.work)
     sel = work / "sel.h5"
@@ -216,8 +217,8 @@ def main():
                calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, replay_wall_s=replay_wall,
                options=opts.__dict__, delay_max=a.delay_max,
                duration=a.duration, iterations=a.iterations, excitation=a.excitation)
-    atomic_write_text(RESULTS / "calibrate_loop.json", json.dumps(rep, indent=1, default=float))
-    atomic_write_text(RESULTS / "calibrate_loop.md", markdown(rep))
+    atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
+    atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
 
 
 def _share(rows):

@@ -206,8 +206,11 @@ class SwayNLP:
 
     def _solver(self, exact: bool):
         ipopt = {k: v for k, v in IPOPT.items() if not (exact and k == "hessian_approximation")}
+        # IPOPT backs off from a trial point where the swing's rows are not finite; CasADi's
+        # warning for each (dozens on a cat215b move) is not for the user's terminal
         return ca.nlpsol("sway", "ipopt", self._problem,
-                         {"expand": True, "print_time": False, "ipopt": ipopt})
+                         {"expand": True, "print_time": False, "show_eval_warnings": False,
+                          "ipopt": ipopt})
 
     def exact_solver(self):
         """The same NLP under IPOPT with the exact Hessian (built on first use; its seconds

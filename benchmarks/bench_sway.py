@@ -188,6 +188,7 @@ def main(argv=None):
     if args.merge:
         return merge(args.merge, args.out, args.tag)
     t_start = time.perf_counter()
+    commit = _commit()        # the code this process imported, not a later checkout's
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     crane = Crane.from_id(args.crane)
     pend = Pendulum.of(crane, args.length, zeta=args.zeta)
@@ -217,7 +218,7 @@ def main(argv=None):
     def save(done):
         """The result of the moves ``done`` so far (written after every move)."""
         res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                   commit=_commit(),
+                   commit=commit,
                    machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                                 load=list(os.getloadavg())),
                    args={k: (str(v) if isinstance(v, Path) else v)
@@ -487,8 +488,8 @@ def markdown(res) -> list:
                  f"{np.median([r['swing_left_m'] for r in ok]) * 1e3:.0f} | "
                  f"{np.median(mod):.0f} / {_q(mod, 90):.0f} | "
                  f"{np.median([r['swing_during_m'] for r in ok]) * 1e3:.0f} | "
-                 f"{min(r['tip_clearance_m'] for r in ok) * 1e3:.0f} | "
-                 f"{min(r['load_clearance_m'] for r in ok) * 1e3:.0f} | "
+                 f"{_min_mm(ok, 'tip_clearance_m')} | "
+                 f"{_min_mm(ok, 'load_clearance_m')} | "
                  f"{_min_mm(ok, 'plant_load_clearance_m')} | "
                  f"{_med_mm(ok, 'twin_swing_after_m')} | "
                  f"{_med_mm(ok, 'tip_end_error_m')} | "

@@ -269,32 +269,40 @@ def test_plan_with_the_twin_feedforward_keeps_both_commands(tmp_path):
     assert not (tmp_path / "p.csv").exists()
 
 
-def test_an_idle_joint_is_refined_too(crane, twin):
-    """The boom moves, the jib stays: its holding pressure changes, its oil gives, it creeps
-    off (the nominal commands leave it at 0). The refinement must use the jib's valve too —
-    a closed valve is a kink of the flow whose adjoint slope is 0, so commands that start at
-    exactly 0 used to stay there (the s100f library's telescope on its stroke end: 5.5 mm)."""
+def _boom_moves_jib_still(crane):
+    """(move, t_u, u): the boom raised from 35 % to 75 % of its range, every other joint held
+    at 35 % — the jib's holding pressure changes, its oil gives (nominal commands 0)."""
     L = crane.limit_arrays()
     q0 = L["q_min"] + 0.35 * (L["q_max"] - L["q_min"])
     q1 = q0.copy()
     q1[1] = L["q_min"][1] + 0.75 * (L["q_max"][1] - L["q_min"][1])
     tr = rest_to_rest(crane, q0, q1, scale=0.8).trajectory
     move = commands(crane, tr, 50.0).attach(tr, knots=True)
-    t_u, u = stored_commands(move)
+    return (move, *stored_commands(move))
+
+
+def _jib_end(crane, twin, move, opts, tt, uu):
+    """|jib at the end of the cost's horizon − its goal| on ``twin`` for commands ``uu``."""
+    tt = np.append(tt, tt[-1] + 0.02)
+    run = twin.simulate(tt, np.vstack([uu, np.zeros((1, crane.n))]), move.q[0],
+                        t_end=move.t[-1] + opts.tail + opts.settle)
+    return abs(run.q[-1, 2] - move.q[-1, 2])
+
+
+def test_an_idle_joint_is_refined_too(crane, twin):
+    """The boom moves, the jib stays: its holding pressure changes, its oil gives, it creeps
+    off (the nominal commands leave it at 0). The refinement must use the jib's valve too —
+    a closed valve is a kink of the flow whose adjoint slope is 0, so commands that start at
+    exactly 0 used to stay there (the s100f library's telescope on its stroke end: 5.5 mm)."""
+    move, t_u, u = _boom_moves_jib_still(crane)
     assert np.all(u[:, 2] == 0.0)
     opts = RefineOptions(iterations=12, settle=1.5)
     r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
     assert r.status == RefineStatus.IMPROVED, r.reason
     assert np.abs(r.u[:, 2]).max() > 1e-4            # the jib's valve is used
-
-    def jib_end(tt, uu):
-        tt = np.append(tt, tt[-1] + 0.02)
-        run = twin.simulate(tt, np.vstack([uu, np.zeros((1, crane.n))]), move.q[0],
-                            t_end=move.t[-1] + opts.tail + opts.settle)
-        return abs(run.q[-1, 2] - move.q[-1, 2])
-    nominal, refined = jib_end(t_u, u), jib_end(r.t_u, r.u)
+    nominal = _jib_end(crane, twin, move, opts, t_u, u)
     assert nominal > 5e-4                             # the oil gives: ~1.6 mrad
-    assert refined < nominal / 3
+    assert _jib_end(crane, twin, move, opts, r.t_u, r.u) < nominal / 3
     # with keep_closed the jib's valve opens only in the tail (and the lead before it): an
     # open valve load-senses the jib's holding pressure
     kc = replace(opts, keep_closed=True)
@@ -302,7 +310,7 @@ def test_an_idle_joint_is_refined_too(crane, twin):
     lead = int(round(kc.lead * kc.rate))
     assert np.all(r.u[:t_u.size - lead, 2] == 0.0)
     assert np.abs(r.u[t_u.size - lead:, 2]).max() > 1e-4
-    assert jib_end(r.t_u, r.u) < nominal / 3
+    assert _jib_end(crane, twin, move, kc, r.t_u, r.u) < nominal / 3
 
 
 def test_an_idle_joint_behind_a_dead_band_is_refined_too(crane):
@@ -321,26 +329,14 @@ def test_an_idle_joint_behind_a_dead_band_is_refined_too(crane):
     class Valves:
         deadband = db
     assert np.allclose(opening(Valves, past_deadband(v, db)), v)   # the model's own opening
-    L = crane.limit_arrays()
-    q0 = L["q_min"] + 0.35 * (L["q_max"] - L["q_min"])
-    q1 = q0.copy()
-    q1[1] = L["q_min"][1] + 0.75 * (L["q_max"][1] - L["q_min"][1])
-    tr = rest_to_rest(crane, q0, q1, scale=0.8).trajectory
-    move = commands(crane, tr, 50.0).attach(tr, knots=True)
-    t_u, u = stored_commands(move)
+    move, t_u, u = _boom_moves_jib_still(crane)
     opts = RefineOptions(iterations=12, settle=1.5)
     r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
     assert r.status == RefineStatus.IMPROVED, r.reason
     assert np.abs(r.u[:, 2]).max() > 0.03 + 1e-4       # past the jib's dead band
-
-    def jib_end(tt, uu):
-        tt = np.append(tt, tt[-1] + 0.02)
-        run = twin.simulate(tt, np.vstack([uu, np.zeros((1, crane.n))]), move.q[0],
-                            t_end=move.t[-1] + opts.tail + opts.settle)
-        return abs(run.q[-1, 2] - move.q[-1, 2])
-    nominal, refined = jib_end(t_u, u), jib_end(r.t_u, r.u)
+    nominal = _jib_end(crane, twin, move, opts, t_u, u)
     assert nominal > 5e-4
-    assert refined < nominal / 3
+    assert _jib_end(crane, twin, move, opts, r.t_u, r.u) < nominal / 3
 
 
 def test_closed_valves_are_the_joints_the_plan_holds_until_the_lead_before_the_tail():

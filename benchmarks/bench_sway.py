@@ -364,9 +364,13 @@ def merge(paths, out: Path, tag: str) -> None:
     res["rows"] = list(rows.values())
     res["moves"] = list(dict.fromkeys(m for run in runs for m in run["moves"]))
     res["rerun"] = rerun
+    commits = {Path(p).stem: run.get("commit") for p, run in zip(paths, runs)}
+    if len(set(commits.values())) > 1:
+        res["commit"] = ", ".join(f"{k} at {v}" for k, v in commits.items())
     res["wall_s"] = sum(run["wall_s"] for run in runs)
+    methods = dict.fromkeys(m for run in runs for m in run["args"]["methods"].split(","))
     res["args"] = dict(res["args"], only=",".join(res["moves"]), tag=tag,
-                       processes=len(runs))
+                       processes=len(runs), methods=",".join(methods))
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / f"{tag}.json", dumps(res))
     atomic_write_text(out / f"{tag}.md", "\n".join(markdown(res)) + "\n")

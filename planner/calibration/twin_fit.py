@@ -150,8 +150,14 @@ class TwinFit:
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
                  step: float = 2e-3, pressures: bool = True, workers: int = 1,
-                 grapple=None):
+                 grapple=None, anchor: str = "log"):
         self.crane = crane
+        if anchor not in ("log", "twin"):
+            raise ValueError(f"anchor: {anchor!r}; allowed: 'log' or 'twin'")
+        #: a whole segment's start after a hold: "log" — the measured positions and quiet
+        #: pressures (module doc); "twin" — the twin's own state where the segment before ran
+        #: up to it (the log's only at each log's start): the open-loop run of the whole log
+        self.anchor = anchor
         #: the load hanging on its link while the log was made (the twin's ``grapple``:
         #: True, a length or a Pendulum): its swing loads the boom (an 880 kg load swinging
         #: on s100f moves the slew's pressures by 20 σ), so the twin must carry it; the swing
@@ -244,6 +250,11 @@ class TwinFit:
             return self._window_start(x0, s, carry)
         if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
             run = carry[2]
+            if self.anchor == "twin":
+                x0[:n], x0[n:2 * n] = run.q[-1], run.qd[-1]
+                x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
+                _carry_machine(x0, run, n)
+                return x0
             x0[n:2 * n] = run.qd[-1]
             x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
             _carry_machine(x0, run, n)

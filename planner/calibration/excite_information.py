@@ -176,7 +176,7 @@ def information(crane: Crane, plan, ff, parameters=None, noise=True, step: float
     if not 1e-4 <= fd <= 0.2:
         raise ValueError(f"fd = {fd!r}; allowed: 1e-4 … 0.2 (scaled units)")
     rec = twin_log(crane, plan, ff, step) if log is None else log
-    fit = TwinFit(crane, [rec], parameters, step=step)
+    fit = TwinFit(crane, [rec], parameters, step=step, anchor="log")
     sq = np.array([levels["angle"] if j.revolute else levels["length"]
                    for j in crane.spec.joints])
     sp = np.full(2 * crane.n, levels["pressure"])

@@ -162,7 +162,7 @@ class _Problem(TwinFit):
 
     def __init__(self, crane: Crane, rec, params, hold, step, workers):
         super().__init__(crane, [rec], parameters=["bulk_modulus"], hold=hold, step=step,
-                         workers=workers)
+                         workers=workers, anchor="log")
         self.params = list(params)
         self.mask = None        # rows the residual vector keeps (None: every row)
         self.fit_rows = None    # rows the anchors' position errors are estimated on

@@ -40,7 +40,8 @@ def cmd_calibrate(args):
     from planner.cli.plan import grapple_of_args
     pend = None if args.grapple == 0 else grapple_of_args(args, crane)
     fit = TwinFit(crane, recs, args.parameters, hold=args.hold,
-                  pressures=not args.positions_only, workers=args.workers, grapple=pend)
+                  pressures=not args.positions_only, workers=args.workers, grapple=pend,
+                  anchor=args.anchor)
     if args.json != "-":
         print(f"calibrating {len(fit.params)} parameters of the {crane.spec.id} twin on "
               f"{len(recs)} log(s), {len(fit.segs)} segments"
@@ -96,6 +97,10 @@ def add_parsers(sub) -> None:
                         "(0.5)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes for the twin runs of each Jacobian (1)")
+    p.add_argument("--anchor", choices=("twin", "log"), default="twin",
+                   help="where each segment after a hold starts: twin — the twin's own state "
+                        "(the whole log open loop, as the feed-forward runs; default); log — "
+                        "the logged positions and quiet pressures")
     from planner.cli.plan import add_grapple_args
     add_grapple_args(p, "the load hung on a grapple link of LENGTH m while the logs were made "
                         "(default: the spec's [dynamics.grapple]; 0: none): the twin carries "

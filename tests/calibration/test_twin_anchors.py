@@ -52,7 +52,7 @@ def test_a_joint_ringing_in_one_chamber_keeps_both_chambers_carried():
     run = Twin(crane).simulate(ff.t, ff.u, plan.q[0], t_end=ff.t[-1])
     q, pa, pb, u = run.sample(ff.t)
     rec = Recording(ff.t, u, q, pa, pb).with_noise(crane, True, seed=2)
-    fit = TwinFit(crane, [rec], parameters=["bulk_modulus"])
+    fit = TwinFit(crane, [rec], parameters=["bulk_modulus"], anchor="log")
     seg = fit.segs[-1]
     sp = fit.sig[0][1]
     # joint 0: the piston side rings (3 σ of spread), the rod side passes (0.5 σ);

@@ -59,7 +59,8 @@ from planner.model.valves import valve_params
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["Circuit", "PressureBulk", "root", "loaded_share", "DP_REG", "STOP_STIFFNESS", "STOP_DAMPING",
+__all__ = ["Circuit", "PressureBulk", "root", "loaded_share", "DP_REG", "STOP_STIFFNESS",
+           "STOP_DAMPING",
            "STOP_RAMP", "STOP_SOFT"]
 
 DP_REG = 2.0e4          # [Pa] orifice laminar region

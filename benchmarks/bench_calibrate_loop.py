@@ -6,12 +6,14 @@ plant throughout; the twin only fits and refines.
 Machines: the drawn machines of ``bench_refine_robust.py`` (same seed and spread: each
 machine's bulk modulus, hose volumes, spool and pump time constants, friction within ±30 %,
 a leakage and a valve dead band the spec does not have, and a bulk modulus that rises with
-pressure), plus a command delay U(0, ``--delay-max``) between the command and the valves — an
-effect the calibrated twin has no parameter for. Per machine:
+pressure), plus a command delay U(0, ``--delay-max``) between the command and the valves (in
+the calibrated family since 2026-11-27: ``[dynamics] command_delay``), and one valve (drawn)
+whose spool lags U(0, ``--lag-max``) behind the others — the effect the twin lacks: its family
+has one spool time constant for every valve. Per machine:
 
 1. the excitation (``trials.excitation``, ``--duration`` s, or ``--excitation FILE.csv``)
    replayed open loop on the machine, logged at 50 Hz with seed 001's sensor noise;
-2. ``calibrate_twin`` on that log (every parameter), the calibrated spec written to
+2. ``TwinFit`` on that log (every parameter; ``--anchor``), the calibrated spec written to
    ``WORK/cal-<machine>.toml`` (what ``crane-planner calibrate`` writes);
 3. the first ``--entries`` entries of the chain library refined on it (``library refine
    --model``, a copy of the library per machine) and replayed on the machine.
@@ -55,7 +57,7 @@ RESULTS = Path(__file__).parent / "results"
 def truth_of(m: dict) -> dict:
     """The drawn machine's values under the calibration's parameter names."""
     out = dict(bulk_modulus=m["bulk_modulus"], spool_time_constant=m["spool_time_constant"],
-               pump_time_constant=m["pump_time_constant"])
+               pump_time_constant=m["pump_time_constant"], command_delay=m.get("delay", 0.0))
     law = m.get("bulk_law") or {}
     out.update(bulk_low=law.get("lo", 1.0), bulk_high=law.get("hi", 1.0),
                bulk_reference_pressure=law.get("p_ref", 8e6))
@@ -70,11 +72,14 @@ def truth_of(m: dict) -> dict:
 def machine_plant(crane, m: dict):
     """The Exudyn plant of drawn machine ``m``: bench_refine_robust's machine (its
     ``[dynamics]`` values, dead bands and pressure law) with its command ``delay`` — a
-    transport delay between the command and the valves (bus, controller cycle), which the
-    twin's calibrated family has no parameter for."""
+    transport delay between the command and the valves (bus, controller cycle) — and the
+    extra spool lag ``lag`` [s] of its valve ``lag_joint``, which the twin's family (one spool
+    time constant for every valve) lacks."""
     from planner.model.effects import make
-    return robust_plant(crane, m, [make("time_delay", delay=m["delay"])] if m.get("delay")
-                        else ())
+    extra = [make("time_delay", delay=m["delay"])] if m.get("delay") else []
+    if m.get("lag"):
+        extra.append(make("valve_lag", joint=m["lag_joint"], tau=m["lag"]))
+    return robust_plant(crane, m, extra)
 
 
 def replay_task(path: str, entry_id: str, which: str, machine: dict, settle: float) -> dict:
@@ -98,7 +103,7 @@ def replay_task(path: str, entry_id: str, which: str, machine: dict, settle: flo
 
 
 def calibrate_task(lib: str, work: str, m: dict, duration: float, iterations: int,
-                   seed: int, excitation_csv: str | None) -> dict:
+                   seed: int, excitation_csv: str | None, anchor: str = "twin") -> dict:
     """Log the excitation on machine ``m`` and calibrate the twin on it (runs in a worker)."""
     from planner.calibration.trials import excitation
     from planner.calibration.twin_fit import TwinFit
@@ -120,7 +125,7 @@ def calibrate_task(lib: str, work: str, m: dict, duration: float, iterations: in
     log = Recording(rec.t, rec.u, rec.q_true, rec.p_a_true, rec.p_b_true).with_noise(
         crane, True, seed=seed + 1)
     log_cpu = time.process_time() - c0
-    fit = TwinFit(crane, [log])
+    fit = TwinFit(crane, [log], anchor=anchor)
     res = fit.solve(max_iterations=iterations)
     import pickle
     (Path(work) / f"cal-{m['name']}.pkl").write_bytes(pickle.dumps(res))   # kept first
@@ -145,6 +150,11 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--delay-max", type=float, default=0.03,
                     help="each machine's command delay drawn from U(0, this) [s]")
+    ap.add_argument("--lag-max", type=float, default=0.02,
+                    help="one drawn valve's extra spool lag U(0, this) [s] (the effect the "
+                    "twin lacks; 0: none)")
+    ap.add_argument("--anchor", choices=("twin", "log"), default="twin",
+                    help="TwinFit's segment anchors")
     ap.add_argument("--markdown", metavar="JSON")
     ap.add_argument("--tag", default="calibrate_loop", help="result file name stem")
     a = ap.parse_args()
@@ -161,8 +171,14 @@ def main():
                           robust["spread"])[2:]
     assert json.loads(json.dumps(check, default=float)) == machines, "machines differ"
     rng = np.random.default_rng(a.seed + 1000)
-    for m in machines:     # the effect the twin lacks: a command delay per machine
+    names = _crane(str(sel)).names
+    for m in machines:     # a command delay per machine (the same draws as before)
         m["delay"] = float(rng.uniform(0.0, a.delay_max))
+    lag_rng = np.random.default_rng(a.seed + 2000)
+    for m in machines:     # the effect the twin lacks: one valve slower than the others
+        if a.lag_max > 0:
+            m["lag_joint"] = str(names[int(lag_rng.integers(len(names)))])
+            m["lag"] = float(lag_rng.uniform(0.0, a.lag_max))
     t0 = time.perf_counter()
     fits = {}
     done = {}
@@ -173,7 +189,8 @@ def main():
     todo = [m for m in machines if m["name"] not in done]
     with WorkerPool(a.workers) as pool:
         for r in pool.imap_unordered(calibrate_task, [
-                (str(sel), str(work), m, a.duration, a.iterations, a.seed, a.excitation)
+                (str(sel), str(work), m, a.duration, a.iterations, a.seed, a.excitation,
+                 a.anchor)
                 for m in todo]):
             atomic_write_text(work / f"cal-{r['machine']}.json", json.dumps(r, default=float))
             done[r["machine"]] = r
@@ -215,7 +232,8 @@ def main():
                truth={m["name"]: truth_of(m) for m in machines}, fits=fits,
                refine=refine, rows=rows + old, settle=robust["settle"], tol=TOL,
                calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, replay_wall_s=replay_wall,
-               options=opts.__dict__, delay_max=a.delay_max,
+               options=opts.__dict__, delay_max=a.delay_max, lag_max=a.lag_max,
+               anchor=a.anchor,
                duration=a.duration, iterations=a.iterations, excitation=a.excitation)
     atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
     atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
@@ -241,15 +259,21 @@ def markdown(rep) -> str:
          f"{' '.join(f'{x:.1f}' for x in rep['load'])}. `python "
          f"benchmarks/bench_calibrate_loop.py {rep['argv']}`.", "",
          "Judge: **the Exudyn plant** (each drawn machine: its own circuit code, a bulk "
-         "modulus that rises with pressure — in the calibrated family since this run's code — "
-         "and a command delay the calibrated twin has no parameter for). The twin only fits "
-         "the log and refines. Landing: "
+         "modulus that rises with pressure and a command delay — both in the calibrated "
+         "family — and "
+         + ("one valve whose spool lags behind the others, which the twin's family (one spool "
+            "time constant) lacks" if rep.get("lag_max") else "nothing the family lacks")
+         + "). The twin only fits the log and refines"
+         + (f" (segments anchored on the {rep['anchor']})" if rep.get("anchor") else "")
+         + ". Landing: "
          "rest offset ≤ 5 mm and ringing < 5 mm, valves closed "
          f"{rep['settle']:g} s after the last command. Entries: {', '.join(rep['chain'])}.",
          "", "Machines (drawn; the planner never saw them): "
          + "; ".join(f"{m['name']}: command delay {1e3 * m.get('delay', 0):.0f} ms, β(p) "
                      f"low {m['bulk_law']['lo']:.2f} at p_ref "
-                     f"{m['bulk_law']['p_ref'] / 1e6:.1f} MPa" for m in rep["machines"]) + ".",
+                     f"{m['bulk_law']['p_ref'] / 1e6:.1f} MPa"
+                     + (f", the {m['lag_joint']} valve {1e3 * m['lag']:.0f} ms slower"
+                        if m.get("lag") else "") for m in rep["machines"]) + ".",
          "", f"Calibration: one {rep['duration']:g} s excitation log per machine "
          f"({'`' + rep['excitation'] + '`' if rep.get('excitation') else 'trials.excitation'}"
          f", 50 Hz, seed 001's noise), every parameter, {rep['iterations']} least-squares "

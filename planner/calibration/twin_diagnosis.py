@@ -28,6 +28,7 @@ candidate                twin parameter                              reported as
 ``leakage@j``            ``leakage.j``                               ``coefficient`` (added)
 ``spool_lag``            ``spool_time_constant``                     ``tau`` [s]
 ``pump_lag``             ``pump_time_constant``                      ``tau`` [s]
+``time_delay``           ``[dynamics] command_delay``                ``delay`` [s]
 ``flow_gain@j``          the twin's valve gain factor of j           ``scale``
 ``payload_mass``         the twin's tip payload                      ``mass`` (added) [kg]
 ``pump_flow_limit``      the twin's pump-flow factor                 ``scale``
@@ -89,6 +90,7 @@ KINDS = {
     "viscous_friction": (True, "coefficient"), "leakage": (True, "coefficient"),
     "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
     "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
+    "time_delay": (False, "delay"),
 }
 
 
@@ -136,6 +138,7 @@ def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
     m0 = crane.spec.payload.total
     out = []
     own = {"spool_lag": "spool_time_constant", "pump_lag": "pump_time_constant",
+           "time_delay": "command_delay",
            "valve_deadband": "deadband.{}", "coulomb_friction": "coulomb.{}",
            "viscous_friction": "viscous.{}", "leakage": "leakage.{}"}
     for name in names:

@@ -4,7 +4,7 @@ logged commands, reproduces the logged positions and pressures.
 
 **Segments.** The log is cut at its holds — every stretch of at least ``hold`` seconds with
 every command at zero — into segments (a hold's last sample, the move that follows, the next
-hold). With ``anchor="twin"`` (opt-in) each segment starts from the twin's own state
+hold). With ``anchor="twin"`` (the default) each segment starts from the twin's own state
 where the segment before ended, the first from the log's rest: the whole log open loop, as the
 refined feed-forward will run. Measured on Exudyn's 120 s log of drawn machine m2 (2026-11-27),
 noise-free, at the machine's true values: the twin's own state leaves 1.3 / 0.8 floor σ on
@@ -13,12 +13,11 @@ the log (averaged positions, measured quiet pressures, at rest) is not one the t
 and the fit bent the parameters to absorb that: the slew's dead band 0.851 % for a truth of
 0.890 % (the rest offset of a drop → pick-up move 9.9 mm on Exudyn); anchored on the twin the
 fit reaches 1.00 / 0.99 σ on the noisy log, the dead band 0.887 %, and that move rests 0.7 mm
-off. But it is only as right as the twin's family: on drawn machine m1, whose valves see the
-commands 18 ms late (a delay the twin has no parameter for), the fit also reached 1.0 σ by
-putting the delay into the spool lag (53 ms for a truth of 34) and softening the oil, and the
-refined entries rest 34 mm off and ring 34 mm there (log anchors: 9 mm); m2 and m3 (0 and
-6 ms) land 3 of 3 each at 0.5–0.8 mm (``benchmarks/results/calibrate_loop_anchor.md``). So it
-stays opt-in until the twin has the delay. ``anchor="log"`` (the default, and the
+off. It is only as right as the twin's family: on drawn machine m1, whose valves see the
+commands 18 ms late, a twin without a command delay reached 1.0 σ by putting the delay into
+the spool lag (53 ms for a truth of 34) and softening the oil, and the refined entries rested
+34 mm off there; so the family has ``[dynamics] command_delay`` (fitted as
+``command_delay``), and the twin anchors became the default with it. ``anchor="log"`` (the
 diagnosis's, :mod:`planner.calibration.twin_diagnosis`): each segment is
 simulated from the state measured at its start: the logged
 positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the
@@ -164,7 +163,7 @@ class TwinFit:
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
                  step: float = 2e-3, pressures: bool = True, workers: int = 1,
-                 grapple=None, anchor: str = "log"):
+                 grapple=None, anchor: str = "twin"):
         self.crane = crane
         if anchor not in ("log", "twin"):
             raise ValueError(f"anchor: {anchor!r}; allowed: 'log' or 'twin'")
@@ -233,7 +232,10 @@ class TwinFit:
             sq, sp = self.sig[s.rec]
             t = r.t[s.k0:s.k1 + 1]
             x0 = self.start_state(tw, s, carry)
-            run = tw.simulate(t, r.u[s.k0:s.k1 + 1], s.q0, t_end=t[-1], x0=x0)
+            # a command delay reads the commands logged before the segment's start
+            ka = s.k0 if tw.delay <= 0 else max(s.k0 - self.history(r, tw.delay), 0)
+            run = tw.simulate(r.t[ka:s.k1 + 1], r.u[ka:s.k1 + 1], s.q0, t_end=t[-1], x0=x0,
+                              t_start=t[0])
             carry = (s.rec, s.k1, run) if run.ok else None
             ts = t[1:]
             good = ts <= run.t[-1] + 1e-9 if not run.ok else np.ones(ts.size, bool)
@@ -252,6 +254,12 @@ class TwinFit:
         rp = np.concatenate(rp) if rp else np.zeros(0)
         rq, rp = np.nan_to_num(rq, nan=DIVERGED), np.nan_to_num(rp, nan=DIVERGED)
         return (rq, rp) if split else np.concatenate([rq, rp])
+
+    @staticmethod
+    def history(r, delay: float) -> int:
+        """How many log samples before a start a ``delay`` [s] reads (one spare)."""
+        dt = float(np.min(np.diff(r.t[:min(r.t.size, 50)]))) if r.t.size > 1 else 1.0
+        return int(np.ceil(delay / dt)) + 1
 
     def start_state(self, tw: Twin, s: Segment, carry) -> np.ndarray:
         """A segment's start (module doc): the measured positions; the twin's own velocities,

@@ -11,6 +11,7 @@ name                        unit    where it lives
 ``bulk_reference_pressure`` Pa      ``[dynamics]`` the law's pivot p_ref
 ``spool_time_constant``     s       ``[dynamics] spool_time_constant`` (every valve)
 ``pump_time_constant``      s       ``[dynamics] pump_time_constant`` (LS regulator)
+``command_delay``           s       ``[dynamics] command_delay`` (command -> valves, every one)
 ``hose_a.<joint>``          m³      ``[dynamics.joint.<joint>] hose_volume[0]`` (piston side)
 ``hose_b.<joint>``          m³      ``[dynamics.joint.<joint>] hose_volume[1]`` (rod side)
 ``coulomb.<joint>``         N|N·m   ``[dynamics.joint.<joint>] coulomb``
@@ -21,7 +22,7 @@ name                        unit    where it lives
 
 Groups (``--parameters`` names a group or a parameter): ``oil`` (bulk modulus and its
 pressure law), ``hoses``,
-``valves`` (spool lag and dead bands), ``pump``, ``friction``, ``leakage``; ``all``.
+``valves`` (command delay, spool lag and dead bands), ``pump``, ``friction``, ``leakage``; ``all``.
 
 Scaling: a quantity that is positive by nature (bulk modulus, time constants, hose volumes) is
 fitted as z = ln(value / spec's value), bounded to a factor range; one whose true value may be
@@ -42,10 +43,13 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["TwinParameter", "GROUPS", "twin_parameters", "select", "machine_of",
-           "TYPICAL_LEAKAGE", "TYPICAL_DEADBAND"]
+           "TYPICAL_LEAKAGE", "TYPICAL_DEADBAND", "TYPICAL_DELAY"]
 
 #: assumed size of a worn seal's leakage [m³/(s·Pa)]: 0.06 L/min at 100 bar
 TYPICAL_LEAKAGE = 1e-14
+#: assumed size of a command delay: 10 ms (a CAN bus and a controller cycle of a few ms each;
+#: the drawn machines of the loop have 0–30 ms)
+TYPICAL_DELAY = 0.01
 #: assumed size of a valve's dead band: 1 % of the command range (what an electronic
 #: dead-band compensation typically leaves)
 TYPICAL_DEADBAND = 0.01
@@ -56,7 +60,7 @@ _FRICTION_PRESSURE = 1e5
 GROUPS = {
     "oil": ("bulk_modulus", "bulk_low", "bulk_high", "bulk_reference_pressure"),
     "hoses": ("hose_a", "hose_b"),
-    "valves": ("spool_time_constant", "deadband"),
+    "valves": ("command_delay", "spool_time_constant", "deadband"),
     "pump": ("pump_time_constant",),
     "friction": ("coulomb", "viscous"),
     "leakage": ("leakage",),
@@ -108,7 +112,9 @@ def twin_parameters(crane: Crane, dynamics=None) -> list[TwinParameter]:
                          min(5.0 * dyn.spool_time_constant, 1.0), True),
            TwinParameter("pump_time_constant", "pump_time_constant", None, "s",
                          dyn.pump_time_constant, 0.2 * dyn.pump_time_constant,
-                         min(5.0 * dyn.pump_time_constant, 5.0), True)]
+                         min(5.0 * dyn.pump_time_constant, 5.0), True),
+           TwinParameter("command_delay", "command_delay", None, "s", dyn.command_delay,
+                         0.0, 0.2, False, max(dyn.command_delay, TYPICAL_DELAY))]
     for j in crane.spec.joints:
         jd = dyn.joints[j.name]
         a = j.actuator
@@ -179,7 +185,8 @@ def machine_of(crane: Crane, values: dict, dynamics=None):
         raise ValueError(f"parameters: {bad[0]!r} unknown; allowed: {', '.join(sorted(known))}")
     top = {k: float(values[k]) for k in ("bulk_modulus", "spool_time_constant",
                                          "pump_time_constant", "bulk_low", "bulk_high",
-                                         "bulk_reference_pressure") if k in values}
+                                         "bulk_reference_pressure", "command_delay")
+           if k in values}
     joints = {}
     for name, jd in dyn.joints.items():
         hv = (float(values.get(f"hose_a.{name}", jd.hose_volume[0])),

@@ -88,6 +88,7 @@ def calibrated_twin_text(crane: Crane, res: TwinFitResult, source: str = "") -> 
              f"bulk_high = {dyn.bulk_high!r}  " + _comment(res, "bulk_high", ""),
              f"bulk_reference_pressure = {dyn.bulk_reference_pressure!r}  "
              + _comment(res, "bulk_reference_pressure", "Pa"),
+             f"command_delay = {dyn.command_delay!r}  " + _comment(res, "command_delay", "s"),
              f"pump_line_volume = {dyn.pump_line_volume!r}  # spec's value, not fitted",
              f"compensator_dp = {dyn.compensator_dp!r}  # spec's value, not fitted",
              f"meter_out_dp = {dyn.meter_out_dp!r}  # spec's value, not fitted",

@@ -97,11 +97,10 @@ def add_parsers(sub) -> None:
                         "(0.5)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes for the twin runs of each Jacobian (1)")
-    p.add_argument("--anchor", choices=("twin", "log"), default="log",
-                   help="where each segment after a hold starts: log — the logged positions "
-                        "and quiet pressures (default); twin — the twin's own state (the whole "
-                        "log open loop: unbiased when the twin's family holds the machine, "
-                        "misled by what it lacks, e.g. a command delay)")
+    p.add_argument("--anchor", choices=("twin", "log"), default="twin",
+                   help="where each segment after a hold starts: twin — the twin's own state "
+                        "(default: the whole log open loop, unbiased when the twin's family "
+                        "holds the machine); log — the logged positions and quiet pressures")
     from planner.cli.plan import add_grapple_args
     add_grapple_args(p, "the load hung on a grapple link of LENGTH m while the logs were made "
                         "(default: the spec's [dynamics.grapple]; 0: none): the twin carries "

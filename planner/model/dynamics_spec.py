@@ -15,6 +15,8 @@ meter_out_margin = 0.01         # the return cap over the outflow that matches t
 bulk_low = 0.6                  # optional: β rises with pressure, β(p) = β·clip((p + p_atm)/
 bulk_high = 1.25                #   (p_ref + p_atm), low, high); both 1 (the default): constant
 bulk_reference_pressure = 8e6   # Pa, p_ref: where β holds (the law's pivot)
+command_delay = 0.0             # s, optional (0): transport delay from the command to the
+                                #   valves (bus, controller cycle, pilot stage), every valve
 source = "…"
 [dynamics.joint.boom]           # one table per joint
 hose_volume = [1.0e-3, 1.0e-3]  # m³, piston side, rod side (or motor ports)
@@ -40,7 +42,8 @@ __all__ = ["JointDynamics", "GrappleLink", "DynamicsSpec", "parse_dynamics", "DY
 
 DYNAMICS_KEYS = {"bulk_modulus", "spool_time_constant", "pump_time_constant", "pump_line_volume",
                  "compensator_dp", "meter_out_dp", "meter_out_margin", "source",
-                 "joint", "grapple", "bulk_low", "bulk_high", "bulk_reference_pressure"}
+                 "joint", "grapple", "bulk_low", "bulk_high", "bulk_reference_pressure",
+                 "command_delay"}
 #: [Pa] the atmosphere in the pressure law of the bulk modulus (pressures are gauge)
 P_ATM = 1.0e5
 _JOINT_KEYS = {"hose_volume", "coulomb", "viscous", "leakage", "source"}
@@ -93,6 +96,7 @@ class DynamicsSpec:
     bulk_low: float = 1.0                   # β(p) law (module doc); 1, 1: constant β
     bulk_high: float = 1.0
     bulk_reference_pressure: float = 8.0e6
+    command_delay: float = 0.0              # s, command -> valves (0: none)
 
     def bulk_factor(self, p):
         """β(p)/β for gauge pressures ``p`` [Pa] (numpy): (p + p_atm)/(p_ref + p_atm)
@@ -122,6 +126,7 @@ def parse_dynamics(R: TableReader, data: dict, joint_names) -> DynamicsSpec | No
         bulk_high=R.num(tbl, "bulk_high", w, default=1.0, lo=1.0, hi=10.0),
         bulk_reference_pressure=R.num(tbl, "bulk_reference_pressure", w, default=8.0e6,
                                       lo=1e5, hi=1e8),
+        command_delay=R.num(tbl, "command_delay", w, default=0.0, lo=0.0, hi=0.3),
         source=R.text(tbl, "source", w))
     if kw["bulk_modulus"] > 5e9:
         R.fail(w + "bulk_modulus", tbl["bulk_modulus"],

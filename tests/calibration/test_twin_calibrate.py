@@ -193,8 +193,9 @@ def test_parameters_select_and_refuse_by_name(lab):
     assert {p.name for p in select(ps, "oil")} == {"bulk_modulus", "bulk_low", "bulk_high",
                                                    "bulk_reference_pressure"}
     assert {p.kind for p in select(ps, "friction")} == {"coulomb", "viscous"}
+    assert "command_delay" in {p.name for p in select(ps, "valves")}
     assert len(select(ps, "hose_a")) == lab.n
-    assert len(select(ps, None)) == 6 + 6 * lab.n
+    assert len(select(ps, None)) == 7 + 6 * lab.n
     with pytest.raises(ValueError, match="'bogus' unknown; allowed: all, groups oil"):
         select(ps, "bogus")
     with pytest.raises(ValueError, match="'hose_c.slew' unknown"):

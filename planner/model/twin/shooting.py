@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.model.commands import shift_steps, shift_steps_transposed
 from planner.model.numeric import jit_function
 from planner.model.twin.integrator import state_scale
 
@@ -74,8 +75,9 @@ class Shooting:
     def run(self, x0, u_steps) -> ShotRun:
         """Integrate from the state ``x0`` with the commands ``u_steps`` (K, n), one per step
         (K a multiple of the chunk; see :meth:`steps`), as the twin integrates (a chunk whose
-        Newton iteration does not converge is redone in substeps)."""
-        u_steps = np.asarray(u_steps, float)
+        Newton iteration does not converge is redone in substeps); the twin's command delay
+        shifts them (the valves closed before the first)."""
+        u_steps = shift_steps(u_steps, self.twin.delay, self.h)
         K = u_steps.shape[0]
         if K % self.C:
             raise ValueError(f"Shooting.run: {K} steps; a multiple of the chunk ({self.C}) "
@@ -87,11 +89,11 @@ class Shooting:
     def gradient(self, run: ShotRun, u_steps, dJdx) -> np.ndarray:
         """∂J/∂u per step (K, n) of a cost J whose derivative with respect to each state of
         ``run`` is ``dJdx`` (K + 1, nx) (row 0, the fixed start, is ignored); ``u_steps``
-        the commands of the run."""
+        the commands of the run (before the delay, as :meth:`run` took them)."""
         C, nx = self.C, self.nx
         K = run.x.shape[0] - 1
         dJdx = np.asarray(dJdx, float)
-        u_steps = np.asarray(u_steps, float)
+        u_steps = shift_steps(u_steps, self.twin.delay, self.h)
         g = np.empty((K, self.n))
         carry = np.zeros(2 * nx)
         for s in range(K - C, -1, -C):
@@ -102,7 +104,7 @@ class Shooting:
             R = np.asarray(r[0])
             carry = R[:, -1]
             g[ks] = np.asarray(r[1]).T
-        return g
+        return shift_steps_transposed(g, self.twin.delay, self.h)
 
 
 def _adjoint_step(rhs, n: int, st):

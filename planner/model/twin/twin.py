@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.model.commands import held_commands
+from planner.model.commands import delayed_steps, held_commands
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
 from planner.model.twin.coupled import coupled_stepper
@@ -127,6 +127,9 @@ class Twin:
             raise ValueError(f"crane '{spec.id}': field 'transformer.enabled': true; the twin "
                              "does not model the hydraulic transformer")
         self.crane, self.dynamics, self.step = crane, dyn, float(step)
+        #: [s] the transport delay from the command to the valves (``[dynamics]
+        #: command_delay``): the commands are shifted before the compiled steps see them
+        self.delay = float(getattr(dyn, "command_delay", 0.0))
         self.payload = spec.payload.total if payload is None else float(payload)
         self.bodies = spec if bodies is None else bodies
         self.params = twin_params(crane, dyn, self.payload, gain_scale, deadband, pump_scale)
@@ -187,10 +190,14 @@ class Twin:
         h.update(np.ascontiguousarray(self.P, float).tobytes())
         h.update(repr(self.bodies.joints).encode())
         h.update(f"{self.payload!r} {self.step!r} {self.stepper.newton}".encode())
+        if self.delay > 0:
+            h.update(f"delay {self.delay!r}".encode())
         spec = self.crane.spec
         out = dict(model="twin", crane_id=spec.id, spec=str(spec.path or ""),
                    fingerprint=h.hexdigest()[:16], step_s=self.step,
                    bulk_modulus_Pa=float(self.params.scalar["beta"]), payload_kg=self.payload)
+        if self.delay > 0:
+            out["command_delay_s"] = self.delay
         if self.pendulum is not None:
             pend = self.pendulum
             out["grapple"] = dict(length_m=pend.length, mass_kg=pend.mass,
@@ -260,17 +267,24 @@ class Twin:
 
     # ------------------------------------------------------------------ running
     def simulate(self, t_u, u, q0, t_end: float | None = None, force=None,
-                 x0=None) -> TwinRun:
+                 x0=None, t_start: float | None = None) -> TwinRun:
         """Commands ``u`` (M, n) held from ``t_u`` (M,), from rest at ``q0`` (or from the
-        state ``x0``) until ``t_end`` (default t_u[-1]). ``force(t, q, qd, p_a, p_b) -> (n,)``:
-        an extra actuator force (a load the actuators work against) evaluated at the start of
-        every chunk of steps (0.1 s at the defaults) and held over it."""
+        state ``x0``) from ``t_start`` (default t_u[0]; the commands before it are only the
+        history the command delay reads) until ``t_end`` (default t_u[-1]).
+        ``force(t, q, qd, p_a, p_b) -> (n,)``: an extra actuator force (a load the actuators
+        work against) evaluated at the start of every chunk of steps (0.1 s at the defaults)
+        and held over it. ``run.u`` holds what the valves saw (after the delay)."""
         wall0 = time.perf_counter()
         n, h = self.crane.n, self.step
-        t_u, u, q0, t0, t_end, K = held_commands(t_u, u, q0, n, t_end, h, "Twin.simulate")
+        t_u, u, q0, t0, t_end, K = held_commands(t_u, u, q0, n, t_end, h, "Twin.simulate",
+                                                 t_start=t_start)
         tk = t0 + h * np.arange(K + 1)
-        j = np.clip(np.searchsorted(t_u, tk + 1e-9 * h, side="right") - 1, 0, t_u.size - 1)
-        uk = u[j]
+        if self.delay > 0:
+            uk = delayed_steps(t_u, u, tk, h, self.delay)
+        else:
+            j = np.clip(np.searchsorted(t_u, tk + 1e-9 * h, side="right") - 1, 0,
+                        t_u.size - 1)
+            uk = u[j]
         x_start = self.rest_state(q0) if x0 is None else np.asarray(x0, float)
         fx = np.zeros((K, n))
         if force is None:

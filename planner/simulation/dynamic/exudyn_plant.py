@@ -287,6 +287,9 @@ class ExudynPlant(BasePlant):
         u_valves = u
         for e in self.acting("commands"):
             u_valves = e.commands(crane, t_u, u_valves)
+        if self.dyn.command_delay > 0:      # the machine's own [dynamics] command_delay
+            from planner.model.effects.motion import TimeDelay
+            u_valves = TimeDelay(delay=self.dyn.command_delay).commands(crane, t_u, u_valves)
         L = crane.limit_arrays()
         for e in self.acting("start"):
             q0 = e.start(crane, q0)

@@ -90,8 +90,7 @@ KINDS = {
     "viscous_friction": (True, "coefficient"), "leakage": (True, "coefficient"),
     "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
     "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
-    "time_delay": (False, "delay"),
-}
+    "time_delay": (False, "delay")}
 
 
 @dataclass(frozen=True)
@@ -138,9 +137,8 @@ def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
     m0 = crane.spec.payload.total
     out = []
     own = {"spool_lag": "spool_time_constant", "pump_lag": "pump_time_constant",
-           "time_delay": "command_delay",
-           "valve_deadband": "deadband.{}", "coulomb_friction": "coulomb.{}",
-           "viscous_friction": "viscous.{}", "leakage": "leakage.{}"}
+           "time_delay": "command_delay", "valve_deadband": "deadband.{}", "leakage": "leakage.{}",
+           "coulomb_friction": "coulomb.{}", "viscous_friction": "viscous.{}"}
     for name in names:
         for j in (crane.names if KINDS[name][0] else [None]):
             if name == "hose_volume":

@@ -11,8 +11,17 @@ the rest point after the plan's end) and the lengthening; the refine cost per en
                                       [--iterations I] [--tag NAME] [--work DIR]
 
 ``--work DIR`` keeps the selection library and its refined commands there: ``library refine``
-resumes, so a run that was stopped (or that spans sessions: the 400-entry library is about
-four CPU hours) refines only what is missing when started again with the same arguments.
+resumes, so a run that was stopped refines only what is missing when started again with the
+same arguments. A run longer than a working session (the 400-entry library is about six CPU
+hours) goes in parts whose results are kept: ``--order id --every 4 --offset 0 --tag
+s100f-400-p0``, … ``--offset 3 … -p3`` (in the entries' id order, not the file's, which
+follows the build's workers: each part then holds the same entries whichever build of the
+library it runs on — the build is deterministic), then
+
+    python benchmarks/bench_refine.py --merge refine_s100f-400-p0.json … --tag s100f-400
+
+writes one report over the parts' entries (rows of a later part replace an earlier one's for
+the same entry; every part must have used the same options and settle time).
 """
 from __future__ import annotations
 
@@ -51,9 +60,14 @@ def _stats(rows, key):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--library", required=True)
+    ap.add_argument("--library")
+    ap.add_argument("--merge", nargs="+", metavar="JSON",
+                    help="merge these results files (parts of one run) into --tag")
     ap.add_argument("--every", type=int, default=1, help="every K-th ok entry (1: all)")
     ap.add_argument("--offset", type=int, default=0, help="starting at this ok entry (0)")
+    ap.add_argument("--order", choices=("file", "id"), default="file",
+                    help="the order --every and --offset count in: the file's (default) or "
+                    "the entries' ids (parts of one run across library builds)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--iterations", type=int, default=RefineOptions().iterations)
     ap.add_argument("--settle", type=float, default=3.0)
@@ -62,11 +76,20 @@ def main():
     ap.add_argument("--work", help="keep the selection and its refinements here (resumable)")
     ap.add_argument("--energy-weight", type=float, default=0.0)
     a = ap.parse_args()
+    if a.merge:
+        rep = merge([json.loads(Path(f).read_text()) for f in a.merge],
+                    " ".join(sys.argv[1:]))
+        out = Path(a.out)
+        atomic_write_text(out / f"refine_{a.tag}.json", json.dumps(rep, indent=1, default=str))
+        atomic_write_text(out / f"refine_{a.tag}.md", markdown(rep))
+        return
+    if not a.library:
+        ap.error("--library is required (unless --merge)")
     tmp = tempfile.TemporaryDirectory()
     with LibraryStore.open(a.library) as db:
         ok = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
         crane_id = db.crane_id
-    ids = ok[a.offset::a.every]
+    ids = (sorted(ok) if a.order == "id" else ok)[a.offset::a.every]
     # refine only the selected entries: a library holding just them
     work = Path(a.work) if a.work else Path(tmp.name)
     work.mkdir(parents=True, exist_ok=True)
@@ -81,6 +104,35 @@ def main():
         _select(Path(a.library), ids, sel)
     _refine_and_replay(a, ids, sel, crane_id, ok)
     tmp.cleanup()
+
+
+def merge(parts: list, argv: str) -> dict:
+    """One report over ``parts`` (results of this bench on one library, same options and
+    settle time): their entries' rows and refinements, a later part's replacing an earlier
+    one's; the refine summary summed (wall time: the parts' sum)."""
+    if not parts:
+        raise ValueError("--merge: no results file given")
+    base = parts[0]
+    for k in ("crane", "options", "settle", "library_entries"):
+        bad = [p.get("argv") for p in parts if p.get(k) != base.get(k)]
+        if bad:
+            raise ValueError(f"--merge: field '{k}' differs between the parts (e.g. the run "
+                             f"'{bad[0]}'); allowed: parts of one run")
+    runs = {w: {} for w in ("nominal", "refined")}
+    infos, refine = {}, dict(refined=0, wall_s=0.0, workers=base["refine"].get("workers"))
+    for p in parts:
+        for w in runs:
+            runs[w].update({r["id"]: r for r in p["runs"][w]["rows"]})
+        infos.update(p["infos"])
+        refine["refined"] += int(p["refine"].get("refined", 0))
+        refine["wall_s"] += float(p["refine"].get("wall_s", 0.0))
+    rep = dict(base, argv=argv, selected=len(runs["nominal"]), every=1, offset=0, infos=infos,
+               refine=refine, parts=[dict(argv=p["argv"], date=p["date"],
+                                          selected=p["selected"]) for p in parts],
+               runs={w: dict(rows=sorted(v.values(), key=lambda r: r["id"]),
+                             seconds=sum(p["runs"][w].get("seconds", 0.0) for p in parts))
+                     for w, v in runs.items()})
+    return rep
 
 
 def _select(library: Path, ids, sel: Path):
@@ -117,7 +169,8 @@ def _refine_and_replay(a, ids, sel, crane_id, ok):
     rep = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
                platform=platform.platform(), cpus=os.cpu_count(), load=os.getloadavg(),
                argv=" ".join(sys.argv[1:]), crane=crane_id, library_entries=len(ok),
-               selected=len(ids), every=a.every, offset=a.offset, options=opts.__dict__, settle=a.settle,
+               selected=len(ids), every=a.every, offset=a.offset, order=a.order,
+               options=opts.__dict__, settle=a.settle,
                refine=dict(summary, wall_s=refine_wall, workers=a.workers), infos=infos, runs=runs)
     out = Path(a.out)
     atomic_write_text(out / f"refine_{a.tag}.json", json.dumps(rep, indent=1, default=str))
@@ -178,8 +231,11 @@ def markdown(rep) -> str:
          f"{rep['load'][0]:.1f} {rep['load'][1]:.1f} {rep['load'][2]:.1f}. "
          f"`python benchmarks/bench_refine.py {rep['argv']}`.", "",
          f"Entries: {rep['selected']} of the library's {rep['library_entries']} ok entries "
-         f"(every {rep['every']}-th from entry {rep.get('offset', 0)}, in the file's order; "
-         f"objectives {_objectives(rep)}). Refined by `library refine` on the "
+         + (f"(the parts {'; '.join('`' + p['argv'] + '`' for p in rep['parts'])}; "
+            if rep.get("parts") else
+            f"(every {rep['every']}-th from entry {rep.get('offset', 0)}, in the "
+            + ("entries' ids" if rep.get("order") == "id" else "file's") + " order; ")
+         + f"objectives {_objectives(rep)}). Refined by `library refine` on the "
          f"twin of the library's own spec (options {rep['options']}); each entry replayed "
          f"open loop on the **Exudyn plant** (the judge; same spec parameters) with its "
          f"nominal and its refined commands, valves closed {rep['settle']:g} s after the last "

@@ -1,0 +1,49 @@
+"""``bench_refine.py --merge``: a run too long for one working session (the 400-entry
+library refine) goes in parts whose results are kept, merged into one report."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+import bench_refine  # noqa: E402
+
+
+def _row(i, offset, osc=0.001):
+    return dict(id=i, status="ok", objective="time", duration_s=8.0,
+                exudyn=dict(offset_m=offset, peak_osc_m=osc, max_track_m=0.01,
+                            settle_goal_s=0.1))
+
+
+def _part(argv, rows, options=None, refined=2, wall=100.0):
+    info = dict(status="improved", cpu_s=50.0, lengthened_s=0.5,
+                predicted=dict(refined=dict(rest_offset_m=1e-4, residual_oscillation_m=1e-4,
+                                            track_m=0.01)))
+    return dict(date="2026-11-27 09:00 UTC", platform="x", cpus=2, load=[1.0, 1.0, 1.0],
+                argv=argv, crane="s100f", library_entries=400, selected=len(rows), every=4,
+                offset=0, order="id", options=options or dict(iterations=150), settle=3.0,
+                refine=dict(refined=refined, wall_s=wall, workers=2),
+                infos={r["id"]: info for r in rows},
+                runs={w: dict(rows=rows, seconds=10.0) for w in ("nominal", "refined")})
+
+
+def test_parts_merge_into_one_report_a_later_row_replacing_an_earlier_one():
+    a = _part("--offset 0", [_row("a", 0.002), _row("b", 0.009)])
+    b = _part("--offset 1", [_row("b", 0.001), _row("c", 0.003)], wall=50.0)
+    rep = bench_refine.merge([a, b], "--merge a b")
+    rows = rep["runs"]["refined"]["rows"]
+    assert [r["id"] for r in rows] == ["a", "b", "c"]
+    assert rows[1]["exudyn"]["offset_m"] == 0.001          # the later part's
+    assert rep["selected"] == 3 and rep["refine"]["wall_s"] == 150.0
+    md = bench_refine.markdown(rep)
+    assert "| refined | 3 of 3 (100 %)" in md
+    assert "`--offset 0`; `--offset 1`" in md
+
+
+def test_parts_of_different_runs_are_refused_by_field():
+    a = _part("--offset 0", [_row("a", 0.002)])
+    b = _part("--offset 1 --iterations 80", [_row("c", 0.003)], options=dict(iterations=80))
+    with pytest.raises(ValueError, match="field 'options' differs.*--iterations 80"):
+        bench_refine.merge([a, b], "--merge a b")

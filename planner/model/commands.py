@@ -68,33 +68,27 @@ def _split(delay: float, h: float):
     return int(m), (0.0 if f < 1e-9 else f)
 
 
-def shift_steps(u_steps, delay: float, h: float) -> np.ndarray:
+def shift_steps(u_steps, delay: float, h: float, transpose: bool = False) -> np.ndarray:
     """Per-step commands ``u_steps`` (K, n) as the valves see them ``delay`` [s] later, on
-    the step grid of ``h`` [s] (module doc; 0 before the first step)."""
+    the step grid of ``h`` [s] (module doc; 0 before the first step); ``transpose``: the
+    transposed map (a gradient with respect to the shifted commands taken back to the
+    commands)."""
     u = np.asarray(u_steps, float)
     if delay <= 0:
         return u
     m, f = _split(delay, h)
     out = np.zeros_like(u)
     K = u.shape[0]
-    if m < K:
-        out[m:] = (1.0 - f) * u[:K - m]
-    if f > 0 and m + 1 < K:
-        out[m + 1:] += f * u[:K - m - 1]
+    for lag, w in ((m, 1.0 - f), (m + 1, f)):
+        if w > 0 and lag < K:
+            if transpose:
+                out[:K - lag] += w * u[lag:]
+            else:
+                out[lag:] += w * u[:K - lag]
     return out
 
 
 def shift_steps_transposed(g, delay: float, h: float) -> np.ndarray:
     """The transpose of :func:`shift_steps`: ∂J/∂u per step (K, n) from ``g`` = ∂J/∂(the
     shifted commands) (K, n)."""
-    g = np.asarray(g, float)
-    if delay <= 0:
-        return g
-    m, f = _split(delay, h)
-    out = np.zeros_like(g)
-    K = g.shape[0]
-    if m < K:
-        out[:K - m] = (1.0 - f) * g[m:]
-    if f > 0 and m + 1 < K:
-        out[:K - m - 1] += f * g[m + 1:]
-    return out
+    return shift_steps(g, delay, h, transpose=True)

@@ -16,7 +16,7 @@ from planner.model import Crane
 from planner.model.commands import delayed_steps, shift_steps, shift_steps_transposed
 from planner.model.twin import Twin
 from planner.model.twin.shooting import Shooting
-from tests.conftest import step_commands
+from tests.conftest import check_adjoint, step_commands
 
 MACHINE = "umea-lab"
 
@@ -114,19 +114,7 @@ def test_the_adjoint_gradient_with_a_delay_matches_central_differences(crane):
     rng = np.random.default_rng(1)
     W = np.zeros((K + 1, sh.nx))
     W[:, :crane.n] = rng.normal(size=(K + 1, crane.n))
-
-    def J(uu):
-        return float(np.sum(W * sh.run(x0, uu).x))
-
-    g = sh.gradient(sh.run(x0, us), us, W)
-    b, a = butter(2, 0.02)
-    m = len(u) * R
-    for _ in range(2):
-        d = np.zeros_like(us)
-        d[:m] = filtfilt(b, a, rng.normal(size=(m, crane.n)), axis=0) * 0.05
-        eps = 1e-4
-        fd = (J(us + eps * d) - J(us - eps * d)) / (2 * eps)
-        assert np.sum(g * d) == pytest.approx(fd, rel=2e-3, abs=1e-9 * abs(fd) + 1e-12)
+    check_adjoint(sh, x0, us, W, len(u) * R, rng, directions=2)
 
 
 def test_the_spec_field_is_checked(tmp_path):

@@ -13,7 +13,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.signal import butter, filtfilt
 
 from planner import Crane
 from planner.feedforward import commands, stored_commands
@@ -24,7 +23,7 @@ from planner.methods.ruckig import rest_to_rest
 from planner.model.twin import Twin
 from planner.model.twin.shooting import Shooting
 from planner.refine import RefineOptions, RefineStatus, refine_commands
-from tests.conftest import step_commands
+from tests.conftest import check_adjoint, step_commands
 
 MACHINE = "umea-lab"   # the lightest twin: the compiled adjoint builds quickest
 
@@ -62,19 +61,7 @@ def test_the_adjoint_gradient_matches_central_differences(crane, twin, move):
     W = np.zeros((K + 1, sh.nx))
     W[:, :crane.n] = rng.normal(size=(K + 1, crane.n))
     W[:, 2 * crane.n:3 * crane.n] = 1e-7 * rng.normal(size=(K + 1, crane.n))  # pressures
-
-    def J(uu):
-        return float(np.sum(W * sh.run(x0, uu).x))
-
-    g = sh.gradient(sh.run(x0, us), us, W)
-    b, a = butter(2, 0.02)
-    m = len(u) * R
-    for _ in range(3):
-        d = np.zeros_like(us)
-        d[:m] = filtfilt(b, a, rng.normal(size=(m, crane.n)), axis=0) * 0.05
-        eps = 1e-4
-        fd = (J(us + eps * d) - J(us - eps * d)) / (2 * eps)
-        assert np.sum(g * d) == pytest.approx(fd, rel=2e-3, abs=1e-9 * abs(fd) + 1e-12)
+    check_adjoint(sh, x0, us, W, len(u) * R, rng)
 
 
 def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin, move):

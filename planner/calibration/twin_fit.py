@@ -17,7 +17,9 @@ off. It is only as right as the twin's family: on drawn machine m1, whose valves
 commands 18 ms late, a twin without a command delay reached 1.0 σ by putting the delay into
 the spool lag (53 ms for a truth of 34) and softening the oil, and the refined entries rested
 34 mm off there; so the family has ``[dynamics] command_delay`` (fitted as
-``command_delay``), and the twin anchors became the default with it. ``anchor="log"`` (the
+``command_delay``), and the twin anchors became the default with it (on six drawn machines
+with one valve slower than the rest, which the family cannot say, 24 of 72 entries land:
+``benchmarks/results/calibrate_loop_delay.md``). ``anchor="log"`` (the
 diagnosis's, :mod:`planner.calibration.twin_diagnosis`): each segment is
 simulated from the state measured at its start: the logged
 positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the

@@ -142,7 +142,7 @@ def add_refine_parser(lsub) -> None:
                    help="seconds the commands may act past the plan's end (0.5)")
     p.add_argument("--energy-weight", type=float, default=0.0, metavar="W",
                    help="weight of the twin's pump work in the refine cost, mm²·s per kJ "
-                        "(0: tracking and landing only; energy entries: see planner/refine.py)")
+                        "(0: tracking and landing only; energy entries: see planner/refine/__init__.py)")
     p.add_argument("--swing-weight", type=float, metavar="W",
                    help="entries planned with a grapple (library build --grapple): the weight "
                         "of the load's swing after the plan's end, refined on the twin that "

@@ -96,7 +96,11 @@ def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin
                                        (dict(polish=-1), "polish"),
                                        (dict(lead=-0.1), "lead"),
                                        (dict(keep_closed="yes"), "keep_closed"),
-                                       (dict(idle=0.5), "idle")])
+                                       (dict(idle=0.5), "idle"),
+                                       (dict(restarts=1), "restarts"),
+                                       (dict(calm=-0.5), "calm"),
+                                       (dict(calm_weight=0.5), "calm_weight"),
+                                       (dict(calm_below=-1e-3), "calm_below")])
 def test_bad_options_name_the_field(kw, field):
     with pytest.raises(ValueError, match=f"'{field}'"):
         RefineOptions(**kw)

@@ -44,9 +44,22 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   ``polish`` run on the twin at that step and the last ones on the twin at its own step from
   where the coarse ones ended (three s100f entries: 12–32 % less CPU, a higher final cost on
   two: at 4 ms the twin's Newton iteration fails more often, and the polish restarts the
-  memory). A free command that is exactly 0 starts at 10⁻⁶: a closed valve is a kink of the
+  memory). Where L-BFGS-B stops early (its line search failed at a kink of the twin, or one
+  step gained nothing), it is restarted from its best point with a fresh memory while the
+  budget lasts (``restarts``, :mod:`planner.refine.solve`). A free command that is exactly 0
+  starts at 10⁻⁶: a closed valve is a kink of the
   flow (|o|) whose adjoint slope is 0, so an idle joint's valve — one whose oil gives while
   the others move, a telescope that creeps off its stroke end — would otherwise never be used.
+* **The calm stage** (``calm``): where the first stage leaves the twin predicting a rest
+  offset or ringing above ``calm_below`` (2.5 mm, half the landing tolerance), a second
+  L-BFGS-B from where it ended, with the end weighed ``calm_weight`` × heavier and
+  ``calm`` × ``iterations`` more iterations; kept when the twin predicts the move closer to
+  landed (the larger of rest offset and ringing), and said so in ``predicted["calm"]``. The
+  first stage's weights trade ringing against the tip error during the move: on the s100f
+  part-0 misses of ``refine_s100f-400-p0.md`` the twin (= Exudyn there, to < 1 mm) predicted
+  5–26 mm of ringing at 20–100 mm of tip error during the move; from the nominal commands a
+  5 × end weight alone calmed some (d00-p12 22.9 → 2.4 mm) and made others worse (d03-p09
+  26 → 61 mm). Started from the first stage's result it keeps what that one found.
 * **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
   commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
   controller's dead-band compensation sends. In command units a valve inside its dead band is
@@ -87,22 +100,15 @@ import numpy as np
 
 from planner.landing import landing_measures, tip_levers
 from planner.model.valves import past_deadband, within_deadband
+from planner.refine.cost import CommandCost
+from planner.refine.solve import Solved, minimize_commands
 from planner.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from planner.model import Crane
     from planner.model.twin import Twin
 
-_STEP = 0.05   # the optimiser's first step, in valve-command units (see refine_commands)
 _DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
-# L-BFGS-B stops when one iteration lowers the cost by less than this fraction: scipy's default
-# (2.2e-9) ended slow energy entries after 18-121 iterations with the twin itself predicting
-# 5-76 mm of ringing (bench_refine's 20 energy entries: 13 -> 14 land on Exudyn with this one)
-_FTOL = 1e-12
-# L-BFGS-B's memory (scipy's default 10): the twin's lightly damped hydraulic modes make the
-# cost ill-conditioned, and a longer memory of curvature pairs costs nothing beside a twin run
-# (an s100f entry, 150 iterations: cost 311 -> 198 mm²·s, the largest tip error 23 -> 18 mm)
-_MEMORY = 50
 #: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
 #: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
 #: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
@@ -127,7 +133,12 @@ class RefineOptions:
     (:meth:`Twin.oil_spring_frequencies <planner.model.twin.Twin.oil_spring_frequencies>`)
     and ``tail`` to a quarter of that, where they are shorter (0: never) — the cost must see
     the ringing it is to calm: cat215b's swing rings at 0.22–0.30 Hz, a 2 s settle saw half a
-    period of it; the forwarders' slowest modes (0.67 Hz and up) keep 2 s and 0.5 s."""
+    period of it; the forwarders' slowest modes (0.67 Hz and up) keep 2 s and 0.5 s.
+    ``restarts``: L-BFGS-B restarted where it stops early (:mod:`planner.refine.solve`);
+    the calm stage's iterations, ``calm`` × ``iterations`` (0: none), with the end weighed
+    ``calm_weight`` × more,
+    run where the first stage leaves the twin predicting a rest offset or ringing above
+    ``calm_below`` [m] (module doc)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -144,6 +155,10 @@ class RefineOptions:
     keep_closed: bool = False
     lead: float = 0.3
     idle: float = 1e-3
+    restarts: bool = True
+    calm: float = 0.7
+    calm_weight: float = 5.0
+    calm_below: float = 2.5e-3
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
@@ -155,13 +170,16 @@ class RefineOptions:
                   ("polish", self.polish, 0, 10000),
                   ("energy_weight", self.energy_weight, 0.0, 1e6),
                   ("periods", self.periods, 0.0, 10.0), ("lead", self.lead, 0.0, 10.0),
-                  ("idle", self.idle, 0.0, 0.1))
+                  ("idle", self.idle, 0.0, 0.1), ("calm", self.calm, 0.0, 10.0),
+                  ("calm_weight", self.calm_weight, 1.0, 1e4),
+                  ("calm_below", self.calm_below, 0.0, 1.0))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
-        if not isinstance(self.keep_closed, bool):
-            raise ValueError(f"refine option 'keep_closed' = {self.keep_closed!r}; allowed: "
-                             "True, False")
+        for name in ("keep_closed", "restarts"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"refine option '{name}' = {getattr(self, name)!r}; allowed: "
+                                 "True, False")
         if self.rest_window > self.settle:
             raise ValueError(f"refine option 'rest_window' = {self.rest_window!r}; allowed: at "
                              f"most settle = {self.settle:g} s")
@@ -211,70 +229,6 @@ class Refinement:
                     wall_s=self.wall_s)
 
 
-class _Cost:
-    """The cost of the module doc and its gradient with respect to the control-grid commands."""
-
-    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane: Crane,
-                 pendulum=None, x0=None):
-        self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
-        n = traj.n
-        h = shooting.h
-        self.tk = traj.t[0] + h * np.arange(K + 1)
-        self.q_ref = traj.sample(np.clip(self.tk, traj.t[0], traj.t[-1]))[0]
-        w_t = np.where(self.tk > traj.t[-1] + 1e-9, opts.end_weight, 1.0)
-        # the levers along the reference (a slew's lever is the reach: 1.8 m folded at an s100f
-        # goal, 6 m stretched out on the way; weighted at the goal only, the optimiser paid a
-        # mid-move slew error an eleventh of its tip error); J in mm²·s (the scale L-BFGS-B's
-        # default tolerances suit)
-        self.W = 1e6 * h * w_t[:, None] * tip_levers(crane, self.q_ref) ** 2
-        self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
-        self.smooth = 1e6 * opts.smooth
-        # the pump's work [kJ] over the whole record, in mm²·s per kJ (energy entries)
-        self.w_energy = 1e-3 * h * opts.energy_weight
-        self.power = shooting.twin.pump_power() if opts.energy_weight > 0 else None
-        self.P = np.asarray(shooting.twin.P, float)
-        self.energy_kJ = float("nan")
-        self.x0 = shooting.twin.rest_state(traj.q[0]) if x0 is None else np.asarray(x0, float)
-        self.n, self.evaluations = n, 0
-        self.fail = 1e30
-        self.db = np.asarray(shooting.twin.params.per["deadband"], float)
-
-    def steps(self, U):
-        us = np.zeros((self.K, self.n))
-        us[:self.Ku * self.R] = np.repeat(U, self.R, axis=0)
-        return us
-
-    def __call__(self, z):
-        U = z.reshape(self.Ku, self.n)           # openings; the valves get past_deadband(U)
-        us = self.steps(past_deadband(U, self.db))
-        run = self.sh.run(self.x0, us)
-        self.evaluations += 1
-        e = run.x[:, :self.n] - self.q_ref
-        if not np.all(np.isfinite(e)):   # the twin left its range: a wall, not a slope
-            return self.fail, np.zeros_like(z)
-        J = float(np.sum(self.W * e * e))
-        dJdx = np.zeros_like(run.x)
-        dJdx[:, :self.n] = 2.0 * self.W * e
-        if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
-            from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
-            nb = 5 * self.n + 1
-            S = run.x[:, nb:]
-            J += float(np.sum(self.W_swing * amplitude2(self.pendulum, S)))
-            dJdx[:, nb:] += self.W_swing[:, None] * amplitude2_gradient(self.pendulum, S)
-        if self.power is not None:       # the pump's work: p_s·Σ q_in, a function of states
-            w, dw = self.power(run.x, self.P[None, :])
-            self.energy_kJ = 1e-3 * self.sh.h * float(np.sum(w))
-            J += self.w_energy * float(np.sum(w))
-            dJdx += self.w_energy * dw
-        g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
-        g = g.reshape(self.Ku, self.R, self.n).sum(axis=1) * (1.0 - self.db)
-        dU = np.diff(U, axis=0)
-        J += self.smooth * float(np.sum(dU * dU))
-        g[1:] += 2.0 * self.smooth * dU
-        g[:-1] -= 2.0 * self.smooth * dU
-        return J, g.ravel()
-
-
 def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
                     options: RefineOptions | None = None, pendulum=None,
                     x0=None) -> Refinement:
@@ -318,11 +272,11 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     Ku = t_u.size + int(round(tail * opts.rate))
     pend = twin.pendulum if opts.swing_weight > 0 else None
 
-    def problem(tw):
+    def problem(tw, end_weight=None):
         sh = Shooting(tw)
         R = int(round(dt / tw.step))
         K = sh.steps((Ku + 1) * R + int(round(settle / tw.step)))
-        return _Cost(sh, traj, Ku, R, K, opts, crane, pend, x0), K
+        return CommandCost(sh, traj, Ku, R, K, opts, crane, pend, x0, end_weight), K
 
     cost, K = problem(twin)
     db = cost.db
@@ -351,15 +305,16 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         coarse, _ = problem(twin.at_step(opts.coarse_step))
         Jc0, _ = coarse(z)
         coarse.fail = 100.0 * Jc0 + 1.0
-        r1 = _minimize(coarse, z, opts.iterations - opts.polish, shut.ravel())
+        r1 = minimize_commands(coarse, z, opts.iterations - opts.polish, shut.ravel(),
+                               opts.restarts)
         nit, evals, fine = int(r1.nit), coarse.evaluations, int(opts.polish)
         if r1.fun < Jc0:
             z = np.clip(r1.x, -1.0, 1.0)
     if fine > 0:
-        res = _minimize(cost, z, fine, shut.ravel())
+        res = minimize_commands(cost, z, fine, shut.ravel(), opts.restarts)
         res.x = np.clip(res.x, -1.0, 1.0)
     else:
-        res = _Result(z, cost(z)[0], 0, "coarse iterations only")
+        res = Solved(z, cost(z)[0], 0, "coarse iterations only")
     nit += int(res.nit)
     evals += cost.evaluations
     U = past_deadband(res.x.reshape(Ku, n), db)
@@ -372,6 +327,25 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         return Refinement(t_u, u, RefineStatus.UNCHANGED, why, nit, evals,
                           dict(pred, refined=nominal), 0.0,
                           wall_s=time.perf_counter() - wall0, **base)
+    calm, restarts = None, int(getattr(res, "restarts", 0))
+    if opts.calm > 0 and opts.calm_weight > 1.0 and _score(refined) > opts.calm_below:
+        # the calm stage (module doc): from where the first ended, the end weighed heavier
+        cost2, _ = problem(twin, opts.end_weight * opts.calm_weight)
+        J2, _ = cost2(res.x)
+        cost2.fail = 100.0 * J2 + 1.0
+        r2 = minimize_commands(cost2, res.x, max(int(round(opts.calm * opts.iterations)), 1),
+                               shut.ravel(), opts.restarts)
+        x2 = np.clip(r2.x, -1.0, 1.0)
+        U2 = past_deadband(x2.reshape(Ku, n), db)
+        p2 = _predict(crane, twin, traj, t_all, U2, K, opts, x0) if r2.fun < J2 else None
+        taken = p2 is not None and _score(p2) < _score(refined)
+        calm = dict(iterations=int(r2.nit), restarts=int(r2.restarts), message=r2.message,
+                    taken=bool(taken), first=refined, end_weight=opts.end_weight *
+                    opts.calm_weight)
+        nit, evals = nit + int(r2.nit), evals + cost2.evaluations
+        if taken:
+            U, refined, res = U2, p2, r2
+    pred.update(calm=calm, restarts=restarts)
     # drop trailing rows that open no valve (inside every dead band)
     live = np.flatnonzero(np.any(np.abs(U) > db[None, :], axis=1))
     last = max(int(live[-1]) + 1 if live.size else 0, t_u.size)
@@ -431,14 +405,6 @@ def _horizon(twin: Twin, traj: Trajectory, opts: RefineOptions):
     return max(opts.tail, min(0.25 * T, 10.0)), max(opts.settle, min(T, 60.0)), f
 
 
-@dataclass
-class _Result:
-    x: np.ndarray
-    fun: float
-    nit: int
-    message: str
-
-
 def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
     """(Ku, n) True where a command must stay 0 (module doc, ``keep_closed``): the joints
     whose nominal commands ``u`` (M, n) are all at most ``idle``, up to ``lead`` s before
@@ -450,27 +416,9 @@ def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
     return shut
 
 
-def _minimize(cost, z0, iterations: int, shut=None) -> _Result:
-    """L-BFGS-B on ``cost`` from the commands ``z0`` (flat), |u| ≤ 1 (0 where ``shut``), at
-    most ``iterations`` iterations. The unknowns are scaled: L-BFGS-B's first step is a unit
-    step along −g, which in command units can swing a valve across its range (the twin then
-    leaves its range); ``_STEP`` is the size of that first step in commands, later steps
-    follow the curvature it learns."""
-    from scipy.optimize import minimize
-    s = _STEP
-
-    def f(z):
-        J, g = cost(z * s)
-        return J, g * s
-
-    hi = np.full(len(z0), 1.0 / s)
-    if shut is not None:
-        hi[np.asarray(shut, bool)] = 0.0
-    res = minimize(f, np.asarray(z0, float) / s, jac=True, method="L-BFGS-B",
-                   bounds=list(zip(-hi, hi)),
-                   options=dict(maxiter=int(iterations), maxfun=2 * int(iterations),
-                                ftol=_FTOL, maxcor=_MEMORY))
-    return _Result(res.x * s, float(res.fun), int(res.nit), str(res.message))
+def _score(measures: dict) -> float:
+    """How far a prediction is from landed: the larger of its rest offset and ringing [m]."""
+    return max(measures["rest_offset_m"], measures["residual_oscillation_m"])
 
 
 def _predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,

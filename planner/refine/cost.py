@@ -1,0 +1,82 @@
+"""The cost that :func:`planner.refine.refine_commands` minimises over the valve openings on
+the control grid, with its exact gradient by the twin's adjoint (the terms are described in
+:mod:`planner.refine`'s module doc)."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.landing import tip_levers
+from planner.model.valves import past_deadband
+from planner.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from planner.model import Crane
+
+__all__ = ["CommandCost"]
+
+
+class CommandCost:
+    """The cost of :mod:`planner.refine`'s module doc and its gradient with respect to the control-grid commands."""
+
+    def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane: Crane,
+                 pendulum=None, x0=None, end_weight: float | None = None):
+        self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
+        n = traj.n
+        h = shooting.h
+        self.tk = traj.t[0] + h * np.arange(K + 1)
+        self.q_ref = traj.sample(np.clip(self.tk, traj.t[0], traj.t[-1]))[0]
+        w_end = opts.end_weight if end_weight is None else end_weight
+        w_t = np.where(self.tk > traj.t[-1] + 1e-9, w_end, 1.0)
+        # the levers along the reference (a slew's lever is the reach: 1.8 m folded at an s100f
+        # goal, 6 m stretched out on the way; weighted at the goal only, the optimiser paid a
+        # mid-move slew error an eleventh of its tip error); J in mm²·s (the scale L-BFGS-B's
+        # default tolerances suit)
+        self.W = 1e6 * h * w_t[:, None] * tip_levers(crane, self.q_ref) ** 2
+        self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
+        self.smooth = 1e6 * opts.smooth
+        # the pump's work [kJ] over the whole record, in mm²·s per kJ (energy entries)
+        self.w_energy = 1e-3 * h * opts.energy_weight
+        self.power = shooting.twin.pump_power() if opts.energy_weight > 0 else None
+        self.P = np.asarray(shooting.twin.P, float)
+        self.energy_kJ = float("nan")
+        self.x0 = shooting.twin.rest_state(traj.q[0]) if x0 is None else np.asarray(x0, float)
+        self.n, self.evaluations = n, 0
+        self.fail = 1e30
+        self.db = np.asarray(shooting.twin.params.per["deadband"], float)
+
+    def steps(self, U):
+        us = np.zeros((self.K, self.n))
+        us[:self.Ku * self.R] = np.repeat(U, self.R, axis=0)
+        return us
+
+    def __call__(self, z):
+        U = z.reshape(self.Ku, self.n)           # openings; the valves get past_deadband(U)
+        us = self.steps(past_deadband(U, self.db))
+        run = self.sh.run(self.x0, us)
+        self.evaluations += 1
+        e = run.x[:, :self.n] - self.q_ref
+        if not np.all(np.isfinite(e)):   # the twin left its range: a wall, not a slope
+            return self.fail, np.zeros_like(z)
+        J = float(np.sum(self.W * e * e))
+        dJdx = np.zeros_like(run.x)
+        dJdx[:, :self.n] = 2.0 * self.W * e
+        if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
+            from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
+            nb = 5 * self.n + 1
+            S = run.x[:, nb:]
+            J += float(np.sum(self.W_swing * amplitude2(self.pendulum, S)))
+            dJdx[:, nb:] += self.W_swing[:, None] * amplitude2_gradient(self.pendulum, S)
+        if self.power is not None:       # the pump's work: p_s·Σ q_in, a function of states
+            w, dw = self.power(run.x, self.P[None, :])
+            self.energy_kJ = 1e-3 * self.sh.h * float(np.sum(w))
+            J += self.w_energy * float(np.sum(w))
+            dJdx += self.w_energy * dw
+        g = self.sh.gradient(run, us, dJdx)[:self.Ku * self.R]
+        g = g.reshape(self.Ku, self.R, self.n).sum(axis=1) * (1.0 - self.db)
+        dU = np.diff(U, axis=0)
+        J += self.smooth * float(np.sum(dU * dU))
+        g[1:] += 2.0 * self.smooth * dU
+        g[:-1] -= 2.0 * self.smooth * dU
+        return J, g.ravel()

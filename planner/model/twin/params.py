@@ -18,6 +18,9 @@ fields of :data:`SCALARS`. Where they come from:
   pump time constants, the pump line volume;
 * ``[pump]``: load sensing or constant pressure, maximum flow (× the valves-stage pump factor),
   LS margin, standby, set and relief pressures;
+* ``ls_ramp``: 0 (the machine: a valve signals its meter-in pressure to the load-sensing pump
+  as soon as it opens past ``OPEN_EPS``); > 0 only in the optimisation twin of
+  :mod:`planner.refine` (:mod:`planner.model.twin.ode`);
 * the stroke geometry: a cylinder's chambers are measured from its own ends (0 and its stroke,
   where it bottoms out); a rack's from the strokes of the joint limits; a rotary motor keeps its
   hose volumes and has no end stop (its ports' oil does not change with the angle).
@@ -45,7 +48,7 @@ PER_ACTUATOR = ("gain", "deadband", "area_a", "area_b", "single", "leak", "hose_
 #: machine-wide parameters, after the per-actuator block
 SCALARS = ("beta", "margin", "dp_c", "dp_out", "p_tank", "load_sensing", "q_max", "ls_margin",
            "standby", "p_const", "p_relief", "tau_pump", "v_pump", "tau_spool", "payload",
-           "beta_lo", "beta_hi", "beta_pref")
+           "beta_lo", "beta_hi", "beta_pref", "ls_ramp")
 #: Coulomb friction is tanh(ẋ/v_s)-smoothed over this fraction of the full-command speed
 COULOMB_SMOOTHING = 0.01
 
@@ -125,7 +128,7 @@ def twin_params(crane: Crane, dynamics, payload: float, gain_scale=1.0, deadband
                   tau_pump=dynamics.pump_time_constant, v_pump=dynamics.pump_line_volume,
                   tau_spool=dynamics.spool_time_constant, payload=float(payload),
                   beta_lo=dynamics.bulk_low, beta_hi=dynamics.bulk_high,
-                  beta_pref=dynamics.bulk_reference_pressure)
+                  beta_pref=dynamics.bulk_reference_pressure, ls_ramp=0.0)
     for k, v in list(per.items()):
         per[k] = np.broadcast_to(np.asarray(v, float), (n,)).copy()
     return TwinParams(n=n, per=per, scalar=scalar)

@@ -161,6 +161,23 @@ class Twin:
                                                    chunk)
         return tw
 
+    def with_ls_ramp(self, ramp: float) -> "Twin":
+        """This twin with the load-sensing signal ramped over openings up to ``ramp`` (the
+        optimisation twin of :mod:`planner.refine`; :mod:`planner.model.twin.ode`); itself for
+        0. The compiled functions are shared: the ramp is a parameter."""
+        import copy
+        from dataclasses import replace
+        from planner.model.twin.params import param_index
+        if not (math.isfinite(ramp) and 0.0 <= ramp <= 0.1):
+            raise ValueError(f"Twin: ls_ramp = {ramp!r}; allowed: 0 .. 0.1 (an opening)")
+        if ramp == 0.0:
+            return self
+        tw = copy.copy(self)
+        tw.params = replace(self.params, scalar=dict(self.params.scalar, ls_ramp=float(ramp)))
+        tw.P = np.array(self.P, float)
+        tw.P[param_index(self.crane.n, "ls_ramp")] = float(ramp)
+        return tw
+
     def pump_power(self):
         """The pump's hydraulic power p_s·Σ q_in [W] and its gradient with respect to the
         state, as a batched compiled function of (x (nx,), P) (:class:`planner.model.numeric.

@@ -54,8 +54,8 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   signal where a spool crosses ``OPEN_EPS`` or reverses, once per step, so its cost jumps on
   the finest scale and L-BFGS-B's line search stops against the jumps
   (:mod:`planner.model.twin.ode`; s100f p02-d00 ended ``ABNORMAL`` after 30 iterations on such
-  an edge, the twin predicting 9.6 mm of ringing). Both stages optimise on the same twin with
-  the signal ramped over openings up to ``ls_ramp`` (10⁻³ of the full opening: a crossing
+  an edge, the twin predicting 9.6 mm of ringing). The first stage optimises on the same twin
+  with the signal ramped over openings up to ``ls_ramp`` (10⁻³ of the full opening: a crossing
   spool passes it in a few steps). Where the valves are nearly closed the two differ — a valve
   cracked below the ramp signals less than its pressure — and that is where the move comes to
   rest: on part 0 of the 400-entry s100f run the first stage left 4 energy entries 5.7–17.8 mm
@@ -65,8 +65,7 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
 * **The calm stage** (``calm``): where the first stage leaves the twin predicting a rest
   offset or ringing above ``calm_below`` (2.5 mm, half the landing tolerance), a second
   L-BFGS-B from where it ended, on the machine's twin, with the end weighed ``calm_weight`` ×
-  heavier and
-  ``calm`` × ``iterations`` more iterations; kept when the twin predicts the move closer to
+  heavier and ``calm`` × ``iterations`` more iterations; kept when the twin predicts the move closer to
   landed (the larger of rest offset and ringing), and said so in ``predicted["calm"]``. The
   first stage's weights trade ringing against the tip error during the move: on the s100f
   part-0 misses of ``refine_s100f-400-p0.md`` the twin (= Exudyn there, to < 1 mm) predicted

@@ -157,7 +157,7 @@ def test_library_refine_calms_the_load_of_an_entry_planned_with_a_grapple(tmp_pa
             db.add(f"m{k}:time", tr, start=crane.tip(tr.q[0]), goal=crane.tip(tr.q[-1]),
                    objective="time", method="ruckig", status="ok",
                    attrs=dict(grapple_m=0.5) if k == 0 else {})
-    opts = RefineOptions(iterations=4, settle=1.0, rest_window=0.5)
+    opts = RefineOptions(calm=0.0, iterations=4, settle=1.0, rest_window=0.5)
     s = refine_library(path, options=opts, show_progress=False)
     assert (s["refined"], s["with_swing"]) == (2, 1)
     with LibraryStore.open(path) as db:
@@ -287,7 +287,7 @@ def test_an_idle_joint_is_refined_too(crane, twin):
     exactly 0 used to stay there (the s100f library's telescope on its stroke end: 5.5 mm)."""
     move, t_u, u = _boom_moves_jib_still(crane)
     assert np.all(u[:, 2] == 0.0)
-    opts = RefineOptions(iterations=12, settle=1.5)
+    opts = RefineOptions(calm=0.0, iterations=12, settle=1.5)
     r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
     assert r.status == RefineStatus.IMPROVED, r.reason
     assert np.abs(r.u[:, 2]).max() > 1e-4            # the jib's valve is used
@@ -321,7 +321,7 @@ def test_an_idle_joint_behind_a_dead_band_is_refined_too(crane):
         deadband = db
     assert np.allclose(opening(Valves, past_deadband(v, db)), v)   # the model's own opening
     move, t_u, u = _boom_moves_jib_still(crane)
-    opts = RefineOptions(iterations=12, settle=1.5)
+    opts = RefineOptions(calm=0.0, iterations=12, settle=1.5)
     r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
     assert r.status == RefineStatus.IMPROVED, r.reason
     assert np.abs(r.u[:, 2]).max() > 0.03 + 1e-4       # past the jib's dead band
@@ -439,7 +439,7 @@ def test_a_cycle_refines_each_move_from_the_state_the_one_before_leaves(crane, t
     nominal ones do; and a refinement given the rest state as ``x0`` is the plain one."""
     from planner.refine import refine_cycle
     back = _move(crane, 0.65, 0.35)
-    opts = RefineOptions(iterations=8, settle=1.5)
+    opts = RefineOptions(calm=0.0, iterations=8, settle=1.5)
     moves = [(m, *stored_commands(m)) for m in (move, back)]
     gap = 0.5
     refs, starts = refine_cycle(crane, moves, twin=twin, options=opts, gap=gap)
@@ -486,7 +486,7 @@ def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib,
 
     from planner.library.cycle import refine_cycle_library
     from planner.library.refined import GROUP
-    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5)
+    opts = RefineOptions(calm=0.0, iterations=2, settle=0.5, rest_window=0.5)
     whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
     shutil.copy(lib, whole)
     s = refine_cycle_library(whole, ["m0:time", "m1:time"], gap=0.5, options=opts)

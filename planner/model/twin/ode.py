@@ -38,9 +38,11 @@ stand-in, or zero), and the parameter vector (:mod:`planner.model.twin.params`).
   spool crosses moves the pump's pressure by a jump, and a cost over the run is not continuous
   in the commands on the finest scale (s100f p02-d00: a 10⁻⁵ change of the commands, 0.14 % of
   the refinement's cost). The optimisation twin (parameter ``ls_ramp`` > 0; the machine's
-  twin has 0) signals each valve's meter-in pressure + margin scaled by min(|o|/ls_ramp, 1):
-  continuous through the opening and the reversal, the same wherever every valve is open past
-  the ramp or closed.
+  twin has 0) signals each valve's meter-in pressure + margin scaled by
+  min((|o| − OPEN_EPS)⁺/ls_ramp, 1): continuous through the opening and the reversal, the same
+  wherever every valve is open past the ramp or closed. Both twins evaluate this one formula
+  (ls_ramp = 0 divides by ``RAMP_FLOOR``: the hard switch), so the machine's twin pays nothing
+  for the optimisation twin's signal.
 
 The same physics as the Exudyn plant describes in its own words (planner/simulation/dynamic/
 circuit.py); not one line of its code — the judge stays independent, and
@@ -56,6 +58,7 @@ from planner.model.actuators import stroke_expr
 from planner.model.dynamics import rnea
 from planner.model.dynamics_spec import P_ATM
 from planner.model.twin.params import PER_ACTUATOR, SCALARS
+from planner.model.valve_physics import OPEN_EPS
 from planner.model.valve_physics import function as valve_function
 
 if TYPE_CHECKING:
@@ -68,6 +71,7 @@ STOP_STIFFNESS = 2.0e8   # [N/m] end stop (N·m/rad per rad for a rack's pinion 
 STOP_DAMPING = 0.05      # [s] end-stop damping = this × stiffness, ...
 STOP_RAMP = 1.0e-3       # [m] ... ramped in over this penetration (continuous at contact)
 STOP_SOFT = 1.0e-4       # [m] the spring's slope ramps in over this penetration (C¹ at contact)
+RAMP_FLOOR = 1.0e-12     # [-] ls_ramp = 0 divides by this: the LS signal's ramp is a hard switch
 
 
 def state_size(n: int) -> int:
@@ -131,11 +135,11 @@ def build_rhs(crane: Crane, spec=None):
     x = ca.vertcat(*xs)
     d = ca.vertcat(*dxdq)
     xd = d * qd
-    dpa, dpb, force, qin, opening, pload = [], [], [], [], [], []
+    dpa, dpb, force, qin, opening = [], [], [], [], []
     for i in range(n):
         g = {k: v[i] for k, v in per.items()}
         o = f_open(sp[i], g["deadband"])
-        q_a, q_b, q_in, q_out, p_load, net_a, net_b = f_flows(
+        q_a, q_b, q_in, q_out, _p_load, net_a, net_b = f_flows(
             pa[i], pb[i], ps, o, g["gain"], sc["margin"], g["area_a"], g["area_b"],
             g["single"], g["leak"], sc["p_tank"], sc["dp_c"], sc["dp_out"])
         xc = ca.fmin(ca.fmax(x[i], g["x_lo"]), g["x_hi"])
@@ -151,23 +155,18 @@ def build_rhs(crane: Crane, spec=None):
         force.append(F)
         qin.append(q_in)
         opening.append(o)
-        pload.append(p_load)
-    pl = pload[0]
-    for v in pload[1:]:
-        pl = ca.fmax(pl, v)
-    pl = ca.fmax(pl, 0.0)
-    p_ls = ca.fmin(ca.fmax(sc["standby"], ca.if_else(pl > 0, pl + sc["ls_margin"], 0.0)),
-                   sc["p_relief"])
-    # the optimisation twin's signal (ls_ramp > 0, module doc): each valve's meter-in pressure
-    # plus the margin, scaled by its opening up to ls_ramp -- continuous through a reversal
-    ramped = ca.DM(0.0)
+    # the LS signal (module doc): each valve that draws signals its meter-in pressure plus the
+    # margin, weighed by r = min((|o| - OPEN_EPS)+ / ls_ramp, 1): on the machine's twin
+    # (ls_ramp = 0) the hard switch at OPEN_EPS, on the optimisation twin a ramp that is
+    # continuous through the opening and the reversal. One formula, no branch to evaluate twice.
+    signal = ca.DM(0.0)
     for i in range(n):
         p_in = ca.if_else(opening[i] > 0, pa[i], pb[i])
-        r = ca.fmin(ca.fabs(opening[i]) / ca.fmax(sc["ls_ramp"], 1e-12), 1.0)
+        r = ca.fmin(ca.fmax(ca.fabs(opening[i]) - OPEN_EPS, 0.0)
+                    / ca.fmax(sc["ls_ramp"], RAMP_FLOOR), 1.0)
         lowering = ca.logic_and(per["single"][i] > 0.5, opening[i] <= 0)
-        ramped = ca.fmax(ramped, ca.if_else(lowering, 0.0, r * (p_in + sc["ls_margin"])))
-    p_ls = ca.if_else(sc["ls_ramp"] > 0,
-                      ca.fmin(ca.fmax(sc["standby"], ramped), sc["p_relief"]), p_ls)
+        signal = ca.fmax(signal, ca.if_else(lowering, 0.0, r * (p_in + sc["ls_margin"])))
+    p_ls = ca.fmin(ca.fmax(sc["standby"], signal), sc["p_relief"])
     p_set = ca.if_else(sc["load_sensing"] > 0.5, p_ls, sc["p_const"])
     excess = ca.fmax(ca.sum1(ca.vertcat(*qin)) - sc["q_max"], 0.0)
     dps = (p_set - ps) / sc["tau_pump"] - sc["beta"] * bulk(ps) / sc["v_pump"] * excess

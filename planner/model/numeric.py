@@ -135,7 +135,7 @@ def densified(f: ca.Function) -> ca.Function:
     return ca.Function(f.name(), ins, outs, f.name_in(), f.name_out())
 
 
-def _bound(fm: ca.Function, ins: list, outs: list) -> tuple:
+def bound_buffer(fm: ca.Function, ins: list, outs: list) -> tuple:
     """(buffer, its eval, ins, outs): ``fm``'s call buffer bound to the numpy arrays ``ins``
     and ``outs`` (filled in place, evaluated without copies)."""
     buf, ev = fm.buffer()
@@ -165,7 +165,7 @@ class Batched:
         m = self._maps.get(chunk)
         if m is None:
             fm = self.f if chunk == 1 else self.f.map(chunk)
-            m = self._maps[chunk] = _bound(fm, [np.zeros((chunk, s)) for s in self.size_in],
+            m = self._maps[chunk] = bound_buffer(fm, [np.zeros((chunk, s)) for s in self.size_in],
                                            [np.zeros((chunk, s)) for s in self.size_out])
         return m
 
@@ -216,7 +216,7 @@ class Elementwise:
     def _map(self, chunk: int):
         m = self._maps.get(chunk)
         if m is None:
-            m = self._maps[chunk] = _bound(jit_map(self.f, chunk),
+            m = self._maps[chunk] = bound_buffer(jit_map(self.f, chunk),
                                            [np.zeros(chunk) for _ in range(self.f.n_in())],
                                            [np.zeros(chunk) for _ in range(self.f.n_out())])
         return m

@@ -22,7 +22,10 @@ of 2h/3 — a lag of h/3 for a run that starts moving).
 The step is an SX function (symbolic solve of the sparse linear system, expanded), mapped
 over ``chunk`` steps with :meth:`casadi.Function.mapaccum` and compiled as a whole
 (:func:`planner.model.numeric.jit_function`): one call from Python integrates ``chunk`` steps,
-the commands and extra forces given per step. Commands are held from the step that starts at
+the commands and extra forces given per step, through the function's call buffer bound once to
+numpy arrays that are filled in place (converting the arrays to CasADi matrices and back on
+every call cost as much as the integration: 85–141 × real time against 144–277 ×,
+``benchmarks/results/twin_speed.md``). Commands are held from the step that starts at
 or after their time (the step grid is fine against the 50 Hz commands: both are multiples of
 the step there, as in the Exudyn plant).
 """
@@ -31,7 +34,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from planner.model.numeric import jit_function
+from planner.model.numeric import bound_buffer, jit_function
 
 __all__ = ["Stepper", "STATE_SCALE", "state_scale"]
 
@@ -92,6 +95,7 @@ class Stepper:
         self._f = jit_function(step.mapaccum("twin_chunk", self.chunk))
         self.compiled = self._f is not None and self._f.is_a("External")
         self._npar = npar
+        self._buffer = None     # the chunk's call buffer, bound on first use (:meth:`_chunk`)
 
     def spool_mask(self) -> np.ndarray:
         """1 on the spool rows (4n + 1 … 5n, stepped exactly), 0 elsewhere (BDF2); all 0 when
@@ -130,28 +134,42 @@ class Stepper:
         up = np.zeros((Kp, self.n))
         fp = np.zeros((Kp, self.n))
         up[:K], fp[:K] = u, f_x
-        Pm = np.repeat(np.asarray(P, float).reshape(-1, 1), C, axis=1)
         x0 = np.asarray(x0, float)
         if x_prev is None:          # no history: a consistent one (see the module doc)
             f0 = np.asarray(self._rhs(x0, up[0], fp[0], np.asarray(P, float)), float).ravel()
             x_prev = x0 - self.h * f0 if np.all(np.isfinite(f0)) else x0
-        xx = np.concatenate([x0, np.asarray(x_prev, float)])
+        _, ev, (xx, ub, fb, pb), (Xb, Eb) = self._chunk_buffer()
+        xx[:self.nx], xx[self.nx:] = x0, x_prev
+        pb[:] = np.asarray(P, float).reshape(1, -1)
         out = np.empty((Kp + 1, self.nx))
         err = np.empty(Kp)
         out[0] = x0
         for s in range(0, Kp, C):
-            X, E = self._f(xx, up[s:s + C].T, fp[s:s + C].T, Pm)
-            X, E = np.asarray(X), np.asarray(E).ravel()
+            ub[:], fb[:] = up[s:s + C], fp[s:s + C]
+            ev()
+            X, E = Xb, Eb
             if self.depth > 0 and not (np.all(np.isfinite(X)) and E.max() <= self.tol):
                 X, E = self._refined(xx, up[s:s + C], fp[s:s + C], P)
-            out[s + 1:s + C + 1] = X[:self.nx].T
+            out[s + 1:s + C + 1] = X[:, :self.nx]
             err[s:s + C] = E
-            xx = X[:, -1]
+            xx[:] = X[-1]
             if not np.all(np.isfinite(xx)):
                 out[s + C + 1:] = np.nan
                 err[s + C:] = np.inf
                 break
         return out[:K + 1], err[:K]
+
+    def _chunk_buffer(self):
+        """The compiled chunk's call buffer bound to arrays filled in place (no conversion per
+        call): inputs the history (2nx,), commands and forces (chunk, n), parameters (chunk,
+        npar); outputs the states with their history (chunk, 2nx), the updates (chunk,) —
+        row-major (chunk, k) is the column-major (k, chunk) CasADi reads and writes."""
+        if self._buffer is None:
+            C, n = self.chunk, self.n
+            self._buffer = bound_buffer(
+                self._f, [np.zeros(2 * self.nx), np.zeros((C, n)), np.zeros((C, n)),
+                          np.zeros((C, self._npar))], [np.zeros((C, 2 * self.nx)), np.zeros(C)])
+        return self._buffer
 
     def _refined(self, xx, u, f_x, P):
         """A chunk whose Newton iteration did not converge (a stop hit at speed, a command
@@ -169,4 +187,4 @@ class Stepper:
         X = Xf[r::r]
         prev = np.vstack([xx[None, :self.nx], X[:-1]])   # the coarse grid's history
         E = Ef.reshape(-1, r).max(axis=1)
-        return np.vstack([X.T, prev.T]), E
+        return np.hstack([X, prev]), E

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.model.commands import shift_steps, shift_steps_transposed
-from planner.model.numeric import jit_function
+from planner.model.numeric import bound_buffer, jit_function
 from planner.model.twin.integrator import state_scale
 
 if TYPE_CHECKING:
@@ -65,8 +65,13 @@ class Shooting:
             rev = _REVERSE[key] = (st, jit_function(_adjoint_step(twin.f_rhs, self.n, st)
                                                     .mapaccum("twin_adjoint", st.chunk)))
         self._adj = rev[1]
-        self._P = np.repeat(np.asarray(twin.P, float).reshape(-1, 1), self.C, axis=1)
-        self._fx = np.zeros((self.n, self.C))
+        C, n, nx = self.C, self.n, self.nx
+        # the adjoint chunk's call buffer, bound to arrays filled in place: row-major (C, k)
+        # is the column-major (k, C) CasADi reads and writes (no conversion per call)
+        self._buffer = bound_buffer(
+            self._adj, [np.zeros(2 * nx), np.zeros((C, nx)), np.zeros((C, n)),
+                        np.zeros((C, n)), np.repeat(np.asarray(twin.P, float)[None, :], C, 0),
+                        np.zeros((C, nx))], [np.zeros((C, 2 * nx)), np.zeros((C, n))])
 
     def steps(self, K: int) -> int:
         """K rounded up to whole chunks (the length :meth:`run` integrates)."""
@@ -95,15 +100,14 @@ class Shooting:
         dJdx = np.asarray(dJdx, float)
         u_steps = shift_steps(u_steps, self.twin.delay, self.h)
         g = np.empty((K, self.n))
-        carry = np.zeros(2 * nx)
+        _, ev, (carry, y, u, _fx, _P, seed), (R, gu) = self._buffer
+        carry[:] = 0.0
         for s in range(K - C, -1, -C):
             ks = np.arange(s + C - 1, s - 1, -1)        # the chunk's steps, last first
-            r = self._adj(carry, np.ascontiguousarray(run.x[ks + 1].T),
-                          np.ascontiguousarray(u_steps[ks].T), self._fx, self._P,
-                          np.ascontiguousarray(dJdx[ks + 1].T))
-            R = np.asarray(r[0])
-            carry = R[:, -1]
-            g[ks] = np.asarray(r[1]).T
+            y[:], u[:], seed[:] = run.x[ks + 1], u_steps[ks], dJdx[ks + 1]
+            ev()
+            carry[:] = R[-1]
+            g[ks] = gu
         return shift_steps_transposed(g, self.twin.delay, self.h)
 
 

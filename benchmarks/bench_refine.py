@@ -75,6 +75,9 @@ def main():
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", help="keep the selection and its refinements here (resumable)")
     ap.add_argument("--energy-weight", type=float, default=0.0)
+    ap.add_argument("--ids", help="these entries (ID,ID,…) instead of --every/--offset")
+    ap.add_argument("--options", default="{}", metavar="JSON",
+                    help="more refine options, e.g. '{\"keep_direction\": true}'")
     a = ap.parse_args()
     if a.merge:
         rep = merge([json.loads(Path(f).read_text()) for f in a.merge],
@@ -90,6 +93,11 @@ def main():
         ok = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
         crane_id = db.crane_id
     ids = (sorted(ok) if a.order == "id" else ok)[a.offset::a.every]
+    if a.ids:
+        ids = a.ids.split(",")
+        missing = [i for i in ids if i not in ok]
+        if missing:
+            sys.exit(f"--ids: {missing[0]!r} is not an ok entry of {a.library}")
     # refine only the selected entries: a library holding just them
     work = Path(a.work) if a.work else Path(tmp.name)
     work.mkdir(parents=True, exist_ok=True)
@@ -148,7 +156,8 @@ def _select(library: Path, ids, sel: Path):
 
 
 def _refine_and_replay(a, ids, sel, crane_id, ok):
-    opts = RefineOptions(iterations=a.iterations, energy_weight=a.energy_weight)
+    opts = RefineOptions(**dict(dict(iterations=a.iterations, energy_weight=a.energy_weight),
+                                **json.loads(a.options)))
     t0 = time.perf_counter()
     summary = refine_library(sel, workers=a.workers, options=opts, show_progress=False)
     refine_wall = time.perf_counter() - t0

@@ -127,7 +127,7 @@ _DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
 SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
-           "tip_levers", "refine_cycle", "after_move", "closed_valves",
+           "tip_levers", "refine_cycle", "after_move", "closed_valves", "command_bounds",
            "SWING_WEIGHT"]
 
 
@@ -166,6 +166,7 @@ class RefineOptions:
     energy_weight: float = 0.0
     periods: float = 1.0
     keep_closed: bool = False
+    keep_direction: bool = False
     lead: float = 0.3
     idle: float = 1e-3
     restarts: bool = True
@@ -191,7 +192,7 @@ class RefineOptions:
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
-        for name in ("keep_closed", "restarts"):
+        for name in ("keep_closed", "keep_direction", "restarts"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"refine option '{name}' = {getattr(self, name)!r}; allowed: "
                                  "True, False")
@@ -300,9 +301,11 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
     # a command that starts at exactly 0 (an idle joint, the tail) would never move; a
     # hair's opening gives it a slope (the optimiser crosses zero where the other side pays)
-    shut = closed_valves(u, Ku, opts) if opts.keep_closed else np.zeros((Ku, n), bool)
-    U0[shut] = 0.0
-    U0[(U0 == 0.0) & ~shut] = _DITHER
+    lo, hi = command_bounds(u, Ku, opts)
+    shut = (lo == 0.0) & (hi == 0.0)
+    U0 = np.clip(U0, lo, hi)
+    U0[(U0 == 0.0) & ~shut] = np.where(hi > 0.0, _DITHER, -_DITHER)[(U0 == 0.0) & ~shut]
+    box = (lo.ravel(), hi.ravel())
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))
     horizon = dict(tail_s=tail, settle_s=settle, slowest_mode_Hz=f_slow)
@@ -320,13 +323,13 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         coarse, _ = problem(twin.at_step(opts.coarse_step))
         Jc0, _ = coarse(z)
         coarse.fail = 100.0 * Jc0 + 1.0
-        r1 = minimize_commands(coarse, z, opts.iterations - opts.polish, shut.ravel(),
-                               opts.restarts)
+        r1 = minimize_commands(coarse, z, opts.iterations - opts.polish, None,
+                               opts.restarts, box)
         nit, evals, fine = int(r1.nit), coarse.evaluations, int(opts.polish)
         if r1.fun < Jc0:
             z = np.clip(r1.x, -1.0, 1.0)
     if fine > 0:
-        res = minimize_commands(cost, z, fine, shut.ravel(), opts.restarts)
+        res = minimize_commands(cost, z, fine, None, opts.restarts, box)
         res.x = np.clip(res.x, -1.0, 1.0)
     else:
         res = Solved(z, cost(z)[0], 0, "coarse iterations only")
@@ -349,7 +352,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
         J2, _ = cost2(res.x)
         cost2.fail = 100.0 * J2 + 1.0
         r2 = minimize_commands(cost2, res.x, max(int(round(opts.calm * opts.iterations)), 1),
-                               shut.ravel(), opts.restarts)
+                               None, opts.restarts, box)
         x2 = np.clip(r2.x, -1.0, 1.0)
         U2 = past_deadband(x2.reshape(Ku, n), db)
         p2 = _predict(crane, twin, traj, t_all, U2, K, opts, x0) if r2.fun < J2 else None
@@ -429,6 +432,28 @@ def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
     held = np.all(np.abs(u) <= opts.idle, axis=0)
     shut[:max(u.shape[0] - int(round(opts.lead * opts.rate)), 0), held] = True
     return shut
+
+
+def command_bounds(u, Ku: int, opts: RefineOptions) -> tuple:
+    """(lo, hi), each (Ku, n): the range of each refined opening (module doc): [−1, 1]; 0
+    where ``keep_closed`` shuts a held joint's valve (:func:`closed_valves`); with
+    ``keep_direction``, up to ``lead`` s before the tail, a row whose nominal command ``u``
+    (M, n) opens past ``idle`` keeps its sign (or closes), and a joint the plan moves one way
+    only keeps that way in its idle rows too."""
+    u = np.atleast_2d(np.asarray(u, float))
+    n = u.shape[1]
+    lo, hi = np.full((Ku, n), -1.0), np.full((Ku, n), 1.0)
+    end = max(u.shape[0] - int(round(opts.lead * opts.rate)), 0)
+    if opts.keep_direction:
+        pos, neg = u[:end] > opts.idle, u[:end] < -opts.idle
+        one_way_up = pos.any(axis=0) & ~neg.any(axis=0)
+        one_way_down = neg.any(axis=0) & ~pos.any(axis=0)
+        lo[:end][pos | one_way_up[None, :]] = 0.0
+        hi[:end][neg | one_way_down[None, :]] = 0.0
+    if opts.keep_closed:
+        shut = closed_valves(u, Ku, opts)
+        lo[shut], hi[shut] = 0.0, 0.0
+    return lo, hi
 
 
 def _score(measures: dict) -> float:

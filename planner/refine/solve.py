@@ -49,9 +49,10 @@ def _early(message: str) -> bool:
     return message.startswith("ABNORMAL") or message.startswith("CONVERGENCE: REL")
 
 
-def minimize_commands(cost, z0, iterations: int, shut=None, restarts: bool = True) -> Solved:
+def minimize_commands(cost, z0, iterations: int, shut=None, restarts: bool = True,
+                      bounds=None) -> Solved:
     """L-BFGS-B on ``cost`` (z -> (J, dJ/dz)) from the openings ``z0`` (flat), |z| ≤ 1 (0
-    where ``shut``), at most ``iterations`` iterations and twice as many cost evaluations over
+    where ``shut``; within ``bounds`` = (lo, hi), flat, where given), at most ``iterations`` iterations and twice as many cost evaluations over
     all runs; with ``restarts`` a run that stops early (module doc) is followed by another from
     its best point with a fresh memory, while the budget lasts and the last run gained at least
     ``MIN_GAIN``. The unknowns are scaled: L-BFGS-B's first step is a unit step along −g, which
@@ -67,10 +68,11 @@ def minimize_commands(cost, z0, iterations: int, shut=None, restarts: bool = Tru
         J, g = cost(z * s)
         return J, g * s
 
-    hi = np.full(len(z0), 1.0 / s)
+    lo, hi = (np.full(len(z0), -1.0), np.full(len(z0), 1.0)) if bounds is None else \
+        (np.asarray(bounds[0], float).ravel(), np.asarray(bounds[1], float).ravel())
     if shut is not None:
-        hi[np.asarray(shut, bool)] = 0.0
-    bounds = list(zip(-hi, hi))
+        lo, hi = np.where(shut, 0.0, lo), np.where(shut, 0.0, hi)
+    bounds = list(zip(lo / s, hi / s))
     z = np.asarray(z0, float) / s
     best, nit, runs, message = None, 0, 0, ""
     while nit < iterations and calls[0] < 2 * iterations:

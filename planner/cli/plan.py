@@ -221,20 +221,22 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
         raise CLIError(f"--feedforward twin: crane '{crane.spec.id}' has no [dynamics] section "
                        "(the twin needs bulk modulus, hose volumes, …)")
     from planner.feedforward import commands
-    from planner.refine import SWING_WEIGHT, RefineOptions, refine_commands
+    from planner.refine import SWING_WEIGHT, RefineOptions, for_objective, refine_commands
     from planner.simulation.twin_plant import twin_of
     ff = commands(crane, traj, CONTROL_RATE_HZ)
     pend = grapple_of_args(args, crane)
     if pend is not None and not crane.spec.effects:   # the load at rest on its link too
         from planner.model.twin import Twin
         r = refine_commands(crane, traj, ff.t, ff.u, twin=Twin(crane, grapple=pend),
-                            options=RefineOptions(swing_weight=SWING_WEIGHT))
+                            options=for_objective(RefineOptions(swing_weight=SWING_WEIGHT),
+                                                  args.objective))
     else:
         if pend is not None:   # said, not dropped silently
             print(f"crane-planner: note: --feedforward twin: crane '{crane.spec.id}' carries "
                   "[[effects]], which the twin with the grapple link does not take; the "
                   "commands are refined for the tip alone (no swing cost)", file=sys.stderr)
-        r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane))
+        r = refine_commands(crane, traj, ff.t, ff.u, twin=twin_of(crane),
+                            options=for_objective(RefineOptions(), args.objective))
     out["feedforward"] = dict(commands="refined" if r.status == "improved" else "nominal",
                               **r.info())
     return r if r.status == "improved" else None

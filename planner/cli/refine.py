@@ -19,7 +19,8 @@ def cmd_library_refine(args):
         raise CLIError(f"--limit {args.limit}: allowed >= 1 (the first N ok entries)")
     try:
         opts = RefineOptions(iterations=args.iterations, tail=args.tail,
-                             energy_weight=args.energy_weight)
+                             energy_weight=args.energy_weight,
+                             energy_entries=args.energy_entries)
     except ValueError as e:
         raise CLIError(str(e).replace("refine option 'iterations'", "--iterations")
                        .replace("refine option 'tail'", "--tail")
@@ -117,6 +118,8 @@ def _rerun(args) -> str:
     words = ["crane-planner", "library", "refine", args.library, "--workers", str(args.workers),
              "--iterations", str(args.iterations), "--tail", str(args.tail)]
     words += ["--energy-weight", str(args.energy_weight)] if args.energy_weight else []
+    words += (["--energy-entries", args.energy_entries] if args.energy_entries != "priced"
+              else [])
     words += ["--swing-weight", f"{args.swing_weight:g}"] if args.swing_weight is not None \
         else []
     words += ["--model", args.model] if args.model else []
@@ -143,6 +146,11 @@ def add_refine_parser(lsub) -> None:
     p.add_argument("--energy-weight", type=float, default=0.0, metavar="W",
                    help="weight of the twin's pump work in the refine cost, mm²·s per kJ "
                         "(0: tracking and landing only; energy entries: see planner/refine/__init__.py)")
+    p.add_argument("--energy-entries", choices=("priced", "plain"), default="priced",
+                   help="entries planned for least energy: 'priced' (default: their pump work "
+                        "in the cost — weight --energy-weight, else 30 — and each joint kept "
+                        "to the direction the plan moves it until the landing window) or "
+                        "'plain' (refined as time entries are)")
     p.add_argument("--swing-weight", type=float, metavar="W",
                    help="entries planned with a grapple (library build --grapple): the weight "
                         "of the load's swing after the plan's end, refined on the twin that "

@@ -42,7 +42,7 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     from planner.library.refine import spec_twin
     from planner.library.refined import refined_info, read_refined, write_refined
     from planner.library.store import LibraryStore
-    from planner.refine import RefineOptions, after_move, refine_commands
+    from planner.refine import RefineOptions, after_move, for_objective, refine_commands
     from planner.feedforward import commands, stored_commands
     opts = options or RefineOptions()
     path, ids = Path(path), [str(i) for i in ids]
@@ -54,6 +54,7 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     with LibraryStore.open(path, "r") as db:
         lib_spec = db.spec_toml
         ok = {r["id"]: r["status"] for r in db.index_rows()}
+        objective = {r["id"]: r.get("objective") for r in db.index_rows()}
         for i in ids:
             if ok.get(i) != "ok":
                 raise ValueError(f"cycle: entry '{i}' is {ok.get(i, 'not in the library')}; "
@@ -74,10 +75,11 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     with SignalGuard() as guard, BuildLock(path), LibraryStore.open(path, "a") as db:
         for k, (i, tr) in enumerate(zip(ids, trajs)):
             cyc = dict(ids=ids, position=k, gap_s=float(gap), from_rest=x is None)
+            o = for_objective(opts, objective[i])      # an energy entry: priced
             info = refined_info(db, i)
             if (not force and info is not None and info.get("cycle") == cyc
                     and info.get("model", {}).get("fingerprint") == fingerprint
-                    and info.get("options") == asdict(opts)):
+                    and info.get("options") == asdict(o)):
                 t_u, u = read_refined(db, i)[:2]
                 kept += 1
                 rows.append(dict(id=i, status="kept", predicted=info.get("predicted", {})))
@@ -87,7 +89,7 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
                     ff = commands(crane, tr, opts.rate)
                     cmd = (ff.t, ff.u)
                 c0 = _time.process_time()
-                r = refine_commands(crane, tr, cmd[0], cmd[1], twin=twin, options=opts, x0=x)
+                r = refine_commands(crane, tr, cmd[0], cmd[1], twin=twin, options=o, x0=x)
                 t_u, u = r.t_u, r.u
                 with guard.critical():
                     write_refined(db, i, t_u, u, dict(r.info(), cycle=cyc,

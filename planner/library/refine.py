@@ -117,7 +117,7 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
     from planner.feedforward import stored_commands
     from planner.library.refined import refined_info, write_refined
     from planner.library.store import LibraryStore
-    from planner.refine import SWING_WEIGHT, RefineOptions
+    from planner.refine import SWING_WEIGHT, RefineOptions, for_objective
     opts = options or RefineOptions()
     sw = SWING_WEIGHT if swing_weight is None else float(swing_weight)
     if not (np.isfinite(sw) and sw >= 0):
@@ -128,7 +128,9 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
     t0 = _time.perf_counter()
     with LibraryStore.open(path, "r") as db:
         lib_spec = db.spec_toml
-        ids = [r["id"] for r in db.index_rows() if r["status"] == "ok"]
+        rows = [r for r in db.index_rows() if r["status"] == "ok"]
+    ids = [r["id"] for r in rows]
+    objective = {r["id"]: r.get("objective") for r in rows}
     if model is not None:
         model_where = str(model)
         model_spec = Path(model).read_text(encoding="utf-8")
@@ -158,7 +160,8 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                         for i in ids:
                             info = refined_info(db, i)
                             link = entry_grapple(db.entry_attrs(i)) if sw > 0 else None
-                            o = replace(opts, swing_weight=sw) if link else opts
+                            o = for_objective(opts, objective[i])   # energy: priced
+                            o = replace(o, swing_weight=sw) if link else o
                             fp = (fingerprint if link is None else spec_twin(
                                 model_spec, model_where, opts.step, link)[1]
                                 .provenance()["fingerprint"])

@@ -91,6 +91,23 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   nominal commands' (was 3.5 ×) but ringing 6.5 mm; d03-p01, 35 kJ against 54 (nominal 20),
   the tip error during the move 77 mm against 17.
 
+* **Directions kept** (``keep_direction``): up to ``lead`` s before the tail, an opening keeps
+  the sign of its nominal command wherever that opens past ``idle``, and a joint the plan
+  moves one way only is never commanded the other way (:func:`command_bounds`). Refined
+  freely, a lowered boom gets short raises to hold it on the plan, and each raise signals the
+  boom's holding pressure to the load-sensing pump, which every other flow then pays (s100f
+  d00-p16:energy on the twin: the pump line at 10.1 MPa on average against 3.7 with the
+  nominal commands, the boom setting it half the time; with the directions kept 7.7 MPa).
+* **Energy entries** (``energy_entries`` "priced", the default; :func:`for_objective`): a
+  move planned for least energy is refined with ``keep_direction`` and its pump work in the
+  cost, weighed ``energy_weight`` or :data:`ENERGY_ENTRY_WEIGHT` (30 mm²·s per kJ) — its
+  plan's saving is what it is for. Measured on Exudyn (the spec's parameters) on the six
+  energy entries of parts 0–1 of the 400-entry s100f run whose refined commands cost at
+  least as much as their time entry's: refined plain they used 0.3–42 % *more* pump work
+  than the time entry (d01-p07 243 kJ against 171); with the directions kept −21…+20 %;
+  priced, 0.3–44 % *less* (d01-p07 95 kJ), 5 of 6 landing as before
+  (``benchmarks/results/energy_refined_pairs_*.md``). ``"plain"`` refines them as time moves.
+
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its
 provenance: the twin's fingerprint (machine, parameters, step), the iterations, the predicted
@@ -112,6 +129,8 @@ import numpy as np
 
 from planner.landing import landing_measures, tip_levers
 from planner.model.valves import past_deadband, within_deadband
+from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, closed_valves,
+                                   command_bounds, for_objective)
 from planner.refine.cost import CommandCost
 from planner.refine.solve import Solved, minimize_commands
 from planner.trajectory import Trajectory
@@ -128,6 +147,7 @@ SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
            "tip_levers", "refine_cycle", "after_move", "closed_valves", "command_bounds",
+           "for_objective", "ENERGY_ENTRIES", "ENERGY_ENTRY_WEIGHT",
            "SWING_WEIGHT"]
 
 
@@ -167,6 +187,7 @@ class RefineOptions:
     periods: float = 1.0
     keep_closed: bool = False
     keep_direction: bool = False
+    energy_entries: str = "priced"
     lead: float = 0.3
     idle: float = 1e-3
     restarts: bool = True
@@ -192,6 +213,9 @@ class RefineOptions:
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
+        if self.energy_entries not in ENERGY_ENTRIES:
+            raise ValueError(f"refine option 'energy_entries' = {self.energy_entries!r}; "
+                             f"allowed: {', '.join(ENERGY_ENTRIES)}")
         for name in ("keep_closed", "keep_direction", "restarts"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"refine option '{name}' = {getattr(self, name)!r}; allowed: "
@@ -421,39 +445,6 @@ def _horizon(twin: Twin, traj: Trajectory, opts: RefineOptions):
     f = float(np.min(twin.oil_spring_frequencies(traj.q[-1])))
     T = opts.periods / f if f > 0 else 0.0
     return max(opts.tail, min(0.25 * T, 10.0)), max(opts.settle, min(T, 60.0)), f
-
-
-def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
-    """(Ku, n) True where a command must stay 0 (module doc, ``keep_closed``): the joints
-    whose nominal commands ``u`` (M, n) are all at most ``idle``, up to ``lead`` s before
-    the tail (rows M and on, free)."""
-    u = np.atleast_2d(np.asarray(u, float))
-    shut = np.zeros((Ku, u.shape[1]), bool)
-    held = np.all(np.abs(u) <= opts.idle, axis=0)
-    shut[:max(u.shape[0] - int(round(opts.lead * opts.rate)), 0), held] = True
-    return shut
-
-
-def command_bounds(u, Ku: int, opts: RefineOptions) -> tuple:
-    """(lo, hi), each (Ku, n): the range of each refined opening (module doc): [−1, 1]; 0
-    where ``keep_closed`` shuts a held joint's valve (:func:`closed_valves`); with
-    ``keep_direction``, up to ``lead`` s before the tail, a row whose nominal command ``u``
-    (M, n) opens past ``idle`` keeps its sign (or closes), and a joint the plan moves one way
-    only keeps that way in its idle rows too."""
-    u = np.atleast_2d(np.asarray(u, float))
-    n = u.shape[1]
-    lo, hi = np.full((Ku, n), -1.0), np.full((Ku, n), 1.0)
-    end = max(u.shape[0] - int(round(opts.lead * opts.rate)), 0)
-    if opts.keep_direction:
-        pos, neg = u[:end] > opts.idle, u[:end] < -opts.idle
-        one_way_up = pos.any(axis=0) & ~neg.any(axis=0)
-        one_way_down = neg.any(axis=0) & ~pos.any(axis=0)
-        lo[:end][pos | one_way_up[None, :]] = 0.0
-        hi[:end][neg | one_way_down[None, :]] = 0.0
-    if opts.keep_closed:
-        shut = closed_valves(u, Ku, opts)
-        lo[shut], hi[shut] = 0.0, 0.0
-    return lo, hi
 
 
 def _score(measures: dict) -> float:

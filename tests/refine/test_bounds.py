@@ -6,7 +6,7 @@ minimum of a separable quadratic (each coordinate clipped to its box)."""
 import numpy as np
 import pytest
 
-from planner.refine import RefineOptions, command_bounds
+from planner.refine import ENERGY_ENTRY_WEIGHT, RefineOptions, command_bounds, for_objective
 from planner.refine.solve import minimize_commands
 
 RATE = 50.0
@@ -105,3 +105,13 @@ def test_refined_commands_keep_the_nominal_direction_on_the_twin():
             assert np.all(r.u[:end, j] <= 0.0)
         one_way += up != down
     assert one_way == crane.n      # a rest-to-rest move: every joint one way
+
+
+def test_an_energy_move_is_refined_priced_and_a_time_move_as_given():
+    o = RefineOptions(iterations=7)
+    assert for_objective(o, "time") is o and for_objective(o, None) is o
+    e = for_objective(o, "energy")
+    assert e.keep_direction and e.energy_weight == ENERGY_ENTRY_WEIGHT and e.iterations == 7
+    assert for_objective(RefineOptions(energy_weight=5.0), "energy").energy_weight == 5.0
+    plain = RefineOptions(energy_entries="plain")
+    assert for_objective(plain, "energy") is plain

@@ -100,7 +100,8 @@ def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin
                                        (dict(restarts=1), "restarts"),
                                        (dict(calm=-0.5), "calm"),
                                        (dict(calm_weight=0.5), "calm_weight"),
-                                       (dict(calm_below=-1e-3), "calm_below")])
+                                       (dict(calm_below=-1e-3), "calm_below"),
+                                       (dict(energy_entries="cheap"), "energy_entries")])
 def test_bad_options_name_the_field(kw, field):
     with pytest.raises(ValueError, match=f"'{field}'"):
         RefineOptions(**kw)
@@ -519,3 +520,30 @@ def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib,
     r = _cli("library", "refine", str(whole), "--swing-weight", "-1")
     assert r.returncode == 2 and r.stderr.startswith("crane-planner: error: --swing-weight -1")
     assert len(r.stderr.splitlines()) == 1
+
+
+def test_library_refine_prices_the_energy_entries_and_not_the_time_entries(crane, tmp_path):
+    """An entry planned for least energy is refined with its pump work in the cost and its
+    joints kept to their directions (planner.refine.for_objective); a time entry as before;
+    ``energy_entries="plain"`` refines both alike. The options each used are stored."""
+    path = tmp_path / "lib.h5"
+    tr = _move(crane, 0.35, 0.6)
+    with LibraryStore.create(path, crane.spec) as db:
+        for obj in ("time", "energy"):
+            db.add(f"m0:{obj}", tr, start=crane.tip(tr.q[0]), goal=crane.tip(tr.q[-1]),
+                   objective=obj, method="ruckig", status="ok")
+    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, calm=0.0)
+    refine_library(path, options=opts, show_progress=False)
+    with LibraryStore.open(path) as db:
+        used = {i: read_refined(db, i)[2]["options"] for i in ("m0:time", "m0:energy")}
+    assert used["m0:time"]["keep_direction"] is False and used["m0:time"]["energy_weight"] == 0
+    assert used["m0:energy"]["keep_direction"] is True
+    assert used["m0:energy"]["energy_weight"] == 30.0
+    # plain: the energy entry refined as the time entry is (a rerun refines it again)
+    s = refine_library(path, options=replace(opts, energy_entries="plain"),
+                       show_progress=False)
+    assert s["refined"] == 2
+    with LibraryStore.open(path) as db:
+        assert read_refined(db, "m0:energy")[2]["options"]["keep_direction"] is False
+        np.testing.assert_array_equal(read_refined(db, "m0:energy")[1],
+                                      read_refined(db, "m0:time")[1])

@@ -3,12 +3,9 @@ move is refined with (:func:`for_objective`); the module doc of :mod:`planner.re
 (``keep_closed``, ``keep_direction``, energy entries)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import replace
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from planner.refine import RefineOptions
 
 __all__ = ["ENERGY_ENTRIES", "ENERGY_ENTRY_WEIGHT", "closed_valves", "command_bounds",
            "for_objective"]
@@ -20,7 +17,7 @@ ENERGY_ENTRIES = ("priced", "plain")
 ENERGY_ENTRY_WEIGHT = 30.0
 
 
-def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
+def closed_valves(u, Ku: int, opts) -> np.ndarray:
     """(Ku, n) True where a command must stay 0 (module doc, ``keep_closed``): the joints
     whose nominal commands ``u`` (M, n) are all at most ``idle``, up to ``lead`` s before
     the tail (rows M and on, free)."""
@@ -31,19 +28,19 @@ def closed_valves(u, Ku: int, opts: RefineOptions) -> np.ndarray:
     return shut
 
 
-def for_objective(opts: RefineOptions, objective: str | None) -> RefineOptions:
-    """The options a move planned for ``objective`` ("time", "energy", …) is refined with:
+def for_objective(opts, objective: str | None):
+    """The :class:`~planner.refine.RefineOptions` a move planned for ``objective`` ("time",
+    "energy", …) is refined with:
     ``opts`` itself, but for an energy move while ``energy_entries`` is "priced" —
     ``keep_direction`` on and the pump work weighed ``energy_weight`` (or
     :data:`ENERGY_ENTRY_WEIGHT` where it is 0) (module doc)."""
     if objective != "energy" or opts.energy_entries != "priced":
         return opts
-    from dataclasses import replace
     return replace(opts, keep_direction=True,
                    energy_weight=opts.energy_weight or ENERGY_ENTRY_WEIGHT)
 
 
-def command_bounds(u, Ku: int, opts: RefineOptions) -> tuple:
+def command_bounds(u, Ku: int, opts) -> tuple:
     """(lo, hi), each (Ku, n): the range of each refined opening (module doc): [−1, 1]; 0
     where ``keep_closed`` shuts a held joint's valve (:func:`closed_valves`); with
     ``keep_direction``, up to ``lead`` s before the tail, a row whose nominal command ``u``

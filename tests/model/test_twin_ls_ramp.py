@@ -57,3 +57,24 @@ def test_the_ramped_signal_is_continuous_through_a_reversal_and_the_machines_is_
     # open past the ramp, both are the same signal
     past = np.abs(s) > db + 1.5 * RAMP
     assert np.allclose(soft[past], hard[past], rtol=1e-12, atol=1e-6)
+
+
+def test_the_machines_switch_has_no_slope_where_a_dithered_spool_settles(twin):
+    """A refined idle valve starts at an opening of OPEN_EPS and its spool settles there: the
+    machine's switch must not put a slope on the pump's equation there (a ramp 1e-12 wide
+    did, 1e12 per unit opening, and Newton's step blew the pump line up to 229 MPa on three
+    s100f pile → deck energy entries)."""
+    import casadi as ca
+    from planner.model.valve_physics import OPEN_EPS
+    n = twin.crane.n
+    L = twin.crane.limit_arrays()
+    x = np.array(twin.rest_state(0.5 * (L["q_min"] + L["q_max"])), float)
+    x[2 * n], x[3 * n] = 8e6, 3e6
+    X = ca.SX.sym("x", x.size)
+    f = ca.Function("f", [X], [ca.jacobian(twin.f_rhs(X, np.zeros(n), np.zeros(n), twin.P)
+                                           [4 * n], X)])
+    db = float(twin.params.per["deadband"][0])
+    for eps in (0.0, 1e-13, 5e-13, 1e-9):
+        x[4 * n + 1] = db + (1.0 - db) * OPEN_EPS * (1.0 + eps) + eps  # the opening at OPEN_EPS
+        slope = abs(float(f(x)[4 * n + 1]))           # ∂ṗ_s/∂spool of joint 0
+        assert slope < 1e9, (eps, slope)               # Pa/s per unit spool: no 1e12 spike

@@ -38,11 +38,10 @@ stand-in, or zero), and the parameter vector (:mod:`planner.model.twin.params`).
   spool crosses moves the pump's pressure by a jump, and a cost over the run is not continuous
   in the commands on the finest scale (s100f p02-d00: a 10⁻⁵ change of the commands, 0.14 % of
   the refinement's cost). The optimisation twin (parameter ``ls_ramp`` > 0; the machine's
-  twin has 0) signals each valve's meter-in pressure + margin scaled by
-  min((|o| − OPEN_EPS)⁺/ls_ramp, 1): continuous through the opening and the reversal, the same
-  wherever every valve is open past the ramp or closed. Both twins evaluate this one formula
-  (ls_ramp = 0 divides by ``RAMP_FLOOR``: the hard switch), so the machine's twin pays nothing
-  for the optimisation twin's signal.
+  twin has 0) signals each valve's meter-in pressure + margin scaled by min(|o|/ls_ramp, 1):
+  continuous through the opening and the reversal, the same wherever every valve is open past
+  the ramp or closed. Both twins evaluate one max over the valves' signals, each weighed by the
+  switch or the ramp (a branch on ``ls_ramp``).
 
 The same physics as the Exudyn plant describes in its own words (planner/simulation/dynamic/
 circuit.py); not one line of its code — the judge stays independent, and
@@ -71,7 +70,7 @@ STOP_STIFFNESS = 2.0e8   # [N/m] end stop (N·m/rad per rad for a rack's pinion 
 STOP_DAMPING = 0.05      # [s] end-stop damping = this × stiffness, ...
 STOP_RAMP = 1.0e-3       # [m] ... ramped in over this penetration (continuous at contact)
 STOP_SOFT = 1.0e-4       # [m] the spring's slope ramps in over this penetration (C¹ at contact)
-RAMP_FLOOR = 1.0e-12     # [-] ls_ramp = 0 divides by this: the LS signal's ramp is a hard switch
+RAMP_FLOOR = 1.0e-12     # [-] the LS ramp's divisor at least this (the branch not taken at 0)
 
 
 def state_size(n: int) -> int:
@@ -156,14 +155,16 @@ def build_rhs(crane: Crane, spec=None):
         qin.append(q_in)
         opening.append(o)
     # the LS signal (module doc): each valve that draws signals its meter-in pressure plus the
-    # margin, weighed by r = min((|o| - OPEN_EPS)+ / ls_ramp, 1): on the machine's twin
-    # (ls_ramp = 0) the hard switch at OPEN_EPS, on the optimisation twin a ramp that is
-    # continuous through the opening and the reversal. One formula, no branch to evaluate twice.
+    # margin, weighed by r: on the machine's twin (ls_ramp = 0) the switch |o| > OPEN_EPS (its
+    # slope 0: a ramp 1e-12 wide instead put a slope of 1e12 where a dithered spool settles
+    # on OPEN_EPS, and Newton's step blew the pump line up), on the optimisation twin
+    # min(|o|/ls_ramp, 1), continuous through the opening and the reversal.
     signal = ca.DM(0.0)
     for i in range(n):
         p_in = ca.if_else(opening[i] > 0, pa[i], pb[i])
-        r = ca.fmin(ca.fmax(ca.fabs(opening[i]) - OPEN_EPS, 0.0)
-                    / ca.fmax(sc["ls_ramp"], RAMP_FLOOR), 1.0)
+        r = ca.if_else(sc["ls_ramp"] > 0,
+                       ca.fmin(ca.fabs(opening[i]) / ca.fmax(sc["ls_ramp"], RAMP_FLOOR), 1.0),
+                       ca.fabs(opening[i]) > OPEN_EPS)
         lowering = ca.logic_and(per["single"][i] > 0.5, opening[i] <= 0)
         signal = ca.fmax(signal, ca.if_else(lowering, 0.0, r * (p_in + sc["ls_margin"])))
     p_ls = ca.fmin(ca.fmax(sc["standby"], signal), sc["p_relief"])

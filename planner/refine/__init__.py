@@ -98,6 +98,10 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   boom's holding pressure to the load-sensing pump, which every other flow then pays (s100f
   d00-p16:energy on the twin: the pump line at 10.1 MPa on average against 3.7 with the
   nominal commands, the boom setting it half the time; with the directions kept 7.7 MPa).
+  Alone it is no energy fix: on six s100f time entries whose refined commands cost Exudyn
+  1.8–3.4 × their nominal pump work it cost more still on four (d03-p21 152 → 310 kJ), all
+  six landing (``refine_t6-dir.md``): without a price the optimiser finds another valve to
+  crack. Off by default; energy entries get it with their price (below).
 * **Energy entries** (``energy_entries`` "priced", the default; :func:`for_objective`): a
   move planned for least energy is refined with ``keep_direction`` and its pump work in the
   cost, weighed ``energy_weight`` or :data:`ENERGY_ENTRY_WEIGHT` (30 mm²·s per kJ) — its
@@ -105,8 +109,10 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   energy entries of parts 0–1 of the 400-entry s100f run whose refined commands cost at
   least as much as their time entry's: refined plain they used 0.3–42 % *more* pump work
   than the time entry (d01-p07 243 kJ against 171); with the directions kept −21…+20 %;
-  priced, 0.3–44 % *less* (d01-p07 95 kJ), 5 of 6 landing as before
-  (``benchmarks/results/energy_refined_pairs_*.md``). ``"plain"`` refines them as time moves.
+  priced, 0.3–44 % *less* (d01-p07 95 kJ), 5 of 6 landing as before; the weight without the
+  kept directions −3…34 % less (d01-p07 114 kJ, d03-p09 3 % more) with twice the ringing
+  (median 2.3 mm against 1.0) (``benchmarks/results/energy_refined_pairs_en6-*.md``).
+  ``"plain"`` refines them as time moves.
 
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its

@@ -151,7 +151,8 @@ def _select(library: Path, ids, sel: Path):
             at = src.entry_attrs(i)
             dst.add(i, src.trajectory(i), start=r["start"], goal=r["goal"],
                     objective=r["objective"], method=r["method"], status="ok",
-                    attrs={k: v for k, v in at.items() if k in ("suite", "solve_s")})
+                    attrs={k: v for k, v in at.items()
+                           if k in ("suite", "solve_s", "clearance_m")})
     os.replace(part, sel)
 
 
@@ -218,6 +219,22 @@ def land_time_ratios(rows) -> list:
     return out
 
 
+def _clearance_line(rep) -> str:
+    """The tip's least distance to the suite's obstacles (the headboard) on Exudyn, nominal
+    and refined, beside the plans' (rows without obstacles: nothing to say)."""
+    got = {w: [(r.get("exudyn") or {}).get("clearance_m") for r in rep["runs"][w]["rows"]]
+           for w in ("nominal", "refined")}
+    got = {w: [v for v in vs if v is not None] for w, vs in got.items()}
+    plan = [r.get("plan_clearance_m") for r in rep["runs"]["refined"]["rows"]
+            if r.get("plan_clearance_m") is not None]
+    if not got["refined"]:
+        return "Headboard clearance: not measured (no obstacles in these entries' suites)."
+    return ("Headboard clearance, the tip's least distance over the replay (Exudyn): refined "
+            f"min {_q(got['refined'], 0):.3f} m, median {_q(got['refined'], 50):.3f} m; "
+            f"nominal min {_q(got['nominal'], 0):.3f} m"
+            + (f"; the plans min {min(plan):.3f} m." if plan else "."))
+
+
 def _land_line(rep) -> str:
     parts = []
     for which in ("nominal", "refined"):
@@ -282,7 +299,8 @@ def markdown(rep) -> str:
           f"The twin's own prediction for the refined commands: rest offset median "
           f"{1e3 * _q([p['rest_offset_m'] for p in pred], 50):.1f} mm, ringing median "
           f"{1e3 * _q([p['residual_oscillation_m'] for p in pred], 50):.1f} mm, tip error "
-          f"during the move median {1e3 * _q([p['track_m'] for p in pred], 50):.1f} mm.", "",
+          f"during the move median {1e3 * _q([p['track_m'] for p in pred], 50):.1f} mm.",
+          _clearance_line(rep), "",
           "Per entry (Exudyn; nominal → refined) [mm]:", "",
           "| entry | s | rest | ringing | during the move | lengthened s |",
           "| --- | ---: | --- | --- | --- | ---: |"]

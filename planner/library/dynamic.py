@@ -7,7 +7,9 @@ Each ok entry's stored 50 Hz valve commands drive the Exudyn plant
 the plan's end) and, beside it, the fast quasi-static replay plant. Per entry: tip tracking
 error during the move and at arrival, the offset where the crane comes to rest, the residual
 oscillation after arrival and the settling time to ``tol`` (judge: Exudyn, and the fast plant
-for comparison), the pump energy of the run.
+for comparison), the pump energy of the run, and where the entry's suite has obstacles (the
+forwarder's headboard) the tip's least distance to them over the Exudyn replay
+(``exudyn.clearance_m``) beside the plan's (``plan_clearance_m``).
 
 The executors are the library build's: in-process, local processes
 (:class:`~planner.library.workers.WorkerPool`) or a Dask cluster
@@ -17,11 +19,16 @@ in it once. The driver only collects (nothing is written into the library).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import os
 import time as _time
 from contextlib import nullcontext
 
 from planner.library.workers import WorkerPool
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["replay_entry", "replay_library"]
 
@@ -51,20 +58,45 @@ def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.0
         with LibraryStore.open(path, "r") as store:
             crane = _crane_of(path, store)
             traj = store.trajectory(entry_id)
-            objective = store.entry_attrs(entry_id).get("objective")
+            attrs = store.entry_attrs(entry_id)
+            objective = attrs.get("objective")
             t_u, u, used, info = entry_commands(store, entry_id, traj, commands)
         if t_u is None:
             return dict(out, status="no-commands", reason="the entry stores no 50 Hz commands",
                         seconds=_time.perf_counter() - t0)
-        m = replay_move(crane, traj, t_u=t_u, u=u, settle=settle, tol=tol)
+        m, run, _ = replay_move(crane, traj, t_u=t_u, u=u, settle=settle, tol=tol,
+                                keep_runs=True)
         extra = {} if info is None else dict(lengthened_s=info.get("lengthened_s"),
                                              predicted=info.get("predicted", {}).get("refined"))
-        return dict(out, objective=objective, duration_s=float(traj.duration), commands=used,
-                    **extra, **m.as_dict(), seconds=_time.perf_counter() - t0,
-                    cpu_s=_time.process_time() - c0)
+        row = dict(out, objective=objective, duration_s=float(traj.duration), commands=used,
+                   **extra, **m.as_dict(), seconds=_time.perf_counter() - t0,
+                   cpu_s=_time.process_time() - c0)
+        obstacles = _obstacles(attrs.get("suite"))
+        if obstacles and m.status == "ok":
+            row["exudyn"]["clearance_m"] = _clearance(crane, run.q, obstacles)
+            row["plan_clearance_m"] = attrs.get("clearance_m")
+        return row
     except Exception as e:   # one bad entry must not stop the replay of the others
         return dict(out, status="error", reason=f"{type(e).__name__}: {e}",
                     seconds=_time.perf_counter() - t0)
+
+
+def _obstacles(suite) -> tuple:
+    """The obstacles of the task suite ``suite`` (a name; none when unknown or absent)."""
+    if not suite:
+        return ()
+    from planner.tasks.suites import load_suite
+    try:
+        return tuple(load_suite(str(suite))[0].get("obstacles") or ())
+    except (OSError, ValueError, KeyError):
+        return ()
+
+
+def _clearance(crane: Crane, q, obstacles) -> float:
+    """The tip's least distance [m] to ``obstacles`` over the joint samples ``q`` (K, n)."""
+    from planner.geometry.paths import tip_to_xyz
+    cyl = crane.tip(q)
+    return min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
 
 
 def replay_library(path, *, workers: int = 1, scheduler: str | None = None,

@@ -49,3 +49,34 @@ def test_process_and_dask_executors_give_the_same_measures(lib):
         for k in base:
             for m, v in base[k]["exudyn"].items():
                 np.testing.assert_allclose(got[k]["exudyn"][m], v, rtol=1e-9, err_msg=m)
+
+
+def test_the_replay_reports_the_tips_clearance_from_the_suites_headboard(tmp_path):
+    """An entry of the forwarder suite (its headboard an obstacle): the Exudyn replay's least
+    tip distance to it. Oracle: a distance is 1-Lipschitz in the tip, so it lies within the
+    replay's largest tip deviation from the plan of the plan's own clearance."""
+    from planner.geometry.paths import tip_to_xyz
+    from planner.tasks.suites import load_suite
+    crane = Crane.from_id("s100f")
+    L = crane.limit_arrays()
+    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.45, 0.55))
+    tr = rest_to_rest(crane, q0, q1, scale=0.3).trajectory
+    tr = commands(crane, tr, 50.0).attach(tr, knots=True)
+    obs = load_suite("forwarder-cycle")[0]["obstacles"]
+    assert obs
+    cyl = crane.tip(tr.sample(tr.resample(1000.0))[0])
+    plan = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obs)
+    path = tmp_path / "lib.h5"
+    with LibraryStore.create(path, crane.spec) as db:
+        db.add("m0:time", tr, start=crane.tip(q0), goal=crane.tip(q1), objective="time",
+               method="ruckig", status="ok", attrs=dict(suite="forwarder-cycle",
+                                                        clearance_m=plan))
+        db.add("m1:time", tr, start=crane.tip(q0), goal=crane.tip(q1), objective="time",
+               method="ruckig", status="ok")
+    rows = {r["id"]: r for r in replay_library(path, settle=1.0)["rows"]}
+    r = rows["m0:time"]
+    assert r["status"] == "ok" and r["plan_clearance_m"] == plan
+    e = r["exudyn"]
+    dev = max(e["max_track_m"], e["peak_to_goal_m"])
+    assert abs(e["clearance_m"] - plan) <= dev + 1e-9
+    assert "clearance_m" not in rows["m1:time"]["exudyn"]     # no suite: no obstacles known

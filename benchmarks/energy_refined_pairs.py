@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_refine import landed as _landed  # noqa: E402  (its landing rule)
 from planner.io import atomic_write_text  # noqa: E402
-
-LANDED_M = 0.005     # the landing rule of bench_refine: at rest within 5 mm, ringing < 5 mm
 
 
 def _rows(files: list) -> dict:
@@ -38,12 +38,6 @@ def _rows(files: list) -> dict:
             for r in run["rows"]:
                 out[which, r["id"]] = r
     return out
-
-
-def _landed(r) -> bool:
-    e = r.get("exudyn") or {}
-    return (r.get("status") == "ok" and e.get("offset_m", np.inf) <= LANDED_M
-            and e.get("peak_osc_m", np.inf) < LANDED_M)
 
 
 def pairs(rows: dict) -> list:

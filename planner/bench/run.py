@@ -37,7 +37,7 @@ from planner.io import progress as progress_bar
 from planner.bench.report import DEFAULT_RESULTS, global_vs_local, nlp_vs_laws, write_outputs
 from planner.bench.suites import SUITE_NAMES, build_suite
 from planner.bounds import lower_bound
-from planner.geometry.paths import tip_to_xyz
+from planner.geometry.obstacles import tip_clearance
 from planner.methods.base import PlanStatus
 from planner.model import Crane, UnreachableError
 from planner.trajectory import LIMIT_KINDS, evaluate
@@ -164,8 +164,7 @@ def judge(ctx, move, method, out: Outcome, times, cache) -> dict:
         k = max(checked, key=lambda k: row["violations"][k])
         problems.append(f"exceeds {k} by {100 * row['violations'][k]:.2f} %")
     if ctx.obstacles:
-        clear = min(float(ob.distance(tip_to_xyz(e.tip), e.tip).min())
-                    for e in evs for ob in ctx.obstacles)
+        clear = min(tip_clearance(e.tip, ctx.obstacles) for e in evs)
         row["clearance_m"] = clear
         need = CLEAR_FRACTION * min(ob.clearance for ob in ctx.obstacles)
         if clear < need:

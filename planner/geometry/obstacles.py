@@ -135,3 +135,12 @@ def from_dict(d: dict):
         return cls(**{k: float(v) for k, v in d.items()})
     except TypeError as e:
         raise ValueError(f"{kind}: {e}") from None
+
+
+def tip_clearance(cyl, obstacles) -> float:
+    """The least distance [m] of the tips ``cyl`` ((K, 3): r, z, slew) to any of
+    ``obstacles``; inf when there are none."""
+    from planner.geometry.paths import tip_to_xyz
+    cyl = np.atleast_2d(np.asarray(cyl, float))
+    xyz = tip_to_xyz(cyl)
+    return min((float(ob.distance(xyz, cyl).min()) for ob in obstacles), default=float("inf"))

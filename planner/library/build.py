@@ -232,9 +232,8 @@ def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -
     # derived channels (strokes, pressures, pump) on those samples
     clear = float("nan")
     if st.obstacles:  # the tip's least distance to any obstacle, on a 1 kHz resampling
-        from planner.geometry.paths import tip_to_xyz
-        cyl = crane.tip(traj.sample(traj.resample(1000.0))[0])
-        clear = min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in st.obstacles)
+        from planner.geometry.obstacles import tip_clearance
+        clear = tip_clearance(crane.tip(traj.sample(traj.resample(1000.0))[0]), st.obstacles)
     # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
     # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
     swing = swing_attrs(crane, st.grapple, st.obstacles, traj)

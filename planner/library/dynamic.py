@@ -19,16 +19,11 @@ in it once. The driver only collects (nothing is written into the library).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import os
 import time as _time
 from contextlib import nullcontext
 
 from planner.library.workers import WorkerPool
-
-if TYPE_CHECKING:
-    from planner.model import Crane
 
 __all__ = ["replay_entry", "replay_library"]
 
@@ -73,7 +68,8 @@ def replay_entry(path: str, entry_id: str, settle: float = 3.0, tol: float = 0.0
                    cpu_s=_time.process_time() - c0)
         obstacles = _obstacles(attrs.get("suite"))
         if obstacles and m.status == "ok":
-            row["exudyn"]["clearance_m"] = _clearance(crane, run.q, obstacles)
+            from planner.geometry.obstacles import tip_clearance
+            row["exudyn"]["clearance_m"] = tip_clearance(crane.tip(run.q), obstacles)
             row["plan_clearance_m"] = attrs.get("clearance_m")
         return row
     except Exception as e:   # one bad entry must not stop the replay of the others
@@ -90,13 +86,6 @@ def _obstacles(suite) -> tuple:
         return tuple(load_suite(str(suite))[0].get("obstacles") or ())
     except (OSError, ValueError, KeyError):
         return ()
-
-
-def _clearance(crane: Crane, q, obstacles) -> float:
-    """The tip's least distance [m] to ``obstacles`` over the joint samples ``q`` (K, n)."""
-    from planner.geometry.paths import tip_to_xyz
-    cyl = crane.tip(q)
-    return min(float(ob.distance(tip_to_xyz(cyl), cyl).min()) for ob in obstacles)
 
 
 def replay_library(path, *, workers: int = 1, scheduler: str | None = None,

@@ -177,7 +177,9 @@ class RefineOptions:
     ``calm_weight`` × more,
     run where the first stage leaves the twin predicting a rest offset or ringing above
     ``calm_below`` [m]; ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening;
-    0: optimise on the machine's twin itself) (module doc)."""
+    0: optimise on the machine's twin itself); ``idle_reverse``: with ``keep_direction``, the
+    largest opening a joint the plan moves one way may get the other way in its idle rows (a
+    held joint putting its droop right; 0: none) (module doc)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -193,6 +195,7 @@ class RefineOptions:
     periods: float = 1.0
     keep_closed: bool = False
     keep_direction: bool = False
+    idle_reverse: float = 0.0
     energy_entries: str = "priced"
     lead: float = 0.3
     idle: float = 1e-3
@@ -215,7 +218,8 @@ class RefineOptions:
                   ("idle", self.idle, 0.0, 0.1), ("calm", self.calm, 0.0, 10.0),
                   ("calm_weight", self.calm_weight, 1.0, 1e4),
                   ("calm_below", self.calm_below, 0.0, 1.0),
-                  ("ls_ramp", self.ls_ramp, 0.0, 0.1))
+                  ("ls_ramp", self.ls_ramp, 0.0, 0.1),
+                  ("idle_reverse", self.idle_reverse, 0.0, 1.0))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")

@@ -54,8 +54,11 @@ def command_bounds(u, Ku: int, opts) -> tuple:
         pos, neg = u[:end] > opts.idle, u[:end] < -opts.idle
         one_way_up = pos.any(axis=0) & ~neg.any(axis=0)
         one_way_down = neg.any(axis=0) & ~pos.any(axis=0)
-        lo[:end][pos | one_way_up[None, :]] = 0.0
-        hi[:end][neg | one_way_down[None, :]] = 0.0
+        back = -opts.idle_reverse
+        lo[:end][one_way_up[None, :] & ~pos] = back
+        hi[:end][one_way_down[None, :] & ~neg] = -back
+        lo[:end][pos] = 0.0
+        hi[:end][neg] = 0.0
     if opts.keep_closed:
         shut = closed_valves(u, Ku, opts)
         lo[shut], hi[shut] = 0.0, 0.0

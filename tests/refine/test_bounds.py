@@ -54,6 +54,25 @@ def test_keep_direction_keeps_each_joints_sign_until_the_landing_window():
     assert np.all(u[:end] >= lo[:end]) and np.all(u[:end] <= hi[:end])
 
 
+def test_idle_reverse_lets_a_one_way_joint_correct_a_droop_a_little_while_it_is_held():
+    # s100f d00-p00:energy: the jib, held while the boom and slew move, droops 0.04 rad on
+    # its oil; putting it right takes a 1 % opening against the way the plan later moves it
+    u = nominal()
+    opts = RefineOptions(keep_direction=True, lead=0.3, idle_reverse=0.05)
+    lo, hi = command_bounds(u, 125, opts)
+    end = 100 - 15
+    idle0 = np.abs(u[:end, 0]) <= opts.idle
+    assert np.all(lo[:end, 0][idle0] == -0.05) and np.all(lo[:end, 0][~idle0] == 0.0)
+    idle1 = np.abs(u[:end, 1]) <= opts.idle
+    assert np.all(hi[:end, 1][idle1] == 0.05) and np.all(hi[:end, 1][~idle1] == 0.0)
+    assert np.all(hi[:end, 0] == 1.0) and np.all(lo[:end, 1] == -1.0)
+    # a joint that goes both ways is as before: moving rows keep their sign, idle rows free
+    lo0, hi0 = command_bounds(u, 125, RefineOptions(keep_direction=True, lead=0.3))
+    assert np.array_equal(lo[:, 2:], lo0[:, 2:]) and np.array_equal(hi[:, 2:], hi0[:, 2:])
+    with pytest.raises(ValueError, match="idle_reverse"):
+        RefineOptions(idle_reverse=1.5)
+
+
 def test_the_solver_stops_on_its_bounds_at_the_clipped_minimum():
     A = np.array([1.0, 4.0, 2.0, 8.0])
     B = np.array([0.6, -0.7, 0.2, -0.1])

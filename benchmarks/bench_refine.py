@@ -21,7 +21,9 @@ library it runs on — the build is deterministic), then
     python benchmarks/bench_refine.py --merge refine_s100f-400-p0.json … --tag s100f-400
 
 writes one report over the parts' entries (rows of a later part replace an earlier one's for
-the same entry; every part must have used the same options and settle time).
+the same entry; every part must have refined each objective's entries with the same options —
+those :func:`planner.refine.for_objective` gives it, an option a part's code lacked counting
+at its default — and the same settle time).
 """
 from __future__ import annotations
 
@@ -114,6 +116,22 @@ def main():
     tmp.cleanup()
 
 
+def effective_options(options: dict, objective) -> dict:
+    """The refine options an entry of ``objective`` gets from a part run with ``options``
+    (:func:`planner.refine.for_objective`; an option the part's code did not have yet takes
+    the value that means what that code did: its default, but ``energy_entries`` "plain")."""
+    from dataclasses import asdict
+    from planner.refine import for_objective
+    known = dict(energy_entries="plain")
+    known.update({k: v for k, v in options.items() if k in RefineOptions.__dataclass_fields__})
+    o = asdict(for_objective(RefineOptions(**known), objective))
+    if objective != "energy":   # how energy moves are refined does not touch the others
+        o.pop("energy_entries")
+    if not o["keep_direction"]:
+        o.pop("idle_reverse")
+    return o
+
+
 def merge(parts: list, argv: str) -> dict:
     """One report over ``parts`` (results of this bench on one library, same options and
     settle time): their entries' rows and refinements, a later part's replacing an earlier
@@ -121,7 +139,15 @@ def merge(parts: list, argv: str) -> dict:
     if not parts:
         raise ValueError("--merge: no results file given")
     base = parts[0]
-    for k in ("crane", "options", "settle", "library_entries"):
+    used = {}
+    for p in parts:   # the options each objective's entries were refined with
+        for r in p["runs"]["nominal"]["rows"]:
+            o = effective_options(p["options"], r.get("objective"))
+            if used.setdefault(r.get("objective"), (o, p["argv"]))[0] != o:
+                raise ValueError(f"--merge: the {r.get('objective')} entries of the run "
+                                 f"'{p['argv']}' were refined with other options than those of "
+                                 f"'{used[r.get('objective')][1]}'; allowed: parts of one run")
+    for k in ("crane", "settle", "library_entries"):
         bad = [p.get("argv") for p in parts if p.get(k) != base.get(k)]
         if bad:
             raise ValueError(f"--merge: field '{k}' differs between the parts (e.g. the run "
@@ -135,6 +161,7 @@ def merge(parts: list, argv: str) -> dict:
         refine["refined"] += int(p["refine"].get("refined", 0))
         refine["wall_s"] += float(p["refine"].get("wall_s", 0.0))
     rep = dict(base, argv=argv, selected=len(runs["nominal"]), every=1, offset=0, infos=infos,
+               options_by_objective={k: v[0] for k, v in used.items()},
                refine=refine, parts=[dict(argv=p["argv"], date=p["date"],
                                           selected=p["selected"]) for p in parts],
                runs={w: dict(rows=sorted(v.values(), key=lambda r: r["id"]),

@@ -42,8 +42,34 @@ def test_parts_merge_into_one_report_a_later_row_replacing_an_earlier_one():
     assert "`--offset 0`; `--offset 1`" in md
 
 
-def test_parts_of_different_runs_are_refused_by_field():
+def test_parts_of_different_runs_are_refused_by_objective():
     a = _part("--offset 0", [_row("a", 0.002)])
     b = _part("--offset 1 --iterations 80", [_row("c", 0.003)], options=dict(iterations=80))
-    with pytest.raises(ValueError, match="field 'options' differs.*--iterations 80"):
+    with pytest.raises(ValueError, match="time entries of the run '--offset 1 --iterations 80'"):
         bench_refine.merge([a, b], "--merge a b")
+
+
+def _energy(row):
+    return dict(row, objective="energy")
+
+
+def test_options_that_only_touch_energy_entries_may_differ_between_time_parts():
+    # a part run before an option existed counts it at its default (what its code did)
+    old = _part("--offset 1", [_row("a:time", 0.002)], options=dict(iterations=150))
+    new = _part("--offset 3", [_row("b:time", 0.001)],
+                options=dict(iterations=150, energy_entries="plain", idle_reverse=0.05))
+    rep = bench_refine.merge([old, new], "--merge")
+    assert rep["options_by_objective"]["time"]["keep_direction"] is False
+    # energy entries refined one way and another are not one run
+    e1 = _part("--offset 0", [_energy(_row("a:energy", 0.002))],
+               options=dict(iterations=150, energy_entries="priced"))
+    e2 = _part("--offset 2", [_energy(_row("b:energy", 0.002))],
+               options=dict(iterations=150, energy_entries="priced", idle_reverse=0.05))
+    with pytest.raises(ValueError, match="energy entries of the run '--offset 2'"):
+        bench_refine.merge([old, e1, e2], "--merge")
+    rep = bench_refine.merge([old, e1, new], "--merge")
+    assert rep["options_by_objective"]["energy"]["keep_direction"] is True
+    # a part from before energy entries were priced refined them plain
+    e0 = _part("--offset 4", [_energy(_row("c:energy", 0.002))], options=dict(iterations=150))
+    with pytest.raises(ValueError, match="energy entries of the run '--offset 4'"):
+        bench_refine.merge([e1, e0], "--merge")

@@ -101,7 +101,16 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   Alone it is no energy fix: on six s100f time entries whose refined commands cost Exudyn
   1.8–3.4 × their nominal pump work it cost more still on four (d03-p21 152 → 310 kJ), all
   six landing (``refine_t6-dir.md``): without a price the optimiser finds another valve to
-  crack. Off by default; energy entries get it with their price (below).
+  crack. Off by default; energy entries get it with their price (below). A joint held while
+  others move may still open the other way by up to ``idle_reverse`` (0.05) in its idle rows:
+  kept strictly one way, a jib held through the first 10 s of s100f d00-p00:energy drooped
+  0.04 rad on its oil (compressed as the boom rose) and could not be put right before its
+  own move, 208 mm off the plan on Exudyn; ten of the 50 energy entries of part 0 were
+  70–218 mm off during the move that way. On 16 energy entries (those ten and the six
+  below), judged on Exudyn: with 0.05, the tip error during the move median 16 mm (was
+  103 mm), 15 of 16 land, 34 % less pump work than their time entries in the median and over
+  the sum and none costlier; fully free (1.0), 12 mm, 15 of 16, 34 % / 31 % and one 9 %
+  costlier (``refine_ir0.05.md``, ``energy_refined_pairs_ir0.05.md``, ``…ir1.0…``).
 * **Energy entries** (``energy_entries`` "priced", the default; :func:`for_objective`): a
   move planned for least energy is refined with ``keep_direction`` and its pump work in the
   cost, weighed ``energy_weight`` or :data:`ENERGY_ENTRY_WEIGHT` (30 mm²·s per kJ) — its
@@ -179,7 +188,8 @@ class RefineOptions:
     ``calm_below`` [m]; ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening;
     0: optimise on the machine's twin itself); ``idle_reverse``: with ``keep_direction``, the
     largest opening a joint the plan moves one way may get the other way in its idle rows (a
-    held joint putting its droop right; 0: none) (module doc)."""
+    held joint putting its droop right; 0: none; it acts only with ``keep_direction``)
+    (module doc)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -195,7 +205,7 @@ class RefineOptions:
     periods: float = 1.0
     keep_closed: bool = False
     keep_direction: bool = False
-    idle_reverse: float = 0.0
+    idle_reverse: float = 0.05
     energy_entries: str = "priced"
     lead: float = 0.3
     idle: float = 1e-3

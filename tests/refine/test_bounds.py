@@ -36,7 +36,8 @@ def test_default_bounds_are_the_valves_range_and_keep_closed_shuts_only_the_held
 
 def test_keep_direction_keeps_each_joints_sign_until_the_landing_window():
     u = nominal()
-    lo, hi = command_bounds(u, 125, RefineOptions(keep_direction=True, lead=0.3))
+    lo, hi = command_bounds(u, 125, RefineOptions(keep_direction=True, lead=0.3,
+                                                  idle_reverse=0.0))
     end = 100 - 15
     # joint 0 raises only: never lowered before the window, idle rows included
     assert np.all(lo[:end, 0] == 0.0) and np.all(hi[:end, 0] == 1.0)
@@ -67,7 +68,8 @@ def test_idle_reverse_lets_a_one_way_joint_correct_a_droop_a_little_while_it_is_
     assert np.all(hi[:end, 1][idle1] == 0.05) and np.all(hi[:end, 1][~idle1] == 0.0)
     assert np.all(hi[:end, 0] == 1.0) and np.all(lo[:end, 1] == -1.0)
     # a joint that goes both ways is as before: moving rows keep their sign, idle rows free
-    lo0, hi0 = command_bounds(u, 125, RefineOptions(keep_direction=True, lead=0.3))
+    lo0, hi0 = command_bounds(u, 125, RefineOptions(keep_direction=True, lead=0.3,
+                                                    idle_reverse=0.0))
     assert np.array_equal(lo[:, 2:], lo0[:, 2:]) and np.array_equal(hi[:, 2:], hi0[:, 2:])
     with pytest.raises(ValueError, match="idle_reverse"):
         RefineOptions(idle_reverse=1.5)
@@ -108,7 +110,7 @@ def test_refined_commands_keep_the_nominal_direction_on_the_twin():
     move = commands(crane, tr, RATE).attach(tr, knots=True)
     t_u, u = stored_commands(move)
     opts = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0,
-                         keep_direction=True)
+                         keep_direction=True, idle_reverse=0.0)
     r = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts)
     end = u.shape[0] - int(round(opts.lead * RATE))
     lo, hi = command_bounds(u, r.u.shape[0], opts)

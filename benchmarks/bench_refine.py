@@ -279,6 +279,18 @@ def _land_line(rep) -> str:
             + ("; ".join(parts) if parts else "–") + ".")
 
 
+def _options_text(rep) -> str:
+    by = rep.get("options_by_objective")
+    if not by:
+        return f"options {rep['options']}"
+    first, *rest = sorted(by)
+    out = f"options of the {first} entries {by[first]}"
+    for o in rest:
+        diff = {k: v for k, v in by[o].items() if by[first].get(k) != v}
+        out += f"; the {o} entries differ in {diff}"
+    return out
+
+
 def markdown(rep) -> str:
     L = [f"# Feed-forward refined on the twin, judged on Exudyn: {rep['crane']} (issue 27)", "",
          f"{rep['date']}, {rep['platform']}, {rep['cpus']} CPUs, load "
@@ -290,22 +302,28 @@ def markdown(rep) -> str:
             f"(every {rep['every']}-th from entry {rep.get('offset', 0)}, in the "
             + ("entries' ids" if rep.get("order") == "id" else "file's") + " order; ")
          + f"objectives {_objectives(rep)}). Refined by `library refine` on the "
-         f"twin of the library's own spec (options {rep['options']}); each entry replayed "
+         f"twin of the library's own spec ({_options_text(rep)}); each entry replayed "
          f"open loop on the **Exudyn plant** (the judge; same spec parameters) with its "
          f"nominal and its refined commands, valves closed {rep['settle']:g} s after the last "
          "command.", "",
          "| commands | landed (rest ≤ 5 mm and ringing < 5 mm) | rest offset median / p90 / max "
          "[mm] | ringing median / p90 / max [mm] | tip error during the move median / p90 / "
          "max [mm] |", "| --- | ---: | --- | --- | --- |"]
-    for which in ("nominal", "refined"):
-        rows = rep["runs"][which]["rows"]
+    objectives = sorted({str(r.get("objective")) for r in rep["runs"]["nominal"]["rows"]})
+    groups = [(w, w, None) for w in ("nominal", "refined")]
+    if len(objectives) > 1:
+        groups += [(w, f"{w}, {o} entries", o) for w in ("nominal", "refined")
+                   for o in objectives]
+    for which, label, objective in groups:
+        rows = [r for r in rep["runs"][which]["rows"]
+                if objective is None or str(r.get("objective")) == objective]
         n_ok = sum(landed(r) for r in rows)
         cells = []
         for k in ("offset_m", "peak_osc_m", "max_track_m"):
             s = _stats(rows, k)
             cells.append(f"{1e3 * s['median']:.1f} / {1e3 * s['p90']:.1f} / "
                          f"{1e3 * s['max']:.1f}")
-        L.append(f"| {which} | {n_ok} of {len(rows)} ({100 * n_ok / max(len(rows), 1):.0f} %) "
+        L.append(f"| {label} | {n_ok} of {len(rows)} ({100 * n_ok / max(len(rows), 1):.0f} %) "
                  f"| {' | '.join(cells)} |")
     infos = [i for i in rep["infos"].values() if i]
     cpu = [i.get("cpu_s") for i in infos]

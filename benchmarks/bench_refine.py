@@ -23,7 +23,11 @@ library it runs on — the build is deterministic), then
 writes one report over the parts' entries (rows of a later part replace an earlier one's for
 the same entry; every part must have refined each objective's entries with the same options —
 those :func:`planner.refine.for_objective` gives it, an option a part's code lacked counting
-at its default — and the same settle time).
+at its default — and the same settle time). ``--amend FIX.json …`` adds parts that re-refine
+the entries a new option acts on (``fallback_above``: a second, plain refinement where the
+first is predicted off on the twin); the merge checks they cover every entry of the parts
+above its threshold, their rows replace those, and the report counts how many first
+refinements they reproduced.
 """
 from __future__ import annotations
 
@@ -65,6 +69,9 @@ def main():
     ap.add_argument("--library")
     ap.add_argument("--merge", nargs="+", metavar="JSON",
                     help="merge these results files (parts of one run) into --tag")
+    ap.add_argument("--amend", nargs="+", metavar="JSON",
+                    help="with --merge: parts that re-refine the run's entries its twin "
+                    "predicted off with an added fallback_above (their rows replace)")
     ap.add_argument("--every", type=int, default=1, help="every K-th ok entry (1: all)")
     ap.add_argument("--offset", type=int, default=0, help="starting at this ok entry (0)")
     ap.add_argument("--order", choices=("file", "id"), default="file",
@@ -83,7 +90,8 @@ def main():
     a = ap.parse_args()
     if a.merge:
         rep = merge([json.loads(Path(f).read_text()) for f in a.merge],
-                    " ".join(sys.argv[1:]))
+                    " ".join(sys.argv[1:]),
+                    [json.loads(Path(f).read_text()) for f in (a.amend or ())])
         out = Path(a.out)
         atomic_write_text(out / f"refine_{a.tag}.json", json.dumps(rep, indent=1, default=str))
         atomic_write_text(out / f"refine_{a.tag}.md", markdown(rep))
@@ -120,23 +128,79 @@ def effective_options(options: dict, objective) -> dict:
     """The refine options an entry of ``objective`` gets from a part run with ``options``
     (:func:`planner.refine.for_objective`; an option the part's code did not have yet takes
     the value that means what that code did: its default, but ``energy_entries`` "plain" and
-    ``idle_reverse`` 0)."""
+    ``idle_reverse`` and ``fallback_above`` 0)."""
     from dataclasses import asdict
     from planner.refine import for_objective
-    known = dict(energy_entries="plain", idle_reverse=0.0)
+    known = dict(energy_entries="plain", idle_reverse=0.0, fallback_above=0.0)
     known.update({k: v for k, v in options.items() if k in RefineOptions.__dataclass_fields__})
     o = asdict(for_objective(RefineOptions(**known), objective))
     if objective != "energy":   # how energy moves are refined does not touch the others
         o.pop("energy_entries")
     if not o["keep_direction"]:
         o.pop("idle_reverse")
+    if not (o["keep_direction"] or o["keep_closed"] or o["energy_weight"] > 0):
+        o.pop("fallback_above")   # acts only on a refinement that keeps or prices
     return o
 
 
-def merge(parts: list, argv: str) -> dict:
+#: options an ``--amend`` part may add to a run's: each acts only on an entry whose first
+#: refinement the twin predicts above a threshold, so the amend part re-refines exactly those
+AMEND_FIELDS = ("fallback_above",)
+
+
+def _score(info) -> float:
+    p = ((info or {}).get("predicted") or {}).get("refined") or {}
+    return max(p.get("rest_offset_m", np.inf), p.get("residual_oscillation_m", np.inf))
+
+
+def _amend(rep_used: dict, parts: list, amend: list) -> dict:
+    """Check the ``amend`` parts against the run's ``parts`` (module doc): the options differ
+    only in :data:`AMEND_FIELDS`, and every entry of the parts whose twin prediction lies
+    above the amend's ``fallback_above`` is re-refined in it. Returns {objective: options}."""
+    out, ids = {}, {r["id"] for a in amend for r in a["runs"]["nominal"]["rows"]}
+    for a in amend:
+        for r in a["runs"]["nominal"]["rows"]:
+            ob = r.get("objective")
+            o = effective_options(a["options"], ob)
+            if ob not in rep_used:
+                raise ValueError(f"--amend: entry '{r['id']}' is a {ob} entry; the run has none")
+            diff = {k for k in set(o) | set(rep_used[ob][0])
+                    if o.get(k) != rep_used[ob][0].get(k)}
+            if not diff <= set(AMEND_FIELDS) or out.setdefault(ob, o) != o:
+                raise ValueError(f"--amend: the run '{a['argv']}' differs from the parts in "
+                                 f"{sorted(diff)}; allowed: only {', '.join(AMEND_FIELDS)}")
+    for ob, o in out.items():
+        thr = o.get("fallback_above", 0.0)
+        for p in parts:
+            for r in p["runs"]["nominal"]["rows"]:
+                if r.get("objective") == ob and r["id"] not in ids and \
+                        _score(p["infos"].get(r["id"])) > thr:
+                    raise ValueError(f"--amend: entry '{r['id']}' of '{p['argv']}' is predicted "
+                                     f"{1e3 * _score(p['infos'].get(r['id'])):.1f} mm from "
+                                     f"landed, above fallback_above = {1e3 * thr:g} mm, and "
+                                     "not re-refined in the amend parts; allowed: amend parts "
+                                     "that cover every such entry")
+    return out
+
+
+def _same_first(part: dict, firsts: dict) -> int:
+    """How many of an amend part's entries predicted their first (kept, priced) refinement
+    as the run's parts did (the refinement is deterministic: all of them)."""
+    same = 0
+    for k, v in part["infos"].items():
+        fb = (v.get("predicted") or {}).get("fallback") or {}
+        first = _score(dict(predicted=dict(refined=fb.get("first")))) if fb else _score(v)
+        same += abs(first - firsts.get(k, np.nan)) < 1e-9
+    return same
+
+
+def merge(parts: list, argv: str, amend: list = ()) -> dict:
     """One report over ``parts`` (results of this bench on one library, same options and
     settle time): their entries' rows and refinements, a later part's replacing an earlier
-    one's; the refine summary summed (wall time: the parts' sum)."""
+    one's; the refine summary summed (wall time: the parts' sum). ``amend``: parts whose
+    options add one of :data:`AMEND_FIELDS` (a second refinement where the first is predicted
+    not to land) and that re-refine every entry it acts on (:func:`_amend` checks); their
+    rows replace the parts'."""
     if not parts:
         raise ValueError("--merge: no results file given")
     base = parts[0]
@@ -153,18 +217,25 @@ def merge(parts: list, argv: str) -> dict:
         if bad:
             raise ValueError(f"--merge: field '{k}' differs between the parts (e.g. the run "
                              f"'{bad[0]}'); allowed: parts of one run")
+    amended = _amend(used, parts, list(amend)) if amend else {}
+    firsts = {}
+    for p in parts:
+        firsts.update({k: _score(v) for k, v in p["infos"].items()})
     runs = {w: {} for w in ("nominal", "refined")}
     infos, refine = {}, dict(refined=0, wall_s=0.0, workers=base["refine"].get("workers"))
-    for p in parts:
+    for p in list(parts) + list(amend):
         for w in runs:
             runs[w].update({r["id"]: r for r in p["runs"][w]["rows"]})
         infos.update(p["infos"])
         refine["refined"] += int(p["refine"].get("refined", 0))
         refine["wall_s"] += float(p["refine"].get("wall_s", 0.0))
     rep = dict(base, argv=argv, selected=len(runs["nominal"]), every=1, offset=0, infos=infos,
-               options_by_objective={k: v[0] for k, v in used.items()},
+               options_by_objective=dict({k: v[0] for k, v in used.items()}, **amended),
                refine=refine, parts=[dict(argv=p["argv"], date=p["date"],
                                           selected=p["selected"]) for p in parts],
+               amend=[dict(argv=p["argv"], date=p["date"], selected=p["selected"],
+                           ids=sorted(p["infos"]), first_pass_same=_same_first(p, firsts))
+                      for p in amend],
                runs={w: dict(rows=sorted(v.values(), key=lambda r: r["id"]),
                              seconds=sum(p["runs"][w].get("seconds", 0.0) for p in parts))
                      for w, v in runs.items()})
@@ -301,7 +372,11 @@ def markdown(rep) -> str:
             if rep.get("parts") else
             f"(every {rep['every']}-th from entry {rep.get('offset', 0)}, in the "
             + ("entries' ids" if rep.get("order") == "id" else "file's") + " order; ")
-         + f"objectives {_objectives(rep)}). Refined by `library refine` on the "
+         + f"objectives {_objectives(rep)}"
+         + "".join(f"; amended by `{a['argv']}`: {len(a['ids'])} entries re-refined, "
+                   f"{a['first_pass_same']} of them with the parts' first refinement "
+                   "reproduced" for a in rep.get("amend") or ())
+         + "). Refined by `library refine` on the "
          f"twin of the library's own spec ({_options_text(rep)}); each entry replayed "
          f"open loop on the **Exudyn plant** (the judge; same spec parameters) with its "
          f"nominal and its refined commands, valves closed {rep['settle']:g} s after the last "

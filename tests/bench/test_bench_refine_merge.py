@@ -77,3 +77,43 @@ def test_options_that_only_touch_energy_entries_may_differ_between_time_parts():
     e0 = _part("--offset 4", [_energy(_row("c:energy", 0.002))], options=dict(iterations=150))
     with pytest.raises(ValueError, match="energy entries of the run '--offset 4'"):
         bench_refine.merge([e1, e0], "--merge")
+
+
+def _with_prediction(part, entry, rest):
+    part["infos"][entry] = dict(part["infos"][entry], predicted=dict(refined=dict(
+        rest_offset_m=rest, residual_oscillation_m=1e-4, track_m=0.01)))
+    return part
+
+
+def test_an_amend_part_must_re_refine_every_entry_its_option_acts_on():
+    opts = dict(iterations=150, energy_entries="priced")
+    run = _part("--offset 0", [_energy(_row("a:energy", 0.027)), _energy(_row("b:energy", 0.001)),
+                               _energy(_row("c:energy", 0.006))], options=opts)
+    run = _with_prediction(_with_prediction(run, "a:energy", 0.027), "c:energy", 0.006)
+    t = _part("--offset 1", [_row("a:time", 0.001)], options=dict(iterations=150))
+    fix_opts = dict(opts, fallback_above=0.004)
+    fix = _part("--ids a:energy", [_energy(_row("a:energy", 0.001))], options=fix_opts)
+    fix["infos"]["a:energy"] = dict(fix["infos"]["a:energy"], predicted=dict(
+        refined=dict(rest_offset_m=1e-3, residual_oscillation_m=1e-4, track_m=0.01),
+        fallback=dict(taken=True, first=dict(rest_offset_m=0.027, residual_oscillation_m=1e-4))))
+    # c is predicted 6 mm off too and the fix leaves it out
+    with pytest.raises(ValueError, match="entry 'c:energy' of '--offset 0' is predicted 6.0 mm"):
+        bench_refine.merge([run, t], "--merge", [fix])
+    fix["runs"] = {w: dict(rows=[_energy(_row("a:energy", 0.001)),
+                                 _energy(_row("c:energy", 0.002))], seconds=1.0)
+                   for w in ("nominal", "refined")}
+    fix["infos"]["c:energy"] = dict(fix["infos"]["a:energy"], predicted=dict(
+        refined=dict(rest_offset_m=0.006, residual_oscillation_m=1e-4, track_m=0.01)))
+    rep = bench_refine.merge([run, t], "--merge", [fix])
+    rows = {r["id"]: r for r in rep["runs"]["refined"]["rows"]}
+    assert rows["a:energy"]["exudyn"]["offset_m"] == 0.001        # the amend's row
+    assert rep["options_by_objective"]["energy"]["fallback_above"] == 0.004
+    assert "fallback_above" not in rep["options_by_objective"]["time"]
+    assert rep["amend"][0]["first_pass_same"] == 2
+    assert "2 entries re-refined, 2 of them with the parts' first refinement" in \
+        bench_refine.markdown(rep)
+    # an amend part may not change anything else
+    bad = _part("--ids a:energy --iterations 80", [_energy(_row("a:energy", 0.001))],
+                options=dict(fix_opts, iterations=80))
+    with pytest.raises(ValueError, match=r"differs from the parts in .*'iterations'"):
+        bench_refine.merge([run, t], "--merge", [bad])

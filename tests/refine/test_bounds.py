@@ -136,3 +136,38 @@ def test_an_energy_move_is_refined_priced_and_a_time_move_as_given():
     assert for_objective(RefineOptions(energy_weight=5.0), "energy").energy_weight == 5.0
     plain = RefineOptions(energy_entries="plain")
     assert for_objective(plain, "energy") is plain
+
+
+def test_a_constrained_refinement_that_does_not_land_on_the_twin_is_refined_plain_too():
+    from planner import Crane
+    from planner.feedforward import commands, stored_commands
+    from planner.methods.ruckig import rest_to_rest
+    from planner.model.twin import Twin
+    from planner.refine import refine_commands
+    crane = Crane.from_id("umea-lab")
+    L = crane.limit_arrays()
+    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.3, 0.7))
+    tr = rest_to_rest(crane, q0, q1, scale=0.9).trajectory
+    move = commands(crane, tr, RATE).attach(tr, knots=True)
+    t_u, u = stored_commands(move)
+    twin = Twin(crane)
+    base = dict(iterations=4, settle=1.0, rest_window=0.5, calm=0.0)
+    # a threshold no refinement of 4 iterations meets: the plain one runs too
+    opts = for_objective(RefineOptions(fallback_above=1e-9, **base), "energy")
+    r = refine_commands(crane, move, t_u, u, twin=twin, options=opts)
+    fb = r.predicted["fallback"]
+    score = lambda m: max(m["rest_offset_m"], m["residual_oscillation_m"])  # noqa: E731
+    assert fb["taken"] == (score(fb["plain"]) < score(fb["first"]))
+    assert r.predicted["refined"] == (fb["plain"] if fb["taken"] else fb["first"])
+    assert r.options["keep_direction"] and r.options["energy_weight"] == ENERGY_ENTRY_WEIGHT
+    plain = refine_commands(crane, move, t_u, u, twin=twin,
+                            options=RefineOptions(**base))
+    assert fb["plain"] == plain.predicted["refined"]          # the same plain refinement
+    if fb["taken"]:
+        assert np.array_equal(r.u, plain.u)
+    # a time move (nothing kept, nothing priced) and a threshold of 0: no second refinement
+    assert "fallback" not in plain.predicted
+    off = refine_commands(crane, move, t_u, u, twin=twin,
+                          options=for_objective(RefineOptions(fallback_above=0.0, **base),
+                                                "energy"))
+    assert "fallback" not in off.predicted

@@ -149,8 +149,10 @@ def add_refine_parser(lsub) -> None:
     p.add_argument("--energy-entries", choices=("priced", "plain"), default="priced",
                    help="entries planned for least energy: 'priced' (default: their pump work "
                         "in the cost — weight --energy-weight, else 30 — and each joint kept "
-                        "to the direction the plan moves it until the landing window) or "
-                        "'plain' (refined as time entries are)")
+                        "to the direction the plan moves it until the landing window; where "
+                        "the twin then predicts it more than 4 mm from landed, it is refined "
+                        "plain too and the commands nearer to landed kept) or 'plain' "
+                        "(refined as time entries are)")
     p.add_argument("--swing-weight", type=float, metavar="W",
                    help="entries planned with a grapple (library build --grapple): the weight "
                         "of the load's swing after the plan's end, refined on the twin that "

@@ -14,12 +14,11 @@ from planner.trajectory import Trajectory
 if TYPE_CHECKING:
     from planner.model import Crane
     from planner.model.twin import Twin
-    from planner.refine import RefineOptions
 
 __all__ = ["horizon", "score", "predict"]
 
 
-def horizon(twin: Twin, traj: Trajectory, opts: RefineOptions):
+def horizon(twin: Twin, traj: Trajectory, opts):
     """(tail [s], settle [s], the slowest oil-spring frequency at the goal [Hz] or None): the
     options' own, lengthened to a quarter and to ``periods`` periods of that mode."""
     if opts.periods <= 0:
@@ -35,7 +34,7 @@ def score(measures: dict) -> float:
 
 
 def predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
-             opts: RefineOptions, x0=None):
+             opts, x0=None):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
     in full (the integrator's recovery substeps included) over the cost's horizon, with the
     swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the

@@ -6,10 +6,27 @@ minimum of a separable quadratic (each coordinate clipped to its box)."""
 import numpy as np
 import pytest
 
-from planner.refine import ENERGY_ENTRY_WEIGHT, RefineOptions, command_bounds, for_objective
+from planner.model.twin import Twin
+from planner.refine import (ENERGY_ENTRY_WEIGHT, RefineOptions, command_bounds, for_objective,
+                             refine_commands)
 from planner.refine.solve import minimize_commands
 
 RATE = 50.0
+
+
+@pytest.fixture(scope="module")
+def umea_move():
+    """(crane, trajectory, t_u, u): a umea-lab rest-to-rest move and its nominal commands."""
+    from planner import Crane
+    from planner.feedforward import commands, stored_commands
+    from planner.methods.ruckig import rest_to_rest
+    crane = Crane.from_id("umea-lab")
+    L = crane.limit_arrays()
+    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.3, 0.7))
+    tr = rest_to_rest(crane, q0, q1, scale=0.9).trajectory
+    move = commands(crane, tr, RATE).attach(tr, knots=True)
+    t_u, u = stored_commands(move)
+    return crane, move, t_u, u
 
 
 def nominal():
@@ -97,18 +114,8 @@ def test_keep_direction_must_be_a_bool():
         RefineOptions(keep_direction=1)
 
 
-def test_refined_commands_keep_the_nominal_direction_on_the_twin():
-    from planner import Crane
-    from planner.feedforward import commands, stored_commands
-    from planner.methods.ruckig import rest_to_rest
-    from planner.model.twin import Twin
-    from planner.refine import refine_commands
-    crane = Crane.from_id("umea-lab")
-    L = crane.limit_arrays()
-    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.3, 0.7))
-    tr = rest_to_rest(crane, q0, q1, scale=0.9).trajectory
-    move = commands(crane, tr, RATE).attach(tr, knots=True)
-    t_u, u = stored_commands(move)
+def test_refined_commands_keep_the_nominal_direction_on_the_twin(umea_move):
+    crane, move, t_u, u = umea_move
     opts = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0,
                          keep_direction=True, idle_reverse=0.0)
     r = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts)
@@ -138,18 +145,8 @@ def test_an_energy_move_is_refined_priced_and_a_time_move_as_given():
     assert for_objective(plain, "energy") is plain
 
 
-def test_a_constrained_refinement_that_does_not_land_on_the_twin_is_refined_plain_too():
-    from planner import Crane
-    from planner.feedforward import commands, stored_commands
-    from planner.methods.ruckig import rest_to_rest
-    from planner.model.twin import Twin
-    from planner.refine import refine_commands
-    crane = Crane.from_id("umea-lab")
-    L = crane.limit_arrays()
-    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.3, 0.7))
-    tr = rest_to_rest(crane, q0, q1, scale=0.9).trajectory
-    move = commands(crane, tr, RATE).attach(tr, knots=True)
-    t_u, u = stored_commands(move)
+def test_a_constrained_refinement_that_does_not_land_on_the_twin_is_refined_plain_too(umea_move):
+    crane, move, t_u, u = umea_move
     twin = Twin(crane)
     base = dict(iterations=4, settle=1.0, rest_window=0.5, calm=0.0)
     # a threshold no refinement of 4 iterations meets: the plain one runs too

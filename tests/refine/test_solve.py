@@ -6,9 +6,7 @@ twin's own prediction of the first stage (what the calm stage may only improve o
 import numpy as np
 import pytest
 
-from planner import Crane
-from planner.feedforward import commands, stored_commands
-from planner.methods.ruckig import rest_to_rest
+from planner.feedforward import stored_commands
 from planner.model.twin import Twin
 from planner.refine import RefineOptions, refine_commands
 from planner.refine.solve import minimize_commands
@@ -61,12 +59,9 @@ def test_the_solver_keeps_its_budget_and_the_bounds():
 
 
 @pytest.fixture(scope="module")
-def case():
-    crane = Crane.from_id("umea-lab")
-    L = crane.limit_arrays()
-    q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (0.3, 0.7))
-    tr = rest_to_rest(crane, q0, q1, scale=0.9).trajectory
-    return crane, Twin(crane), commands(crane, tr, 50.0).attach(tr, knots=True)
+def case(umea_move):
+    crane, move, _, _ = umea_move
+    return crane, Twin(crane), move
 
 
 def _score(m):

@@ -149,8 +149,10 @@ AMEND_FIELDS = ("fallback_above",)
 
 
 def _score(info) -> float:
-    p = ((info or {}).get("predicted") or {}).get("refined") or {}
-    return max(p.get("rest_offset_m", np.inf), p.get("residual_oscillation_m", np.inf))
+    """How far an entry's refinement is predicted from landed (inf: no prediction)."""
+    from planner.refine.measures import score
+    p = ((info or {}).get("predicted") or {}).get("refined")
+    return score(p) if p else np.inf
 
 
 def _amend(rep_used: dict, parts: list, amend: list) -> dict:

@@ -204,7 +204,7 @@ def replay_move(crane: Crane, pieces, *, settle: float = 3.0, rate: float = 50.0
             if run.ok or run.status != "diverged" or "range" in run.reason:
                 break
             plant.step = plant.step / 2
-        step = plant.step
+        step = float(run.meta.get("step", plant.step))   # the plant may refine at a stop
     finally:
         plant.step = h0
     fast = replay(crane, tu, uu, q0, dt=1.0 / rate, t_end=t_end)

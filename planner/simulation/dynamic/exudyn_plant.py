@@ -38,7 +38,7 @@ from planner.model import Crane
 from planner.model.commands import held_commands
 from planner.model.effects.hooks import PENDULUM_HOOKS
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
-from planner.simulation.dynamic.circuit import Circuit, PressureBulk
+from planner.simulation.dynamic.circuit import CONTACT_REFINE, Circuit, PressureBulk
 from planner.simulation.dynamic.fastpath import state_function
 from planner.simulation.dynamic.grapple import extend_tree, hanging_angles
 from planner.simulation.dynamic.interrupt import DeferredInterrupt
@@ -266,7 +266,8 @@ class ExudynPlant(BasePlant):
 
         When the engine's Newton iteration fails (not the plant's own checks), the run is
         repeated with half the step, twice at most: a starving pump or a stop hit at speed is
-        stiffer than the default step resolves (``meta["step"]`` says which step ran)."""
+        stiffer than the default step resolves (``meta["step"]`` says which step ran); a run that
+        reaches an end stop, at 1/``CONTACT_REFINE`` of it (``meta["stop_contact"]``)."""
         wall0 = _time.perf_counter()
         # Ctrl-C only asks while the engine runs (it swallows a KeyboardInterrupt raised in a
         # user function): the next step stops the run, KeyboardInterrupt follows it
@@ -277,6 +278,12 @@ class ExudynPlant(BasePlant):
                                       spectral_radius, controller, stop)
                 if run.ok or not run.meta.get("engine_failed") or stop.requested:
                     break
+            if not stop.requested and self.circuit.on_a_stop(run.x):   # (CONTACT_REFINE)
+                fine = self._integrate(self.step / CONTACT_REFINE, t_u, u, q0, t_end,
+                                       max_wall_s - (_time.perf_counter() - wall0),
+                                       spectral_radius, controller, stop)
+                fine.meta["stop_contact"] = True
+                run = fine if fine.ok or not run.ok else run
         run.wall_s = _time.perf_counter() - wall0
         return run
 

@@ -51,3 +51,11 @@ def test_a_run_that_stays_off_the_stops_keeps_the_default_step(lab):
     run = plant.integrate(t_u, u, q0, t_end=1.5)
     assert run.ok and run.q[-1, 3] < lab.limit_arrays()["q_max"][3] - 0.01
     assert "stop_contact" not in run.meta and run.meta["step"] == plant.step
+
+
+def test_a_telescope_resting_on_its_stop_keeps_the_default_step(lab):
+    t_u = np.arange(0.0, 1.0, 0.02)
+    q0 = np.array([-0.2356, 0.0512, -2.3005, 1.55])       # on the stop, valves closed
+    plant = ExudynPlant(lab)
+    run = plant.integrate(t_u, np.zeros((t_u.size, 4)), q0, t_end=1.0)
+    assert run.ok and "stop_contact" not in run.meta and run.meta["step"] == plant.step

@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["Circuit", "PressureBulk", "root", "loaded_share", "DP_REG", "STOP_STIFFNESS",
-           "CONTACT_REFINE",
+           "CONTACT_REFINE", "STOP_HIT_SPEED",
            "STOP_DAMPING",
            "STOP_RAMP", "STOP_SOFT"]
 
@@ -71,6 +71,10 @@ STOP_STIFFNESS = 2.0e8  # [N/m] end stops (per m of stroke; N·m/rad-equivalent 
 #: 2 ms a umea-lab telescope meeting its stop at 0.16 m/s rebounded at 2.9 m/s, its rod side at
 #: 703 bar, and rested 48 mm off the goal (library entry r35, refined); at 0.5 ms it rests on it
 CONTACT_REFINE = 4
+#: [m/s] a stroke at its stop faster than this counts as a hit (ExudynPlant.integrate); the
+#: s100f library's retracted telescopes rest on their stops (0.0 m/s) and are judged at 2 ms
+#: as at 0.5 ms within 0.05 mm
+STOP_HIT_SPEED = 0.01
 STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
 STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
 #                          a damping force that jumps on at contact stalls the Newton iteration
@@ -224,13 +228,15 @@ class Circuit:
         """Friction force [N | N·m] opposing the stroke rate (..., n)."""
         return self.coulomb * np.tanh(xd / self.v_smooth) + self.viscous * xd
 
-    def on_a_stop(self, x) -> bool:
-        """Whether a cylinder or rack of the strokes ``x`` (K, n) reaches its end stop."""
+    def on_a_stop(self, x, xd) -> bool:
+        """Whether a cylinder or rack of the strokes ``x`` (K, n), rates ``xd``, meets its end
+        stop moving (faster than :data:`STOP_HIT_SPEED`; one resting on it is resolved)."""
         if x is None or not len(x):
             return False
         live = ~np.asarray(self.motor, bool)
-        x = np.asarray(x, float)[:, live]
-        return bool(np.any(x >= self.x_hi[live]) or np.any(x <= self.x_lo[live]))
+        x, xd = np.asarray(x, float)[:, live], np.abs(np.asarray(xd, float)[:, live])
+        on = (x >= self.x_hi[live]) | (x <= self.x_lo[live])
+        return bool(np.any(on & (xd > STOP_HIT_SPEED)))
 
     def stop_force(self, x, xd):
         """End-stop force (..., n) pushing back into [x_lo, x_hi] (cylinders and racks)."""

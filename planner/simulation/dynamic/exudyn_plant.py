@@ -278,7 +278,7 @@ class ExudynPlant(BasePlant):
                                       spectral_radius, controller, stop)
                 if run.ok or not run.meta.get("engine_failed") or stop.requested:
                     break
-            if not stop.requested and self.circuit.on_a_stop(run.x):   # (CONTACT_REFINE)
+            if not stop.requested and self.circuit.on_a_stop(run.x, run.xd):  # CONTACT_REFINE
                 fine = self._integrate(self.step / CONTACT_REFINE, t_u, u, q0, t_end,
                                        max_wall_s - (_time.perf_counter() - wall0),
                                        spectral_radius, controller, stop)

@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["Circuit", "PressureBulk", "root", "loaded_share", "DP_REG", "STOP_STIFFNESS",
-           "CONTACT_REFINE", "STOP_HIT_SPEED",
+           "CONTACT_REFINE", "STOP_HIT_SPEED", "STOP_BAND",
            "STOP_DAMPING",
            "STOP_RAMP", "STOP_SOFT"]
 
@@ -75,6 +75,9 @@ CONTACT_REFINE = 4
 #: s100f library's retracted telescopes rest on their stops (0.0 m/s) and are judged at 2 ms
 #: as at 0.5 ms within 0.05 mm
 STOP_HIT_SPEED = 0.01
+#: [m] how near its stop a stroke counts as running into it (at 2 ms a stroke meeting its stop
+#: at 0.5 m/s may be sampled only on its way back out)
+STOP_BAND = 1e-3
 STOP_DAMPING = 0.05     # [s] end-stop damping = this × stiffness, ...
 STOP_RAMP = 1.0e-3      # [m] ... reached linearly over this penetration (continuous at contact:
 #                          a damping force that jumps on at contact stalls the Newton iteration
@@ -229,14 +232,16 @@ class Circuit:
         return self.coulomb * np.tanh(xd / self.v_smooth) + self.viscous * xd
 
     def on_a_stop(self, x, xd) -> bool:
-        """Whether a cylinder or rack of the strokes ``x`` (K, n), rates ``xd``, meets its end
-        stop moving (faster than :data:`STOP_HIT_SPEED`; one resting on it is resolved)."""
+        """Whether a cylinder or rack of the strokes ``x`` (K, n), rates ``xd``, runs into its
+        end stop: within :data:`STOP_BAND` of it, moving towards it faster than
+        :data:`STOP_HIT_SPEED` (one resting on it, or leaving it, is resolved at any step)."""
         if x is None or not len(x):
             return False
         live = ~np.asarray(self.motor, bool)
-        x, xd = np.asarray(x, float)[:, live], np.abs(np.asarray(xd, float)[:, live])
-        on = (x >= self.x_hi[live]) | (x <= self.x_lo[live])
-        return bool(np.any(on & (xd > STOP_HIT_SPEED)))
+        x, xd = np.asarray(x, float)[:, live], np.asarray(xd, float)[:, live]
+        hit_hi = (x >= self.x_hi[live] - STOP_BAND) & (xd > STOP_HIT_SPEED)
+        hit_lo = (x <= self.x_lo[live] + STOP_BAND) & (xd < -STOP_HIT_SPEED)
+        return bool(np.any(hit_hi | hit_lo))
 
     def stop_force(self, x, xd):
         """End-stop force (..., n) pushing back into [x_lo, x_hi] (cylinders and racks)."""

@@ -1,4 +1,8 @@
-"""``crane-planner bench`` (planner/bench.py): the seed-000 suite with --quick, run once."""
+"""``crane-planner bench`` (planner/bench.py): the seed-000 suite with --quick, run once.
+
+The tests of the bench's own run are marked ``slow`` (``make bench`` runs them): the bench is a
+long study (20 s of the default suite's 180 s budget on 2 cores); its argument and task-file
+checks stay in the default suite."""
 from __future__ import annotations
 
 import json
@@ -25,6 +29,7 @@ def bench(tmp_path_factory):
     return out, json.loads((out / "bench.json").read_text())
 
 
+@pytest.mark.slow
 def test_outputs_exist(bench):
     out, res = bench
     for f in ("bench.md", "bench.json", "result.json", "seed000-abc_time_energy.png",
@@ -37,6 +42,7 @@ def test_outputs_exist(bench):
     assert "## Acceptance" in md and "seed000-abc" in md and "seed DP" in md
 
 
+@pytest.mark.slow
 def test_every_row_has_the_metrics(bench):
     _, res = bench
     rows = res["suites"]["seed000-abc"]["rows"]
@@ -58,6 +64,7 @@ def test_every_row_has_the_metrics(bench):
     assert summ["law:max_velocity"]["success_rate"] == 1.0
 
 
+@pytest.mark.slow
 def test_successful_trajectories_pass_evaluate(bench):
     _, res = bench
     ok = [r for r in res["suites"]["seed000-abc"]["rows"] if r["success"]]
@@ -67,6 +74,7 @@ def test_successful_trajectories_pass_evaluate(bench):
         assert set(r["checked"]) >= {"position", "velocity", "pump_flow"}
 
 
+@pytest.mark.slow
 def test_nlp_beats_the_laws_on_seed000(bench):
     _, res = bench
     by = {}
@@ -80,6 +88,7 @@ def test_nlp_beats_the_laws_on_seed000(bench):
     assert res["acceptance"]["seed000_nlp_vs_laws"]["nlp:time-free-kin"]["passed"]
 
 
+@pytest.mark.slow
 def test_nlp_beats_every_law_path_retimed_on_equal_limits(bench):
     """topp:law is the fastest law path made feasible under velocity, acceleration and pump
     limits; the free-path NLP on the same limit set is faster on every seed-000 move."""

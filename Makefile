@@ -17,7 +17,7 @@ demo: install
 	$(BIN)/crane-planner demo --out demo-output
 
 test: install
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal   # idle workers take queued tests: no tail
 
 bench: install
 	$(BIN)/python benchmarks/bench_model.py

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-__all__ = ["held_commands", "delayed_steps", "shift_steps", "shift_steps_transposed"]
+__all__ = ["held_commands", "delayed_steps", "delayed_held", "shift_steps", "shift_steps_transposed"]
 
 
 def held_commands(t_u, u, q0, n: int, t_end, h: float, who: str, t_start=None):
@@ -59,6 +59,26 @@ def delayed_steps(t_u, u, tk, h: float, delay: float) -> np.ndarray:
     first command (the valves closed). (K, n)."""
     tk = np.asarray(tk, float) - float(delay)
     return (_held_integral(t_u, u, tk + h) - _held_integral(t_u, u, tk)) / h
+
+
+def delayed_held(t_u, u, delay: float) -> np.ndarray:
+    """The held commands (``t_u`` (M,), ``u`` (M, n)) ``delay`` [s] later, on the same grid:
+    row k the mean of u(τ − delay) over [t_u[k], t_u[k+1]) (0 before the first command: the
+    valves closed), the last row its value at t_u[-1] (held on). Exact for a grid that holds
+    every t_u[k] + delay that falls inside it (:func:`planner.model.effects.valve_commands`
+    adds them); on any other grid, the interval means. (M, n)."""
+    t_u = np.asarray(t_u, float)
+    u = np.asarray(u, float)
+    if delay <= 0 or t_u.size == 0:
+        return u
+    s = t_u - float(delay)
+    out = np.empty_like(u)
+    if t_u.size > 1:
+        out[:-1] = (_held_integral(t_u, u, s[1:]) - _held_integral(t_u, u, s[:-1])) \
+            / np.diff(t_u)[:, None]
+    j = int(np.searchsorted(t_u, s[-1] + 1e-12 * max(1.0, abs(s[-1])), side="right")) - 1
+    out[-1] = u[j] if j >= 0 else 0.0
+    return out
 
 
 def _split(delay: float, h: float):

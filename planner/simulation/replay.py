@@ -53,7 +53,8 @@ import numpy as np
 from planner.feedforward import commands
 from planner.model.valves import steady_flows, valve_params
 from planner.model.effects import (FlowGain, GrappleLoad, PumpFlowLimit, StartOffset,
-                                        ValveDeadband, ValveSet, as_effects, quasi_static)
+                                        ValveDeadband, ValveSet, as_effects, quasi_static,
+                                        valve_commands)
 from planner.simulation.stops import run_to_stops
 from planner.trajectory import Trajectory
 
@@ -238,7 +239,8 @@ def _runs(mask):
 @dataclass(frozen=True)
 class Commanded:
     """What the commands make of the strokes before the end stops (:func:`commanded`): sample
-    times ``t`` (K+1,), ``j`` (K+1,) the command in effect at each, ``steps`` (K, n) the stroke
+    times ``t`` (K+1,), ``j`` (K+1,) the row of the valves' grid (the commands' own,
+    refined and extended by a delay) in effect at each, ``steps`` (K, n) the stroke
     change of each step as metered (no end stops), the true start ``q_start`` (n,) (start-stage
     effects, clipped into the joint range) and its strokes ``x_start``, ``dt``, ``pump``
     (statistics), ``payload`` (forces-stage effects' load, None: the spec's)."""
@@ -283,9 +285,8 @@ def commanded(crane: Crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
 
     effects = quasi_static(as_effects(crane, plant))
     # what the valves act on (delays, lags)
-    u_valves = u
-    for e in effects:
-        u_valves = e.commands(crane, t_u, u_valves)     # the default hooks change nothing
+    # (the default hooks change nothing; a delay or lag carries the last command past t_u[-1])
+    t_u, u, u_valves = valve_commands(crane, effects, t_u, u, t_end)
     # initial state (mismatch), clipped into the joint range
     L = crane.limit_arrays()
     q_start = q0
@@ -370,8 +371,13 @@ def replay(crane: Crane, t_u, u, q0, plant=Plant(), dt: float | None = None,
     as_dict, as_text = describe_plant(plant)
     meta = dict(plant=as_dict, plant_str=as_text, dt=c.dt, payload=c.payload,
                 clipped=clipped_intervals(c.t, run.at_stop, names), pump=c.pump)
+    # the command in effect at each sample (c.j counts on the valves' grid, which a delay
+    # refines and extends)
+    t_u = np.asarray(t_u, float).ravel()
+    k = np.clip(np.searchsorted(t_u, c.t + 1e-9 * c.dt, side="right") - 1, 0, t_u.size - 1)
     return Trajectory(c.t, q, qd, qdd, joint_names=names, method="replay",
-                      interpolation="quintic", u=u[c.j], meta=meta)
+                      interpolation="quintic", u=np.atleast_2d(np.asarray(u, float))[k],
+                      meta=meta)
 
 
 def pressures(crane: Crane, sim: Trajectory, payload=None):

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.model.effects.hooks import DYNAMIC_HOOKS
+from planner.model.effects.motion import valve_commands
 from planner.model.twin import Twin
 from planner.simulation.plants import BasePlant, PlantRecord
 from planner.simulation.replay import valve_set
@@ -85,9 +86,11 @@ class TwinPlant(BasePlant):
         crane = self.crane
         t_u = np.asarray(t_u, float).ravel()
         u = np.atleast_2d(np.asarray(u, float))
-        u_valves = u
-        for e in self.acting("commands"):
-            u_valves = e.commands(crane, t_u, u_valves)
+        dt = (1.0 / float(rate) if rate is not None else
+              float(np.median(np.diff(t_u))) if t_u.size > 1 else 0.02)
+        t0 = float(t_u[0])
+        t_u, u, u_valves = valve_commands(crane, self.acting("commands"), t_u, u,
+                                          t_u[-1] if t_end is None else float(t_end))
         q0 = np.asarray(q0, float).ravel()
         for e in self.acting("start"):
             q0 = e.start(crane, q0)
@@ -95,9 +98,7 @@ class TwinPlant(BasePlant):
         q0 = np.clip(q0, L["q_min"], L["q_max"])
         run = self.twin.simulate(t_u, u_valves, q0, t_end=t_end,
                                  force=self._force if self.extra_forces else None)
-        dt = (1.0 / float(rate) if rate is not None else
-              float(np.median(np.diff(t_u))) if t_u.size > 1 else 0.02)
-        t = t_u[0] + dt * np.arange(int(np.floor((run.t[-1] - t_u[0]) / dt + 1e-9)) + 1)
+        t = t0 + dt * np.arange(int(np.floor((run.t[-1] - t_u[0]) / dt + 1e-9)) + 1)
         q, p_a, p_b, _ = run.sample(t)
         k = np.clip(np.searchsorted(t_u, t + 1e-9, side="right") - 1, 0, len(t_u) - 1)
         q_s, pa_s, pb_s = self.sense(q, p_a, p_b, t)

@@ -176,3 +176,48 @@ def test_the_exudyn_plant_honours_the_specs_delay_as_the_catalogues_effect(crane
     qa, qb, qc = (r.sample(t)[0] for r in (a, b, c))
     assert np.max(np.abs(qa - qb)) < 1e-9
     assert np.max(np.abs(qa - qc)) > 1e-4
+
+
+def _cut_commands(crane):
+    """Commands cut off while the valves are open (a plan's last correction), then closed:
+    the last rows are what a delay must carry past the end, not hold."""
+    t, u = _commands(crane, seconds=3.0)
+    t, u = t[:150], u[:150].copy()
+    u[-1] = 0.0
+    assert np.min(np.abs(u[-3])) > 1e-3
+    return t, u
+
+
+@pytest.mark.parametrize("delay", [0.026, 0.03])
+def test_a_delay_shifts_the_quasi_static_replay_and_ends_where_it_would(crane, delay):
+    """Held commands delayed by d move the crane exactly as the undelayed ones d later
+    (oracle: the undelayed replay shifted by hand), up to and after the last command."""
+    from planner.model.effects import make
+    from planner.simulation.replay import replay
+    t, u = _cut_commands(crane)
+    q0 = 0.5 * (crane.limit_arrays()["q_min"] + crane.limit_arrays()["q_max"])
+    h = 0.002
+    a = replay(crane, t, u, q0, plant=[make("time_delay", delay=delay)], dt=h, t_end=t[-1] + 1)
+    b = replay(crane, t, u, q0, dt=h, t_end=t[-1] + 1)
+    m = int(round(delay / h))
+    assert np.max(np.abs(a.q[m:] - b.q[:b.q.shape[0] - m])) < 1e-9
+    assert np.max(np.abs(a.q[-1] - b.q[-1])) < 1e-9
+
+
+def test_the_exudyn_plant_closes_a_delayed_valve_after_the_last_command(crane):
+    """On the judge, delayed commands move the crane as the undelayed ones one delay later,
+    through the last command and after it (the plant is time-invariant and starts at rest);
+    before the fix the valves held, to the end of the run, the command from one delay
+    before the last."""
+    from planner.model.effects import make
+    from planner.simulation.dynamic.exudyn_plant import ExudynPlant
+    t, u = _cut_commands(crane)
+    q0 = 0.5 * (crane.limit_arrays()["q_min"] + crane.limit_arrays()["q_max"])
+    t_end = t[-1] + 1.0
+    a = ExudynPlant(crane, effects=[make("time_delay", delay=0.026)]).integrate(t, u, q0,
+                                                                               t_end=t_end)
+    b = ExudynPlant(crane).integrate(t, u, q0, t_end=t_end)
+    assert a.ok and b.ok
+    ts = np.linspace(t[-1] - 0.2, t_end, 50)
+    qa, qb = a.sample(ts)[0], b.sample(ts - 0.026)[0]
+    assert np.max(np.abs(qa - qb)) < 1e-9

@@ -46,7 +46,8 @@ from planner.model.effects.loads import (ActuatorMass, CoulombFriction, GrappleL
                                               JointOffset, PayloadMass, PressureOffset,
                                               ViscousFriction)
 from planner.model.effects.motion import (FlowGain, Leakage, PumpFlowLimit, StartOffset,
-                                               TimeDelay, ValveDeadband, ValveLag)
+                                               TimeDelay, ValveDeadband, ValveLag,
+                                               valve_commands)
 from planner.model.effects.sensors import PressureDrift, SensorDrift, SensorGain
 
 __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register", "unregister",
@@ -55,7 +56,7 @@ __all__ = ["Parameter", "ValveSet", "Effect", "STAGES", "CATALOGUE", "register",
            "Leakage", "CoulombFriction", "ViscousFriction", "PayloadMass", "ActuatorMass",
            "PressureOffset", "StartOffset", "GrappleLoad", "SensorGain", "SensorDrift",
            "PressureDrift", "BulkModulus", "HoseVolume", "GrappleSwing", "quasi_static", "fittable",
-           "refuse", "EffectRefused"]
+           "refuse", "EffectRefused", "valve_commands"]
 
 for _cls in (JointOffset, FlowGain, ValveDeadband, ValveLag, TimeDelay, PumpFlowLimit, Leakage,
              CoulombFriction, ViscousFriction, PayloadMass, ActuatorMass, PressureOffset,

@@ -8,11 +8,12 @@ from dataclasses import replace
 
 import numpy as np
 
+from planner.model.commands import delayed_held
 from planner.model.effects.base import Effect, Parameter, is_slew
 from planner.units import CraneLike
 
 
-__all__ = ["TimeDelay", "ValveLag", "StartOffset", "FlowGain", "ValveDeadband", "PumpFlowLimit",
+__all__ = ["valve_commands", "TimeDelay", "ValveLag", "StartOffset", "FlowGain", "ValveDeadband", "PumpFlowLimit",
            "Leakage"]
 
 # a holding pressure (10 MPa above tank) and a pressure step (1 MPa) to size trial magnitudes
@@ -20,6 +21,53 @@ _HOLD_PRESSURE = 10e6
 
 
 # ===================================================================== commands stage
+#: a delayed or lagged command signal is carried this many delays (lag time constants) past
+#: the last command (a lag's remainder then e⁻⁵ ≈ 0.7 % of its last step)
+PAD_DELAYS = 5.0
+
+
+def valve_commands(crane: CraneLike, effects, t_u, u, t_end: float, own_delay: float = 0.0):
+    """(t_u, u, u_valves): the held commands ``u`` (M, n) from ``t_u`` (M,) and what the
+    valves see of them after ``effects`` (the commands-stage effects a plant applies, in
+    order; and a machine's own transport
+    delay ``own_delay`` [s]), for a plant that holds the last row until ``t_end`` [s].
+
+    A delay or lag moves the commands' end later: the valves see the last command ``delay``
+    after it was given. The effects act sample by sample on the grid, so without more rows
+    the valves would hold, to ``t_end``, a value from one delay before the end (a plan's last
+    correction, 3 s long instead of 20 ms; a lag's state, never reaching the last command).
+    The grid is therefore extended past ``t_u[-1]``, within ``t_end``, by rows that hold the
+    last command (what the plant holds anyway), :data:`PAD_DELAYS` × the summed delays and
+    lags long; the commanded signal ``u`` is unchanged by it."""
+    acting = list(effects)
+    t_u = np.asarray(t_u, float)
+    delays = [float(e.delay) for e in acting if isinstance(e, TimeDelay) and e.delay > 0]
+    delays += [float(own_delay)] if own_delay > 0 else []
+    d = sum(float(e.command_delay) for e in acting) + max(float(own_delay), 0.0)
+    if d > 0 and t_u.size > 1 and t_end > t_u[-1]:
+        dt = float(np.median(np.diff(t_u)))
+        k = int(math.ceil((min(t_end, t_u[-1] + PAD_DELAYS * d + dt) - t_u[-1]) / dt - 1e-9))
+        if k > 0:
+            t_u = np.concatenate([t_u, t_u[-1] + dt * np.arange(1, k + 1)])
+            u = np.vstack([u, np.repeat(u[-1:], k, axis=0)])
+    if delays and t_u.size > 1:
+        # the instants where a delayed command changes: the delayed signal is then exact
+        # on the grid (held, no interval means across a change)
+        shifted = np.concatenate([t_u + c for c in np.cumsum(delays)])
+        grid = np.union1d(t_u, shifted[shifted < t_u[-1]])
+        keep = np.concatenate([[True], np.diff(grid) > 1e-9 * (grid[-1] - grid[0])])
+        grid = grid[keep]
+        j = np.clip(np.searchsorted(t_u, grid + 1e-12 * abs(grid).max(), side="right") - 1,
+                    0, t_u.size - 1)
+        t_u, u = grid, u[j]
+    u_valves = u
+    for e in acting:
+        u_valves = e.commands(crane, t_u, u_valves)
+    if own_delay > 0:
+        u_valves = TimeDelay(delay=own_delay).commands(crane, t_u, u_valves)
+    return t_u, u, u_valves
+
+
 class TimeDelay(Effect):
     name = "time_delay"
     description = ("transport delay between the command and the valves (bus, controller cycle, "
@@ -35,20 +83,9 @@ class TimeDelay(Effect):
         return self.delay
 
     def commands(self, crane: CraneLike, t_u, u):
-        d = self.delay
-        if d <= 0:
-            return u
-        dt = float(np.median(np.diff(t_u))) if len(t_u) > 1 else 1.0
-        m, f = divmod(d / dt, 1.0)
-        m = int(m)
-        # mean over [t_k, t_k+1) of the delayed hold signal: f·u[k-m-1] + (1-f)·u[k-m]
-        idx = np.arange(len(u))
-        a = u[np.clip(idx - m, 0, None)]
-        b = u[np.clip(idx - m - 1, 0, None)]
-        # before the record the valves were closed (a recording starts at rest)
-        a = np.where((idx - m < 0)[:, None], 0.0, a)
-        b = np.where((idx - m - 1 < 0)[:, None], 0.0, b)
-        return (1.0 - f) * a + f * b
+        # u(t − d), 0 before the record (a recording starts at rest): the interval means on
+        # t_u, exact where the grid holds t_u + d (valve_commands adds those instants)
+        return delayed_held(t_u, u, self.delay)
 
     @classmethod
     def trial_values(cls, crane: CraneLike, i, magnitude, sign, rng, sequence):

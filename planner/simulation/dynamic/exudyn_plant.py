@@ -37,6 +37,7 @@ import numpy as np
 from planner.model import Crane
 from planner.model.commands import held_commands
 from planner.model.effects.hooks import PENDULUM_HOOKS
+from planner.model.effects.motion import valve_commands
 from planner.simulation.dynamic.bodies import StrokeTable, tree_parameters
 from planner.simulation.dynamic.circuit import CONTACT_REFINE, Circuit, PressureBulk
 from planner.simulation.dynamic.fastpath import state_function
@@ -291,12 +292,9 @@ class ExudynPlant(BasePlant):
                    stop=None):
         crane, n = self.crane, self.crane.n
         t_u, u, q0, t0, t_end, K = held_commands(t_u, u, q0, n, t_end, h, "ExudynPlant.run")
-        u_valves = u
-        for e in self.acting("commands"):
-            u_valves = e.commands(crane, t_u, u_valves)
-        if self.dyn.command_delay > 0:      # the machine's own [dynamics] command_delay
-            from planner.model.effects.motion import TimeDelay
-            u_valves = TimeDelay(delay=self.dyn.command_delay).commands(crane, t_u, u_valves)
+        # the commands-stage effects, then the machine's own [dynamics] command_delay
+        t_u, u, u_valves = valve_commands(crane, self.acting("commands"), t_u, u, t_end,
+                                          self.dyn.command_delay)
         L = crane.limit_arrays()
         for e in self.acting("start"):
             q0 = e.start(crane, q0)

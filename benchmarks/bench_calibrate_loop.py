@@ -24,6 +24,13 @@ spec's twin (un-calibrated; the refinements ``bench_refine_robust.py`` stored in
     python benchmarks/bench_calibrate_loop.py --work /tmp/robust/work [--machines 6]
         [--entries 8] [--duration 120] [--iterations 12] [--workers 2]
 
+The issue's ≥ 100 entries per machine go in parts: ``--library sel-s100f-400-p0-v5.h5`` (a
+``bench_refine.py`` part's library: its entries, each refined on the spec's twin) with
+``--calibrations DIR`` (the calibrated twins of a first run: the same fits for every part)
+and ``--only m1,m2`` (some of the machines), each part in its own ``--work`` and ``--tag``;
+then ``--merge PART.json … --tag T`` (refuses parts on other machines, other calibrations or
+a repeated entry) writes one report and its figure (landed share per machine, rest offsets).
+
 Results: benchmarks/results/calibrate_loop.md / .json.
 """
 from __future__ import annotations
@@ -155,6 +162,15 @@ def main():
                     "twin lacks; 0: none)")
     ap.add_argument("--anchor", choices=("twin", "log"), default="twin",
                     help="TwinFit's segment anchors")
+    ap.add_argument("--library", metavar="LIB.h5",
+                    help="the entries (every ok one, refined on the spec's twin: e.g. a "
+                    "bench_refine part's sel-*.h5) instead of WORK/sel.h5 and its chain")
+    ap.add_argument("--calibrations", metavar="DIR",
+                    help="the calibrated twins of an earlier run (DIR/cal-<machine>.json): "
+                    "no new logs or fits")
+    ap.add_argument("--only", metavar="M,M", help="these machines of the drawn ones")
+    ap.add_argument("--merge", nargs="+", metavar="JSON",
+                    help="one report from parts run on the same machines and calibrations")
     ap.add_argument("--markdown", metavar="JSON")
     ap.add_argument("--tag", default="calibrate_loop", help="result file name stem")
     a = ap.parse_args()
@@ -162,9 +178,21 @@ def main():
         rep = json.loads(Path(a.markdown).read_text())
         atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
         return
+    if a.merge:
+        rep = merge([json.loads(Path(p).read_text()) for p in a.merge], a.merge)
+        rep["figure"] = figure(rep, RESULTS / f"{a.tag}.png")
+        atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
+        atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
+        return
     work = Path(a.work)
-    sel = work / "sel.h5"
-    chain = json.loads((work / "chain.json").read_text())[:a.entries]
+    work.mkdir(parents=True, exist_ok=True)
+    if a.library:
+        sel = Path(a.library)
+        with LibraryStore.open(sel, "r") as db:
+            chain = [r["id"] for r in db.index_rows() if r["status"] == "ok"][:a.entries]
+    else:
+        sel = work / "sel.h5"
+        chain = json.loads((work / "chain.json").read_text())[:a.entries]
     robust = json.loads(Path(a.robust).read_text())
     machines = [m for m in robust["machines"] if m["name"].startswith("m")][:a.machines]
     check = draw_machines(_crane(str(sel)).spec.dynamics, len(machines), robust["seed"],
@@ -179,13 +207,22 @@ def main():
         if a.lag_max > 0:
             m["lag_joint"] = str(names[int(lag_rng.integers(len(names)))])
             m["lag"] = float(lag_rng.uniform(0.0, a.lag_max))
+    if a.only:
+        keep = a.only.split(",")
+        bad = sorted(set(keep) - {m["name"] for m in machines})
+        if bad:
+            sys.exit(f"--only: {bad[0]!r} is not one of the drawn machines")
+        machines = [m for m in machines if m["name"] in keep]
     t0 = time.perf_counter()
     fits = {}
     done = {}
+    cal_dir = Path(a.calibrations) if a.calibrations else work
     for m in machines:
-        p = work / f"cal-{m['name']}.json"
+        p = cal_dir / f"cal-{m['name']}.json"
         if p.exists():
             done[m["name"]] = json.loads(p.read_text())
+        elif a.calibrations:
+            sys.exit(f"--calibrations {cal_dir}: no cal-{m['name']}.json")
     todo = [m for m in machines if m["name"] not in done]
     with WorkerPool(a.workers) as pool:
         for r in pool.imap_unordered(calibrate_task, [
@@ -210,6 +247,7 @@ def main():
         refine[m["name"]] = refine_library(lib, model=f["spec"], workers=a.workers,
                                            limit=len(chain), options=opts,
                                            show_progress=False)
+        refine[m["name"]]["cpu_s"] = _entry_cpu(lib, chain)
         print(f"refined on cal-{m['name']}: {refine[m['name']].get('refined')}", flush=True)
     refine_wall = time.perf_counter() - t1
     # every command kind on every machine: nominal and refined on the spec's twin (sel.h5),
@@ -233,10 +271,85 @@ def main():
                refine=refine, rows=rows + old, settle=robust["settle"], tol=TOL,
                calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, replay_wall_s=replay_wall,
                options=opts.__dict__, delay_max=a.delay_max, lag_max=a.lag_max,
-               anchor=a.anchor,
+               anchor=a.anchor, library=str(sel), calibrations=str(cal_dir),
                duration=a.duration, iterations=a.iterations, excitation=a.excitation)
     atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
     atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
+
+
+def _entry_cpu(lib, ids) -> list:
+    """The refinement's CPU seconds of each of ``ids`` in library ``lib``."""
+    from planner.library.refined import refined_info
+    with LibraryStore.open(lib, "r") as db:
+        return [float((refined_info(db, i) or {}).get("cpu_s", float("nan"))) for i in ids]
+
+
+def merge(parts: list, names: list) -> dict:
+    """One report from parts (each a run's JSON) on the same drawn machines and calibrated
+    twins, with distinct entries per machine; refuses parts that differ."""
+    first = parts[0]
+    rep = dict(first, argv=" + ".join(p["argv"] for p in parts), parts=list(map(str, names)),
+               rows=[], chain=[], refine={})
+    fits = {}
+    for p, nm in zip(parts, names):
+        for m, f in p["fits"].items():
+            if m in fits and f.get("spec") != fits[m].get("spec"):
+                sys.exit(f"--merge {nm}: machine {m} calibrated differently ({f.get('spec')})")
+            fits.setdefault(m, f)
+        if p["machines"][0].get("delay") != first["machines"][0].get("delay") or \
+                p.get("lag_max") != first.get("lag_max"):
+            sys.exit(f"--merge {nm}: other drawn machines than {names[0]}")
+        seen = {(r["machine"], r["id"], r["commands"]) for r in rep["rows"]}
+        dup = [r for r in p["rows"] if (r["machine"], r["id"], r["commands"]) in seen]
+        if dup:
+            sys.exit(f"--merge {nm}: entry {dup[0]['id']} on {dup[0]['machine']} twice")
+        rep["rows"] += p["rows"]
+        rep["chain"] += [i for i in p["chain"] if i not in rep["chain"]]
+        for m, r in p.get("refine", {}).items():
+            rep["refine"].setdefault(m, []).append(r)
+    names_m = {m["name"]: m for p in parts for m in p["machines"]}
+    rep["machines"] = [names_m[k] for k in sorted(names_m)]
+    rep["truth"] = {k: v for p in parts for k, v in p["truth"].items()}
+    rep["fits"] = fits
+    rep["parts_libraries"] = [p.get("library", "") for p in parts]
+    return rep
+
+
+def figure(rep, path: Path) -> str:
+    """Each machine's landed share and the rest offsets' distribution, by commands (a PNG
+    at ``path``; its name for the markdown)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    names = [m["name"] for m in rep["machines"]]
+    kinds = [("nominal", "nominal (quasi-static)", "0.6"), ("refined", "refined, spec's twin",
+             "tab:orange"), ("calibrated", "refined, calibrated twin", "tab:blue")]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
+    w = 0.27
+    for k, (c, label, col) in enumerate(kinds):
+        share = []
+        for nm in names:
+            rows = [r for r in rep["rows"] if r["commands"] == c and r["machine"] == nm]
+            share.append(100 * sum(_landed(r) for r in rows) / max(len(rows), 1))
+        ax.bar(np.arange(len(names)) + (k - 1) * w, share, w, label=label, color=col)
+        v = np.sort([1e3 * r["offset_m"] for r in rep["rows"] if r["commands"] == c
+                     and r.get("offset_m") is not None])
+        if v.size:
+            bx.step(v, np.arange(1, v.size + 1) / v.size, where="post", label=label, color=col)
+    ax.axhline(90, color="k", lw=0.8, ls="--")
+    ax.set_xticks(np.arange(len(names)), names)
+    ax.set_ylabel("entries landed [%]")
+    ax.set_title("Landed (rest ≤ 5 mm, ringing < 5 mm), judge: Exudyn")
+    ax.legend(fontsize=8)
+    bx.set_xscale("log")
+    bx.axvline(5, color="k", lw=0.8, ls="--")
+    bx.set_xlabel("rest offset on the drawn machine [mm]")
+    bx.set_ylabel("share of entries")
+    bx.set_title("Rest offset, every machine")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
 
 
 def _share(rows):
@@ -267,7 +380,10 @@ def markdown(rep) -> str:
          + (f" (segments anchored on the {rep['anchor']})" if rep.get("anchor") else "")
          + ". Landing: "
          "rest offset ≤ 5 mm and ringing < 5 mm, valves closed "
-         f"{rep['settle']:g} s after the last command. Entries: {', '.join(rep['chain'])}.",
+         f"{rep['settle']:g} s after the last command. Entries: "
+         + (', '.join(rep['chain']) if len(rep['chain']) <= 24 else
+            f"{len(rep['chain'])} of {', '.join(sorted({Path(x).name for x in rep.get('parts_libraries', [rep.get('library', '')])}))} "
+            "(ids in the JSON)") + ".",
          "", "Machines (drawn; the planner never saw them): "
          + "; ".join(f"{m['name']}: command delay {1e3 * m.get('delay', 0):.0f} ms, β(p) "
                      f"low {m['bulk_law']['lo']:.2f} at p_ref "
@@ -292,6 +408,24 @@ def markdown(rep) -> str:
             nm = "**all**" if name == "all" else name
             L.append(f"| {nm} | {label[c]} | {_share(rows)} | {_med(rows, 'offset_m')} | "
                      f"{_med(rows, 'peak_osc_m')} |")
+    cal = [r for r in rep["rows"] if r["commands"] == "calibrated"]
+    objectives = sorted({r["id"].rsplit(":", 1)[-1] for r in cal if ":" in r["id"]})
+    if len(objectives) > 1:
+        L += ["", "Refined on the calibrated twin, by the entries' objective (all machines):", "",
+              "| objective | landed | rest offset median / p90 / max [mm] | ringing median / "
+              "p90 / max [mm] |", "| --- | ---: | --- | --- |"]
+        for o in objectives:
+            rows = [r for r in cal if r["id"].endswith(":" + o)]
+            L.append(f"| {o} | {_share(rows)} | {_med(rows, 'offset_m')} | "
+                     f"{_med(rows, 'peak_osc_m')} |")
+    cpu = [c for r in rep.get("refine", {}).values()
+           for part in (r if isinstance(r, list) else [r]) for c in part.get("cpu_s", [])
+           if c == c]
+    if cpu:
+        L += ["", f"Refinement on the calibrated twins: {len(cpu)} entries, CPU per entry "
+              f"median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."]
+    if rep.get("figure"):
+        L += ["", f"![landing before and after calibration]({rep['figure']})"]
     L += ["", "## Calibrated parameters beside the truth", "",
           "Fitted value, its 95 % interval, and the drawn truth (× the spec's value where "
           "the spec has one). `n.i.`: not identified by the log.", ""]

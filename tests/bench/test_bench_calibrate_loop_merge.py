@@ -1,0 +1,58 @@
+"""``bench_calibrate_loop.py --merge``: the loop on ≥ 100 entries per drawn machine goes in
+parts (each a bench_refine part's library, the calibrated twins of one run), merged into one
+report; parts that disagree on the machines or their calibration, or repeat an entry, are
+refused."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+import bench_calibrate_loop as loop  # noqa: E402
+
+
+def _machine(name, delay=0.01):
+    return dict(name=name, delay=delay, bulk_law=dict(lo=0.6, p_ref=8e6, hi=1.25))
+
+
+def _row(i, machine, commands, offset, osc=0.001):
+    return dict(id=i, machine=machine, commands=commands, status="ok", offset_m=offset,
+                peak_osc_m=osc)
+
+
+def _part(argv, ids, offsets, spec="/w/cal-m1.toml", delay=0.01, lib="sel-p0.h5"):
+    rows = [_row(i, "m1", c, o) for i, o in zip(ids, offsets)
+            for c in ("nominal", "refined", "calibrated")]
+    fit = dict(status="ok", spec=spec, log_s=120.0, fit=dict(
+        runtime_s=10.0, twin_runs=5, status="done", parameters={},
+        rms_before=dict(positions=9.0, pressures=9.0),
+        rms_after=dict(positions=1.0, pressures=1.0)))
+    return dict(date="2026-11-27 21:00 UTC", platform="x", cpus=2, load=[1.0, 1.0, 1.0],
+                argv=argv, chain=list(ids), machines=[_machine("m1", delay)],
+                truth=dict(m1={}), fits=dict(m1=fit), refine=dict(m1=dict(cpu_s=[30.0 + 10 * k for k in range(len(ids))])),
+                rows=rows, settle=3.0, lag_max=0.02, anchor="twin", duration=120.0,
+                iterations=12, excitation=None, library=lib)
+
+
+def test_parts_merge_into_one_report_with_a_row_per_objective():
+    a = _part("--library p0", ["a:time", "b:energy"], [0.002, 0.009])
+    b = _part("--library p4", ["c:time"], [0.001], lib="sel-p4.h5")
+    rep = loop.merge([a, b], ["a.json", "b.json"])
+    cal = [r for r in rep["rows"] if r["commands"] == "calibrated"]
+    assert sorted(r["id"] for r in cal) == ["a:time", "b:energy", "c:time"]
+    md = loop.markdown(rep)
+    assert "| m1 | refined on the calibrated twin | 2 of 3 (67 %)" in md
+    assert "| time | 2 of 2 (100 %)" in md and "| energy | 0 of 1 (0 %)" in md
+    assert "3 entries, CPU per entry median 30 s" in md
+
+
+def test_parts_with_another_calibration_or_a_repeated_entry_are_refused():
+    a = _part("--library p0", ["a:time"], [0.002])
+    with pytest.raises(SystemExit, match="calibrated differently"):
+        loop.merge([a, _part("x", ["c:time"], [0.001], spec="/v/cal-m1.toml")], ["a", "b"])
+    with pytest.raises(SystemExit, match="other drawn machines"):
+        loop.merge([a, _part("x", ["c:time"], [0.001], delay=0.02)], ["a", "b"])
+    with pytest.raises(SystemExit, match="entry a:time on m1 twice"):
+        loop.merge([a, _part("x", ["a:time"], [0.001])], ["a", "b"])

@@ -48,6 +48,15 @@ before. Each window then sees one second of error, not the segment's history; th
 wide. The second stage fits the whole segments (the samples as logged) from there, which is
 what the refined feed-forward relies on: the twin run open loop for a whole move.
 
+**Rounds.** The second stage has half the iterations asked for; where that budget, not
+convergence, ends it with the misfit above :data:`AT_NOISE` σ on the positions or the
+pressures, it goes on for another such round, up to :attr:`TwinFit.MORE_ROUNDS` more. On a
+drawn s100f machine (m4: a 26 ms command delay, a telescope valve 7 ms slower than the rest)
+12 iterations left 1.8 / 2.3 σ and a twin whose refined moves rested 6–9 mm off on Exudyn;
+24 reached 1.02 / 1.00 σ and its refined moves landed 6 of 6 (0.5–2.1 mm) — with the delay
+and the spool lag still split otherwise than the truth (34 / 23 ms for 26 / 31 ms): the log
+fixes their effect, not their split. A fit at the noise stops where it did before.
+
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
 5 % of seed 001's sensor accuracies (:data:`planner.simulation.recording.NOISE_DEFAULTS`) so
@@ -72,9 +81,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import math
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -82,6 +89,7 @@ from planner.calibration.log_segments import Segment, segments, windows
 from planner.calibration.log_state import log_state
 from planner.calibration.noise import noise_floor_at
 from planner.calibration.twin_params import machine_of, select, twin_parameters
+from planner.calibration.twin_result import UNIDENTIFIED, TwinFitResult, intervals
 from planner.model.twin import Twin
 from planner.simulation.recording import NOISE_DEFAULTS
 
@@ -90,14 +98,15 @@ if TYPE_CHECKING:
     from planner.simulation.recording import Recording
 
 __all__ = ["Segment", "segments", "windows", "TwinFit", "TwinFitResult", "calibrate_twin",
-           "DIVERGED", "UNIDENTIFIED"]
+           "DIVERGED", "UNIDENTIFIED", "AT_NOISE"]
 
 DIVERGED = 1e3          # [σ] residual per sample after a twin run diverged
-UNIDENTIFIED = 1.0      # scaled standard deviation above which a parameter is not identified
+#: [σ] the misfit (RMS in noise units, positions or pressures) above which the whole-segment
+#: stage, stopped by its budget, goes on for another round (module doc, "Rounds")
+AT_NOISE = 1.1
 _FD_STEP = 1e-2         # forward-difference step in the scaled parameters: the twin's friction
 #                         sticks and slips in holds, so a smaller step puts a jump of the
 #                         base run into every column (excite_information.py measured it)
-_Z95 = 1.959964
 _SG_SAMPLES = 9         # Savitzky–Golay window of a window's start state (0.16 s at 50 Hz)
 
 
@@ -114,41 +123,6 @@ def _noise(crane: Crane, rec: Recording) -> tuple[np.ndarray, np.ndarray | None]
     return sq, sp
 
 
-@dataclass
-class TwinFitResult:
-    """A calibration: ``values`` (name -> fitted value), ``nominal`` (the spec's),
-    ``interval`` (name -> 95 % (lo, hi)), ``identified`` (name -> bool), ``sd_scaled``,
-    the misfit before and after (RMS in noise units, positions and pressures apart),
-    ``runs`` (twin runs), ``runtime_s``, ``status`` of the optimiser, the ``dynamics`` and
-    ``deadband`` of the calibrated machine, ``segments`` and ``samples`` used."""
-    values: dict
-    nominal: dict
-    interval: dict
-    identified: dict
-    sd_scaled: dict
-    rms_before: dict
-    rms_after: dict
-    runs: int
-    runtime_s: float
-    status: str
-    message: str
-    dynamics: object = None
-    deadband: np.ndarray | None = None
-    segments: int = 0
-    samples: int = 0
-    units: dict = field(default_factory=dict)
-
-    def to_dict(self) -> dict:
-        return dict(status=self.status, message=self.message, runtime_s=self.runtime_s,
-                    twin_runs=self.runs, segments=self.segments, samples=self.samples,
-                    rms_before=self.rms_before, rms_after=self.rms_after,
-                    parameters={k: dict(value=self.values[k], nominal=self.nominal[k],
-                                        unit=self.units.get(k, ""),
-                                        interval95=list(self.interval[k]),
-                                        identified=self.identified[k],
-                                        sd_scaled=self.sd_scaled[k]) for k in self.values})
-
-
 class TwinFit:
     """The least-squares problem of fitting ``parameters`` (names, groups or kinds; default
     all) of ``crane``'s twin to ``recordings`` (module doc)."""
@@ -162,6 +136,9 @@ class TwinFit:
     #: the bulk-modulus factors tried before the raw stage (6 % apart: the valley of the raw
     #: misfit is about ±15 % wide on the machines here)
     SCAN = np.geomspace(0.5, 2.0, 25)
+    #: further rounds of the whole-segment stage (each its budget again) while it stops on
+    #: its budget with the misfit above :data:`AT_NOISE` (module doc, "Rounds")
+    MORE_ROUNDS = 3
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
                  step: float = 2e-3, pressures: bool = True, workers: int = 1,
@@ -372,6 +349,12 @@ class TwinFit:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
+    def _above_noise(self, z) -> bool:
+        """Whether the misfit at ``z`` lies above :data:`AT_NOISE` on the positions or on
+        the pressures (RMS in noise units)."""
+        m = self.rms(z)
+        return m["positions"] > AT_NOISE or (m["pressures"] or 0.0) > AT_NOISE
+
     def rms(self, z) -> dict:
         rq, rp = self.residuals(z, split=True)
         return dict(positions=float(np.sqrt(np.mean(rq ** 2))),
@@ -429,14 +412,23 @@ class TwinFit:
         # on the whole segments, the samples as logged, from there (module doc)
         stages = ((self.windows, max(max_iterations // 2, 1)),
                   (self.full_segs, max(max_iterations - max_iterations // 2, 1)))
+        rounds = 0
         for segs, iters in stages:
             self.segs = segs
             cache.clear()
             if segs is self.full_segs:
                 z = self.scan_oil(z, lb, ub)
-            sol = least_squares(fun, z, jac=jac, bounds=(lb, ub), method="trf", x_scale=1.0,
-                                max_nfev=iters, ftol=tol, xtol=tol, gtol=1e-8)
-            z = np.clip(sol.x, lb, ub)
+            while True:
+                sol = least_squares(fun, z, jac=jac, bounds=(lb, ub), method="trf",
+                                    x_scale=1.0, max_nfev=iters, ftol=tol, xtol=tol,
+                                    gtol=1e-8)
+                z = np.clip(sol.x, lb, ub)
+                # the whole segments go on while the budget, not convergence, stopped them
+                # short of the noise (module doc, "Rounds")
+                if not (segs is self.full_segs and sol.status == 0
+                        and rounds < self.MORE_ROUNDS and self._above_noise(z)):
+                    break
+                rounds += 1
         r = fun(z)
         J = sol.jac if sol.jac is not None else self.jacobian(z, r)
         m, k = r.size, len(self.params)
@@ -444,17 +436,7 @@ class TwinFit:
         JTJ = J.T @ J
         cov = s2 * np.linalg.pinv(JTJ, rcond=1e-12)
         sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        values, nominal, interval, ident, sds, units = {}, {}, {}, {}, {}, {}
-        for p, zi, si in zip(self.params, z, sd):
-            v = p.to_value(zi)
-            values[p.name], nominal[p.name], units[p.name] = v, p.nominal, p.unit
-            if p.log:
-                lo, hi = v * math.exp(-_Z95 * si), v * math.exp(_Z95 * si)
-            else:
-                lo, hi = max(v - _Z95 * si * p.scale, 0.0), v + _Z95 * si * p.scale
-            interval[p.name] = (float(lo), float(hi))
-            ident[p.name] = bool(si <= UNIDENTIFIED)
-            sds[p.name] = float(si)
+        values, nominal, interval, ident, sds, units = intervals(self.params, z, sd)
         after = self.rms(z)
         dyn, db = machine_of(self.crane, values)
         return TwinFitResult(values=values, nominal=nominal, interval=interval,
@@ -462,9 +444,14 @@ class TwinFit:
                              rms_after=after, runs=self.runs,
                              runtime_s=time.perf_counter() - wall0,
                              status="converged" if sol.status > 0 else "stopped",
-                             message=str(sol.message), dynamics=dyn, deadband=db,
+                             message=str(sol.message) + _rounds(rounds),
+                             dynamics=dyn, deadband=db,
                              segments=len(self.segs),
                              samples=int(sum(s.k1 - s.k0 for s in self.segs)), units=units)
+
+
+def _rounds(k: int) -> str:
+    return f" (after {k} more round{'s' if k > 1 else ''} on the whole segments)" if k else ""
 
 
 def _carry_machine(x0, run, n: int) -> None:

@@ -5,6 +5,7 @@ the refinement's twin carrying the spec's effects or refusing them by name."""
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 from dataclasses import replace
 
@@ -53,6 +54,28 @@ def test_fit_finds_the_oil_and_a_dead_band_it_was_not_told(lab):
     lo, hi = res.interval["bulk_modulus"]
     assert lo < res.values["bulk_modulus"] < hi
     assert res.identified["bulk_modulus"]
+
+
+def test_a_fit_stopped_by_its_budget_above_the_noise_goes_on_and_one_at_the_noise_stops(
+        lab, monkeypatch):
+    """The whole-log stage stopped by its budget with the misfit above AT_NOISE takes more
+    rounds (its message says how many) and ends lower than without them; a fit at the noise
+    takes none. (AT_NOISE lowered below this log's reach so that the rounds run out.)"""
+    from planner.calibration import twin_fit
+    boom = lab.names[1]
+    truth = {"bulk_modulus": 0.6 * lab.spec.dynamics.bulk_modulus, f"deadband.{boom}": 0.02}
+    rec = twin_log(lab, truth, duration=3.0)
+    at_noise = TwinFit(lab, [rec], parameters=list(truth)).solve(max_iterations=3)
+    assert at_noise.status == "stopped" and "more round" not in at_noise.message
+    assert max(at_noise.rms_after.values()) <= twin_fit.AT_NOISE
+    monkeypatch.setattr(twin_fit, "AT_NOISE", 0.5)
+    short = TwinFit(lab, [rec], parameters=list(truth))
+    short.MORE_ROUNDS = 0
+    a = short.solve(max_iterations=3)
+    b = TwinFit(lab, [rec], parameters=list(truth)).solve(max_iterations=3)
+    assert re.search(r"after [123] more rounds? on the whole segments", b.message)
+    assert b.runs > a.runs
+    assert b.rms_after["positions"] < a.rms_after["positions"]
 
 
 def test_jacobian_on_worker_processes_is_the_same(lab):

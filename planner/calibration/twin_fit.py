@@ -48,14 +48,15 @@ before. Each window then sees one second of error, not the segment's history; th
 wide. The second stage fits the whole segments (the samples as logged) from there, which is
 what the refined feed-forward relies on: the twin run open loop for a whole move.
 
-**Rounds.** The second stage has half the iterations asked for; where that budget, not
-convergence, ends it with the misfit above :data:`AT_NOISE` σ on the positions or the
-pressures, it goes on for another such round, up to :attr:`TwinFit.MORE_ROUNDS` more. On a
-drawn s100f machine (m4: a 26 ms command delay, a telescope valve 7 ms slower than the rest)
-12 iterations left 1.8 / 2.3 σ and a twin whose refined moves rested 6–9 mm off on Exudyn;
-24 reached 1.02 / 1.00 σ and its refined moves landed 6 of 6 (0.5–2.1 mm) — with the delay
-and the spool lag still split otherwise than the truth (34 / 23 ms for 26 / 31 ms): the log
-fixes their effect, not their split. A fit at the noise stops where it did before.
+**Rounds.** Where the whole segments end with the misfit above :data:`AT_NOISE` σ on the
+positions or the pressures, both stages run again from there (the windows' wide valley first),
+up to :attr:`TwinFit.MORE_ROUNDS` more times. On a drawn s100f machine (m4: a 26 ms command
+delay, a telescope valve 7 ms slower than the rest) 12 iterations left 1.8 / 2.3 σ — the
+whole-segment stage converged there, in a local minimum, and more of it alone did not move —
+and a twin whose refined moves rested 6–35 mm off on Exudyn; 12 window iterations before 12
+whole-segment ones reached 1.02 / 1.00 σ and its refined moves landed 6 of 6 (0.5–2.1 mm),
+with the delay and the spool lag split otherwise than the truth (34 / 23 ms for 26 / 31 ms):
+the log fixes their effect, not their split. A fit at the noise stops where it did before.
 
 **Misfit.** Each channel's residual (twin − log) on the log's samples, divided by its noise
 level: estimated from the data (:func:`planner.calibration.noise.noise_floor_at`), not below
@@ -101,8 +102,8 @@ __all__ = ["Segment", "segments", "windows", "TwinFit", "TwinFitResult", "calibr
            "DIVERGED", "UNIDENTIFIED", "AT_NOISE"]
 
 DIVERGED = 1e3          # [σ] residual per sample after a twin run diverged
-#: [σ] the misfit (RMS in noise units, positions or pressures) above which the whole-segment
-#: stage, stopped by its budget, goes on for another round (module doc, "Rounds")
+#: [σ] the misfit (RMS in noise units, positions or pressures) above which the fit takes
+#: another round of both stages (module doc, "Rounds")
 AT_NOISE = 1.1
 _FD_STEP = 1e-2         # forward-difference step in the scaled parameters: the twin's friction
 #                         sticks and slips in holds, so a smaller step puts a jump of the
@@ -136,9 +137,9 @@ class TwinFit:
     #: the bulk-modulus factors tried before the raw stage (6 % apart: the valley of the raw
     #: misfit is about ±15 % wide on the machines here)
     SCAN = np.geomspace(0.5, 2.0, 25)
-    #: further rounds of the whole-segment stage (each its budget again) while it stops on
-    #: its budget with the misfit above :data:`AT_NOISE` (module doc, "Rounds")
-    MORE_ROUNDS = 3
+    #: further rounds of both stages (each its budget again) while the whole segments end
+    #: with the misfit above :data:`AT_NOISE` (module doc, "Rounds")
+    MORE_ROUNDS = 2
 
     def __init__(self, crane: Crane, recordings, parameters=None, hold: float = 0.5,
                  step: float = 2e-3, pressures: bool = True, workers: int = 1,
@@ -413,22 +414,21 @@ class TwinFit:
         stages = ((self.windows, max(max_iterations // 2, 1)),
                   (self.full_segs, max(max_iterations - max_iterations // 2, 1)))
         rounds = 0
-        for segs, iters in stages:
-            self.segs = segs
-            cache.clear()
-            if segs is self.full_segs:
-                z = self.scan_oil(z, lb, ub)
-            while True:
+        while True:
+            for segs, iters in stages:
+                self.segs = segs
+                cache.clear()
+                if segs is self.full_segs and rounds == 0:
+                    z = self.scan_oil(z, lb, ub)
                 sol = least_squares(fun, z, jac=jac, bounds=(lb, ub), method="trf",
                                     x_scale=1.0, max_nfev=iters, ftol=tol, xtol=tol,
                                     gtol=1e-8)
                 z = np.clip(sol.x, lb, ub)
-                # the whole segments go on while the budget, not convergence, stopped them
-                # short of the noise (module doc, "Rounds")
-                if not (segs is self.full_segs and sol.status == 0
-                        and rounds < self.MORE_ROUNDS and self._above_noise(z)):
-                    break
-                rounds += 1
+            # both stages again from there while the whole segments end above the noise
+            # (module doc, "Rounds")
+            if rounds >= self.MORE_ROUNDS or not self._above_noise(z):
+                break
+            rounds += 1
         r = fun(z)
         J = sol.jac if sol.jac is not None else self.jacobian(z, r)
         m, k = r.size, len(self.params)
@@ -451,7 +451,7 @@ class TwinFit:
 
 
 def _rounds(k: int) -> str:
-    return f" (after {k} more round{'s' if k > 1 else ''} on the whole segments)" if k else ""
+    return f" (after {k} more round{'s' if k > 1 else ''} of both stages)" if k else ""
 
 
 def _carry_machine(x0, run, n: int) -> None:

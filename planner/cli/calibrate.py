@@ -91,9 +91,8 @@ def add_parsers(sub) -> None:
                         "friction, leakage, kinds (hose_a, coulomb, deadband, …) or names "
                         "(coulomb.boom)")
     p.add_argument("--iterations", type=int, default=12,
-                   help="least-squares iterations (each a twin run per parameter; 12); the "
-                   "whole-log stage goes on for up to 3 more rounds while it stops on its "
-                   "budget above the noise (1.1 σ)")
+                   help="least-squares iterations (each a twin run per parameter; 12); up to "
+                   "2 more rounds of them while the fit ends above the noise (1.1 σ)")
     p.add_argument("--hold", type=float, default=0.5,
                    help="the log is cut at holds (all commands 0) at least this long [s] "
                         "(0.5)")

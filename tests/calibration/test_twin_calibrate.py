@@ -72,7 +72,7 @@ def test_a_fit_that_ends_above_the_noise_goes_on_and_one_at_the_noise_stops(
     short.MORE_ROUNDS = 0
     a = short.solve(max_iterations=3)
     b = TwinFit(lab, [rec], parameters=list(truth)).solve(max_iterations=3)
-    assert "after 2 more rounds of both stages" in b.message
+    assert "after 2 more rounds of both stages" in b.message and "kept, the best" in b.message
     assert b.runs > a.runs
     assert b.rms_after["positions"] < a.rms_after["positions"]
 

@@ -12,7 +12,7 @@ from planner.calibration.trials import SequenceBuilder, record
 from planner.model.effects import make
 from planner.simulation.plant import respond
 
-DUR = 20.0
+DUR = 12.0
 
 
 def _through_the_end(crane, seed=3):

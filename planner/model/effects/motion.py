@@ -13,8 +13,8 @@ from planner.model.effects.base import Effect, Parameter, is_slew
 from planner.units import CraneLike
 
 
-__all__ = ["valve_commands", "TimeDelay", "ValveLag", "StartOffset", "FlowGain", "ValveDeadband", "PumpFlowLimit",
-           "Leakage"]
+__all__ = ["valve_commands", "TimeDelay", "ValveLag", "StartOffset", "FlowGain",
+           "ValveDeadband", "PumpFlowLimit", "Leakage"]
 
 # a holding pressure (10 MPa above tank) and a pressure step (1 MPa) to size trial magnitudes
 _HOLD_PRESSURE = 10e6
@@ -29,8 +29,8 @@ PAD_DELAYS = 5.0
 def valve_commands(crane: CraneLike, effects, t_u, u, t_end: float, own_delay: float = 0.0):
     """(t_u, u, u_valves): the held commands ``u`` (M, n) from ``t_u`` (M,) and what the
     valves see of them after ``effects`` (the commands-stage effects a plant applies, in
-    order; and a machine's own transport
-    delay ``own_delay`` [s]), for a plant that holds the last row until ``t_end`` [s].
+    order) and a machine's own transport delay ``own_delay`` [s], for a plant that holds the
+    last row until ``t_end`` [s].
 
     A delay or lag moves the commands' end later: the valves see the last command ``delay``
     after it was given. The effects act sample by sample on the grid, so without more rows
@@ -38,7 +38,9 @@ def valve_commands(crane: CraneLike, effects, t_u, u, t_end: float, own_delay: f
     correction, 3 s long instead of 20 ms; a lag's state, never reaching the last command).
     The grid is therefore extended past ``t_u[-1]``, within ``t_end``, by rows that hold the
     last command (what the plant holds anyway), :data:`PAD_DELAYS` × the summed delays and
-    lags long; the commanded signal ``u`` is unchanged by it."""
+    lags long; the commanded signal ``u`` is unchanged by it. The instants where a delayed
+    command changes (t_u + each cumulative delay) are added to the grid, so the delayed signal
+    is exact there (:func:`planner.model.commands.delayed_held`)."""
     acting = list(effects)
     t_u = np.asarray(t_u, float)
     delays = [float(e.delay) for e in acting if isinstance(e, TimeDelay) and e.delay > 0]

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-__all__ = ["noise_floor", "noise_floor_at", "logged_noise", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO"]
+__all__ = ["noise_floor", "noise_floor_at", "logged_noise", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO",
+           "channel_noise"]
 
 WHITE_RATIO = 0.7     # above: the samples are not independent measurements (white: ≈ 0.45)
 
@@ -99,3 +100,19 @@ def upsampling_factor(Y: np.ndarray, floor, max_factor: int = 8, min_samples: in
         if ratio.size and float(np.median(ratio)) < WHITE_RATIO:
             return m
     return 1
+
+
+def channel_noise(crane, rec) -> tuple[np.ndarray, np.ndarray | None]:
+    """(σ of each position channel (n,), σ of each pressure channel (2n,) or None) of a
+    recording: :func:`noise_floor_at` of the samples as logged, not below 5 % of seed 001's
+    sensor accuracies (a noiseless synthetic log stays finite; the twin fit's scale)."""
+    from planner.simulation.recording import NOISE_DEFAULTS
+    src = rec.logged if rec.logged is not None else rec
+    floor_q = np.array([NOISE_DEFAULTS["angle"] if j.type == "revolute"
+                        else NOISE_DEFAULTS["length"] for j in crane.spec.joints])
+    sq = np.maximum(noise_floor_at(src.t, src.q), 0.05 * floor_q)
+    if rec.p_a is None:
+        return sq, None
+    sp = np.maximum(noise_floor_at(src.t, np.hstack([src.p_a, src.p_b])),
+                    0.05 * NOISE_DEFAULTS["pressure"])
+    return sq, sp

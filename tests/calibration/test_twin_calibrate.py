@@ -61,6 +61,7 @@ def test_a_fit_that_ends_above_the_noise_goes_on_and_one_at_the_noise_stops(
     many) and ends lower than without them; a fit at the noise takes none. (AT_NOISE lowered
     below this log's reach so that the rounds run out.)"""
     from planner.calibration import twin_fit
+    monkeypatch.setattr(TwinFit, "POLISH", 0)    # the rounds alone (the polish: next test)
     boom = lab.names[1]
     truth = {"bulk_modulus": 0.6 * lab.spec.dynamics.bulk_modulus, f"deadband.{boom}": 0.02}
     rec = twin_log(lab, truth, duration=3.0)
@@ -72,6 +73,26 @@ def test_a_fit_that_ends_above_the_noise_goes_on_and_one_at_the_noise_stops(
     assert "after 2 more rounds of both stages" in b.message and "kept, the best" in b.message
     assert b.runs > a.runs
     assert b.rms_after["positions"] < a.rms_after["positions"]
+
+
+def test_a_whole_segment_stage_out_of_budget_is_polished_until_it_converges(
+        lab, monkeypatch):
+    """Where the whole segments' stage ran out of its budget, the fit goes on from there until
+    it converges (the message says how many evaluations more), and ends with a lower misfit
+    and nearer the truth than where the budget stopped it."""
+    boom = lab.names[1]
+    truth = {"bulk_modulus": 0.6 * lab.spec.dynamics.bulk_modulus, f"deadband.{boom}": 0.02}
+    rec = twin_log(lab, truth, duration=3.0)
+    monkeypatch.setattr(TwinFit, "POLISH", 0)
+    a = TwinFit(lab, [rec], parameters=list(truth)).solve(max_iterations=3)
+    monkeypatch.setattr(TwinFit, "POLISH", 2)
+    b = TwinFit(lab, [rec], parameters=list(truth)).solve(max_iterations=3)
+    assert a.status == "stopped" and "polished" not in a.message
+    assert b.status == "converged" and "whole segments polished" in b.message
+    assert b.runs > a.runs
+    assert b.rms_after["positions"] < a.rms_after["positions"]
+    err = [abs(r.values[f"deadband.{boom}"] / 0.02 - 1) for r in (a, b)]
+    assert err[1] < 0.02 and err[1] < err[0] / 2
 
 
 def test_jacobian_on_worker_processes_is_the_same(lab):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["log_state"]
+__all__ = ["log_state", "on_stroke_end", "END_BAND"]
 
 
 def log_state(rec, k: int, samples: int = 9) -> dict:
@@ -34,3 +34,27 @@ def log_state(rec, k: int, samples: int = 9) -> dict:
         if name == "q":
             out["qd"] = c[-2] if len(c) > 1 else np.zeros_like(c[-1])
     return out
+
+
+#: [m] a cylinder whose twin state lies within this of a stroke end (or past it) rests on it
+END_BAND = 1e-3
+
+
+def on_stroke_end(crane, q_log, q_twin, sig_q) -> np.ndarray:
+    """(n,) bool: the joints whose cylinder rests on a stroke end at a segment's start — the
+    twin's own state there within :data:`END_BAND` of the end or past it, and the log's
+    anchor position within 3 of its noise (``sig_q``, in stroke units by dx/dq) of it. On its
+    stop a cylinder's position is set by the stop's stiffness, not by the anchor: an anchor a
+    noise σ off puts the twin's stop a few kN off its load or the joint a fall off its stop
+    (an s100f boom lowered onto its stroke end with 839 kg aboard: 1.33 σ RMS left on its
+    pressure by the fitted truth; twin_fit's start takes the twin's own state there)."""
+    from planner.model.actuators import stroke_range
+    ends = np.array([stroke_range(j.actuator) for j in crane.spec.joints], float)
+    x_l, d = crane.stroke(np.atleast_2d(np.asarray(q_log, float)))
+    x_t, _ = crane.stroke(np.atleast_2d(np.asarray(q_twin, float)))
+    x_l, d, x_t = x_l[0], d[0], x_t[0]
+    tol = 3.0 * np.asarray(sig_q, float) * np.abs(d)
+    with np.errstate(invalid="ignore"):
+        log_end = (x_l <= ends[:, 0] + tol) | (x_l >= ends[:, 1] - tol)
+        twin_end = (x_t <= ends[:, 0] + END_BAND) | (x_t >= ends[:, 1] - END_BAND)
+    return log_end & twin_end

@@ -98,7 +98,7 @@ import time
 import numpy as np
 
 from planner.calibration.log_segments import Segment, segments, windows
-from planner.calibration.log_state import log_state
+from planner.calibration.log_state import log_state, on_stroke_end
 from planner.calibration.noise import channel_noise
 from planner.calibration.twin_params import machine_of, select, twin_parameters
 from planner.calibration.twin_result import UNIDENTIFIED, TwinFitResult, intervals
@@ -261,6 +261,11 @@ class TwinFit:
             x0[n:2 * n] = run.qd[-1]
             x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
             _carry_machine(x0, run, n)
+            # a cylinder resting on a stroke end keeps the twin's own position and pressures
+            end = on_stroke_end(self.crane, s.q0, run.q[-1], self.sig[s.rec][0])
+            x0[:n][end] = run.q[-1][end]
+        else:
+            end = np.zeros(n, bool)
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
             # quiet per joint, not per chamber: a cylinder's two chambers ring together (the
@@ -268,7 +273,7 @@ class TwinFit:
             # test and the other not), and one chamber measured beside one carried is a state
             # that never was: its force balance is off, and a locked cylinder keeps the
             # wrong trapped oil for the rest of the segment
-            quiet = (s.sd_a < 2.0 * sp[:n]) & (s.sd_b < 2.0 * sp[n:])
+            quiet = (s.sd_a < 2.0 * sp[:n]) & (s.sd_b < 2.0 * sp[n:]) & ~end
             qb = quiet & ~self.vented   # a single-acting rod side stays at tank (no sensor noise)
             x0[2 * n:3 * n][quiet] = s.p_a0[quiet]
             x0[3 * n:4 * n][qb] = s.p_b0[qb]

@@ -59,7 +59,8 @@ def test_a_joint_ringing_in_one_chamber_keeps_both_chambers_carried():
     # joint 1: both chambers quiet
     seg.sd_a, seg.sd_b = 0.5 * sp[:n].copy(), 0.5 * sp[n:].copy()
     seg.sd_a[0] = 3.0 * sp[0]
-    carried = SimpleNamespace(qd=np.full((1, n), 0.01), p_a=np.full((1, n), 7.0e6),
+    carried = SimpleNamespace(q=seg.q0[None].copy(), qd=np.full((1, n), 0.01),
+                              p_a=np.full((1, n), 7.0e6),
                               p_b=np.full((1, n), 3.0e6), p_s=np.array([9.0e6]),
                               spool=np.zeros((1, n)))
     x0 = fit.start_state(fit.twin({}), seg, (seg.rec, seg.k0, carried))

@@ -135,6 +135,32 @@ def test_windows_cut_every_segment_into_seconds_and_cover_it(lab):
         assert len(mine) == max(1, round((rec.t[s.k1] - rec.t[s.k0]) / 1.0 + 0.3))
 
 
+def test_a_cylinder_on_its_stroke_end_is_told_apart_from_one_off_it():
+    """on_stroke_end: the boom lowered onto its stroke end (s100f: x = 0 at about 0.393 rad,
+    past its joint limit) is on it when the twin rests there (a stop's penetration past the
+    end) and the log's anchor lies within its noise; not when the anchor is far off it, nor
+    when the twin is, nor for a joint in mid-stroke."""
+    from planner.calibration.log_state import on_stroke_end
+    s100f = Crane.from_id("s100f")
+    L = s100f.limit_arrays()
+    q = 0.5 * (L["q_min"] + L["q_max"])
+    qe = q.copy()
+    qs = np.linspace(0.35, 0.40, 5001)
+    x = s100f.stroke(np.column_stack([np.full_like(qs, q[0]), qs, np.full_like(qs, q[2]),
+                                      np.full_like(qs, q[3])]))[0][:, 1]
+    qe[1] = qs[np.argmin(np.abs(x))]            # the boom's x = 0
+    sig = np.array([5e-4, 5e-4, 5e-4, 1e-3])
+    twin = qe.copy()
+    twin[1] += 0.4e-3 / 0.43                     # 0.4 mm into the stop
+    log = qe.copy()
+    log[1] -= 1.0 * sig[1]                       # the anchor one noise σ off the end
+    assert list(on_stroke_end(s100f, log, twin, sig)) == [False, True, False, False]
+    far = qe.copy()
+    far[1] -= 20 * sig[1]
+    assert not on_stroke_end(s100f, far, twin, sig)[1]
+    assert not on_stroke_end(s100f, log, far, sig)[1]
+
+
 def test_log_state_is_exact_on_a_parabola_and_follows_a_sine():
     from types import SimpleNamespace
     t = np.arange(0.0, 2.0, 0.02)

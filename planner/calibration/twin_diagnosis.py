@@ -38,7 +38,9 @@ candidate                twin parameter                              reported as
 values (secants over one typical change, a whole twin run each), on the *training*
 rows (the even blocks of ``block_s`` s, as the quasi-static workflow); a bounded Gauss–Newton
 step per candidate ranks them by the training misfit it would remove. Only the best
-:attr:`TwinDiagnosis.fits` (and the oil) are fitted nonlinearly on the training rows: a
+:attr:`TwinDiagnosis.fits`, the oil, and the hose volume whose moving-averaged misfit falls
+most at ×0.25 … 4 (:data:`PROBE`: a hose, as the oil, rings in another phase when far off,
+and the step from the spec's value misranks it) are fitted nonlinearly on the training rows: a
 scan of the parameter's range with the spec's value and the Gauss–Newton step, then a bounded
 scalar search between the best point's neighbours (the bulk modulus and a hose volume first on
 the moving averages, then within ±10 % on the samples, as the raw misfit has one narrow valley
@@ -77,6 +79,10 @@ if TYPE_CHECKING:
 #: the ranking's secant step in the scaled parameter: (linear: one typical size, log: ×1.2)
 SECANT = {False: 1.0, True: 0.2}
 ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
+#: factors a hose volume is probed at (TwinDiagnosis._probe): √2 apart, as the scan (the
+#: moving-averaged misfit's valley is about ±30 % wide: s100f's jib hoses × 2.85, probed
+#: at × 2 and × 4 only, ranked 0.45 and 0.58 of the spec's misfit, at × 2.83 0.02)
+PROBE = tuple(float(f) for f in np.geomspace(0.25, 4.0, 9) if abs(f - 1.0) > 1e-9)
 ANCHOR_S = 0.2      # [s] the window a segment's start is averaged over (TwinFit's)
 _FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's)
 STEP = 1e-3         # [s] the twin's step in the diagnosis (module doc)
@@ -330,6 +336,32 @@ class TwinDiagnosis:
         out.sort(key=lambda x: -x[0])
         return out, float(r0 @ r0)
 
+    def _probe(self, kind: str):
+        """The candidate of ``kind`` (at its best probe) whose moving-averaged training misfit
+        falls most at the factors :data:`PROBE` of its spec value, or None when none falls: a
+        hose volume's misfit has one valley per ringing phase, as the oil's, so its
+        Gauss–Newton step from the spec's value can rank it low when it is far off (s100f, the
+        jib's hoses × 2.85 on Exudyn: 7th of the ranking, never fitted, and the log
+        `unexplained`)."""
+        pb = self.pb
+        pb.mask, pb.smooth = self.train, TwinFit.SMOOTH
+        best = None
+        try:
+            r = pb.residuals(self.z_nom)
+            j0 = float(r @ r)
+            for i, c in enumerate(self.cands):
+                if c.name != kind:
+                    continue
+                lo, hi = c.param.z_bounds
+                for f in PROBE:
+                    z = float(np.clip(c.z + math.log(f), lo, hi))
+                    r = pb.residuals(self._z_with(i, z))
+                    if float(r @ r) < j0 and (best is None or float(r @ r) < best[0]):
+                        best = (float(r @ r), c.at(z))
+        finally:
+            pb.smooth = 0.0
+        return None if best is None else best[1]
+
     def _fit_one(self, c: TwinEffect, z_gn: float) -> Candidate:
         """Nonlinear fit of candidate ``c`` on the training rows (module doc)."""
         pb = self.pb
@@ -411,6 +443,10 @@ class TwinDiagnosis:
             # the oil always: its misfit is far from linear (one valley per ringing phase),
             # so a Gauss-Newton step from the spec's value can rank it low when it is off
             todo += [x for x in ranked_gn[self.n_fits:] if x[1].name in ALWAYS and x[2] > 0]
+            # and the hose volume that the probes favour (its ringing phase, as the oil's)
+            hose = self._probe("hose_volume")
+            if hose is not None and hose.param.name not in {x[1].param.name for x in todo}:
+                todo.append((0.0, hose, 1.0))
             names = [x.param.name for x in self.cands]
             for red, c, gg in todo:
                 f = self._fit_one(self.cands[names.index(c.param.name)], c.z)

@@ -9,7 +9,12 @@ samples.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["log_state", "on_stroke_end", "END_BAND"]
 
@@ -40,7 +45,7 @@ def log_state(rec, k: int, samples: int = 9) -> dict:
 END_BAND = 1e-3
 
 
-def on_stroke_end(crane, q_log, q_twin, sig_q) -> np.ndarray:
+def on_stroke_end(crane: Crane, q_log, q_twin, sig_q) -> np.ndarray:
     """(n,) bool: the joints whose cylinder rests on a stroke end at a segment's start — the
     twin's own state there within :data:`END_BAND` of the end or past it, and the log's
     anchor position within 3 of its noise (``sig_q``, in stroke units by dx/dq) of it. On its

@@ -13,9 +13,14 @@ noise Δ² is negatively correlated with its neighbour (ρ = −2/3), so the spr
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from planner.model import Crane
 
 __all__ = ["noise_floor", "noise_floor_at", "logged_noise", "whiteness_ratio", "upsampling_factor", "WHITE_RATIO",
            "channel_noise"]
@@ -102,7 +107,7 @@ def upsampling_factor(Y: np.ndarray, floor, max_factor: int = 8, min_samples: in
     return 1
 
 
-def channel_noise(crane, rec) -> tuple[np.ndarray, np.ndarray | None]:
+def channel_noise(crane: Crane, rec) -> tuple[np.ndarray, np.ndarray | None]:
     """(σ of each position channel (n,), σ of each pressure channel (2n,) or None) of a
     recording: :func:`noise_floor_at` of the samples as logged, not below 5 % of seed 001's
     sensor accuracies (a noiseless synthetic log stays finite; the twin fit's scale)."""

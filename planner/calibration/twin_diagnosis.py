@@ -58,7 +58,6 @@ from typing import TYPE_CHECKING
 
 import math
 import time as _time
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -67,7 +66,8 @@ from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fi
                                         check_recording, verdict_fields)
 from planner.calibration.signature import signature_text
 from planner.calibration.twin_fit import TwinFit
-from planner.calibration.twin_params import TwinParameter, machine_of, twin_parameters
+from planner.calibration.twin_candidates import KINDS, TwinEffect, twin_candidates
+from planner.calibration.twin_params import machine_of
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate
 from planner.model.twin import Twin
@@ -88,79 +88,6 @@ _FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's
 STEP = 1e-3         # [s] the twin's step in the diagnosis (module doc)
 
 __all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "KINDS"]
-
-#: candidate name -> (per joint, reported parameter) (module doc)
-KINDS = {
-    "bulk_modulus": (False, "scale"), "hose_volume": (True, "scale"),
-    "valve_deadband": (True, "width"), "coulomb_friction": (True, "force"),
-    "viscous_friction": (True, "coefficient"), "leakage": (True, "coefficient"),
-    "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
-    "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
-    "time_delay": (False, "delay")}
-
-
-@dataclass(frozen=True)
-class _Par:      # a reported parameter's name (what verdict.judge lists)
-    name: str
-
-
-class TwinEffect:
-    """One candidate as a twin change: ``name`` (:data:`KINDS`), ``joint``, the twin
-    parameter ``param`` (a :class:`TwinParameter`) at scaled value ``z``; ``values`` in the
-    reported unit (module doc)."""
-
-    def __init__(self, name: str, joint, param: TwinParameter, z: float):
-        self.name, self.joint, self.param, self.z = name, joint, param, float(z)
-        v = param.to_value(self.z)
-        unit = KINDS[name][1]
-        if name == "bulk_modulus":
-            v = v / param.nominal
-        elif name in ("coulomb_friction", "viscous_friction", "leakage", "payload_mass"):
-            v = v - param.nominal
-        self.values = {unit: float(v)}
-        self.parameters = (_Par(unit),)
-
-    def at(self, z: float) -> "TwinEffect":
-        return TwinEffect(self.name, self.joint, self.param, z)
-
-    def to_dict(self) -> dict:
-        return dict(name=self.name, joint=self.joint, **self.values)
-
-    @property
-    def key(self) -> tuple:
-        return (self.param.name, round(self.z, 12))
-
-
-def twin_candidates(crane: Crane, names=None) -> list[TwinEffect]:
-    """The candidates (module doc) at the spec's values, per-joint ones on every joint;
-    ``names``: only these kinds (ValueError naming an unknown one and what is allowed)."""
-    names = list(KINDS) if names is None else list(names)
-    bad = [s for s in names if s not in KINDS]
-    if bad:
-        raise ValueError(f"effects: {bad[0]!r} has no twin counterpart; allowed: "
-                         f"{', '.join(KINDS)}")
-    tp = {p.name: p for p in twin_parameters(crane)}
-    m0 = crane.spec.payload.total
-    out = []
-    own = {"spool_lag": "spool_time_constant", "pump_lag": "pump_time_constant",
-           "time_delay": "command_delay", "valve_deadband": "deadband.{}", "leakage": "leakage.{}",
-           "coulomb_friction": "coulomb.{}", "viscous_friction": "viscous.{}"}
-    for name in names:
-        for j in (crane.names if KINDS[name][0] else [None]):
-            if name == "hose_volume":
-                p = TwinParameter(f"hose.{j}", "hose", j, "1", 1.0, 0.2, 10.0, True)
-            elif name == "flow_gain":
-                p = TwinParameter(f"gain.{j}", "gain", j, "1", 1.0, 0.5, 1.5, True)
-            elif name == "pump_flow_limit":
-                p = TwinParameter("pump_flow", "pump_flow", None, "1", 1.0, 0.1, 1.0, True)
-            elif name == "payload_mass":
-                p = TwinParameter("payload", "payload", None, "kg", m0, max(m0 - 3000.0, 0.0),
-                                  m0 + 5000.0, False, max(m0, 50.0))
-            else:
-                p = tp[own.get(name, name).format(j)]
-            out.append(TwinEffect(name, j, p, p.to_z(p.nominal)))
-    return out
-
 
 class _Problem(TwinFit):
     """:class:`TwinFit` whose parameters are the candidates' (some of them the twin's own

@@ -92,7 +92,8 @@ def add_parsers(sub) -> None:
                         "(coulomb.boom)")
     p.add_argument("--iterations", type=int, default=12,
                    help="least-squares iterations (each a twin run per parameter; 12); up to "
-                   "2 more rounds of them while the fit ends above the noise (1.1 σ)")
+                   "2 more rounds of them while the fit ends above the noise (1.1 σ), "
+                   "then up to 2 × as many on the whole log while that stage has not converged")
     p.add_argument("--hold", type=float, default=0.5,
                    help="the log is cut at holds (all commands 0) at least this long [s] "
                         "(0.5)")

@@ -13,15 +13,12 @@ the log (averaged positions, measured quiet pressures, at rest) is not one the t
 and the fit bent the parameters to absorb that: the slew's dead band 0.851 % for a truth of
 0.890 % (the rest offset of a drop → pick-up move 9.9 mm on Exudyn); anchored on the twin the
 fit reaches 1.00 / 0.99 σ on the noisy log, the dead band 0.887 %, and that move rests 0.7 mm
-off. It is only as right as the twin's family: on drawn machine m1, whose valves see the
-commands 18 ms late, a twin without a command delay reached 1.0 σ by putting the delay into
-the spool lag (53 ms for a truth of 34) and softening the oil, and the refined entries rested
-34 mm off there; so the family has ``[dynamics] command_delay`` (fitted as
-``command_delay``), and the twin anchors became the default with it (on six drawn machines
-with one valve slower than the rest, which the family cannot say, 24 of 72 entries land:
-``benchmarks/results/calibrate_loop_delay.md``). ``anchor="log"`` (the
-diagnosis's, :mod:`planner.calibration.twin_diagnosis`): each segment is
-simulated from the state measured at its start: the logged
+off. It is only as right as the twin's family: without a command delay the twin put drawn
+machine m1's 18 ms into the spool lag (53 ms for 34) and the oil, and its refined entries
+rested 34 mm off; so the family has ``[dynamics] command_delay`` (fitted as
+``command_delay``). ``anchor="log"`` (the diagnosis's,
+:mod:`planner.calibration.twin_diagnosis`): each segment starts from the state measured
+there: the logged
 positions and chamber pressures averaged over the hold's last ``anchor`` seconds, at rest, the
 spools closed, the pump line at its rest pressure. A hold's trapped pressures are thus taken
 as they were, not as the quasi-static holding pressures. A hold does not always mean rest: a
@@ -29,11 +26,13 @@ lightly damped mode (the slew's trapped oil, 0.7 Hz on s100f) still rings throug
 hold, and its average over the window is not its state. So a chamber whose pressure spreads
 over more than twice its noise in the window keeps the twin's own state, carried from the
 previous segment (its pressures, velocities, pump and spools), and only the positions are
-re-anchored; the test is per joint (both chambers of a joint quiet, else both carried: the rod
-side swings by the piston side's swing times the area ratio and may pass it alone, and one
-chamber measured beside one carried leaves a locked cylinder with the wrong trapped oil). A
-log without pressures starts each segment from the model's holding pressures (or the carried
-state). A log without holds is one segment.
+re-anchored; the test is per joint (both chambers quiet, else both carried: the rod side
+swings by the piston side's swing times the area ratio and may pass it alone). A chamber
+ringing by less than twice its noise passes that test, yet its window average is still not its
+value at the cut: so a joint whose averages lie within their noise and 1.5 × their spread of
+the twin's carried pressures keeps those (on s100f's clean seed-1001 log, Exudyn, noiseless
+anchors: 1.2 σ RMS left on ``p_slew_b``, 1.8–2.0 over the last segment; with the rule 0.99).
+No pressures: the model's holding pressures (or the carried state). No holds: one segment.
 
 **Windows (the first stage).** A long segment simulated open loop from one start makes a
 narrow valley: on a drawn s100f machine the misfit falls monotonically along the straight
@@ -261,18 +260,20 @@ class TwinFit:
             x0[n:2 * n] = run.qd[-1]
             x0[2 * n:3 * n], x0[3 * n:4 * n] = run.p_a[-1], run.p_b[-1]
             _carry_machine(x0, run, n)
-            # a cylinder resting on a stroke end keeps the twin's own position and pressures
+            # on a stroke end, or logged chambers agreeing: the twin's own (module doc)
             end = on_stroke_end(self.crane, s.q0, run.q[-1], self.sig[s.rec][0])
             x0[:n][end] = run.q[-1][end]
+            if self.use_p and s.p_a0 is not None:
+                e = 3.0 * self.sig[s.rec][1] / np.sqrt(self.history(self.recs[s.rec], 0.2) - 1)
+                end |= ((np.abs(s.p_a0 - run.p_a[-1]) <= e[:n] + 1.5 * s.sd_a)
+                        & ((np.abs(s.p_b0 - run.p_b[-1]) <= e[n:] + 1.5 * s.sd_b) | self.vented))
         else:
             end = np.zeros(n, bool)
         if self.use_p and s.p_a0 is not None:
             sp = self.sig[s.rec][1]
-            # quiet per joint, not per chamber: a cylinder's two chambers ring together (the
-            # rod side's swing is the piston side's times the area ratio, so one may pass the
-            # test and the other not), and one chamber measured beside one carried is a state
-            # that never was: its force balance is off, and a locked cylinder keeps the
-            # wrong trapped oil for the rest of the segment
+            # quiet per joint, not per chamber: a cylinder's chambers ring together, and one
+            # measured beside one carried is a state that never was (a locked cylinder keeps
+            # the wrong trapped oil for the rest of the segment)
             quiet = (s.sd_a < 2.0 * sp[:n]) & (s.sd_b < 2.0 * sp[n:]) & ~end
             qb = quiet & ~self.vented   # a single-acting rod side stays at tank (no sensor noise)
             x0[2 * n:3 * n][quiet] = s.p_a0[quiet]

@@ -45,16 +45,20 @@ def s100f():
     return SimpleNamespace(crane=crane, q0=plan.q[0], t=t, u=u, q=q, p_a=pa, p_b=pb, uu=uu)
 
 
-def test_a_joint_ringing_in_one_chamber_keeps_both_chambers_carried():
+def _lab_last_segment():
+    """umea-lab's twin log (4 s excitation, seed 001's noise) fitted on log anchors: (n, the
+    fit, its last segment, the pressure noise σ (2n,))."""
     crane = Crane.from_id("umea-lab")
-    n = crane.n
     plan, ff = excitation(crane, duration=4.0, seed=3)
     run = Twin(crane).simulate(ff.t, ff.u, plan.q[0], t_end=ff.t[-1])
     q, pa, pb, u = run.sample(ff.t)
     rec = Recording(ff.t, u, q, pa, pb).with_noise(crane, True, seed=2)
     fit = TwinFit(crane, [rec], parameters=["bulk_modulus"], anchor="log")
-    seg = fit.segs[-1]
-    sp = fit.sig[0][1]
+    return crane.n, fit, fit.segs[-1], fit.sig[0][1]
+
+
+def test_a_joint_ringing_in_one_chamber_keeps_both_chambers_carried():
+    n, fit, seg, sp = _lab_last_segment()
     # joint 0: the piston side rings (3 σ of spread), the rod side passes (0.5 σ);
     # joint 1: both chambers quiet
     seg.sd_a, seg.sd_b = 0.5 * sp[:n].copy(), 0.5 * sp[n:].copy()
@@ -155,15 +159,7 @@ def test_quiet_chambers_that_agree_with_the_twin_keep_the_twins_own_pressures():
     is not its value at the cut: where the averages lie within their noise (and 1.5 × their
     spread) of the twin's carried pressures, the carried ones start the segment; a joint the
     log contradicts (10 MPa off) starts from the log."""
-    crane = Crane.from_id("umea-lab")
-    n = crane.n
-    plan, ff = excitation(crane, duration=4.0, seed=3)
-    run = Twin(crane).simulate(ff.t, ff.u, plan.q[0], t_end=ff.t[-1])
-    q, pa, pb, u = run.sample(ff.t)
-    rec = Recording(ff.t, u, q, pa, pb).with_noise(crane, True, seed=2)
-    fit = TwinFit(crane, [rec], parameters=["bulk_modulus"], anchor="log")
-    seg = fit.segs[-1]
-    sp = fit.sig[0][1]
+    n, fit, seg, sp = _lab_last_segment()
     seg.sd_a, seg.sd_b = 0.5 * sp[:n].copy(), 0.5 * sp[n:].copy()     # all quiet
     near_a = seg.p_a0 + 0.5 * sp[:n]                  # within the noise of the averages
     near_b = seg.p_b0 - 0.5 * sp[n:]

@@ -321,7 +321,7 @@ def calibrated_crane(crane, plant, pend, args):
     from planner.calibration.trials import excitation
     from planner.calibration.twin_fit import TwinFit
     from planner.calibration.twin_spec import calibrated_twin_text
-    from planner.library.refine import model_crane
+    from planner.library.twins import model_crane
     from planner.simulation.recording import Recording
     args.work.mkdir(parents=True, exist_ok=True)
     stem = args.work / (f"cal-{args.crane}-m{args.plant_machine}-{args.calibrate:g}s"

@@ -58,6 +58,14 @@ def cmd_library_refine(args):
         print(f"{s['library']}: {s['refined']} entries refined on the twin of {s['model']} "
               f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}{swing}), "
               f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
+        pr = s.get("energy_pairs")
+        if pr and pr["checked"]:
+            print(f"  energy entries against their time entries on the twin: {pr['checked']} "
+                  f"checked, {pr['dearer']} dearer, {pr['made_cheaper']} refined again with "
+                  f"a heavier price and now cheaper")
+        for i in (pr or {}).get("costlier", []):
+            print(f"  warning: entry {i}: costs more pump work on the twin than its time entry "
+                  "(no heavier price made it cheaper and kept it landing)", file=sys.stderr)
         for f in s["failed"]:
             print(f"  warning: entry {f['id']}: {f['reason']}", file=sys.stderr)
     return 0
@@ -151,7 +159,10 @@ def add_refine_parser(lsub) -> None:
                         "in the cost — weight --energy-weight, else 30 — and each joint kept "
                         "to the direction the plan moves it until the landing window; where "
                         "the twin then predicts it more than 4 mm from landed, it is refined "
-                        "plain too and the commands nearer to landed kept) or 'plain' "
+                        "plain too and the commands nearer to landed kept; one that then "
+                        "costs the twin more pump work than its own time entry is refined "
+                        "again with the price x3, then x10, and the first that is cheaper "
+                        "and lands as well kept, else it is named costlier) or 'plain' "
                         "(refined as time entries are)")
     p.add_argument("--swing-weight", type=float, metavar="W",
                    help="entries planned with a grapple (library build --grapple): the weight "

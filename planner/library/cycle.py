@@ -39,7 +39,7 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     """Refine the entries ``ids`` of the library ``path`` as one work cycle (module doc) on
     the twin of ``model`` (default the library's spec). Returns a summary dict. ValueError
     naming the entry when one is missing, not ok, or does not chain."""
-    from planner.library.refine import spec_twin
+    from planner.library.twins import spec_twin
     from planner.library.refined import refined_info, read_refined, write_refined
     from planner.library.store import LibraryStore
     from planner.refine import RefineOptions, after_move, for_objective, refine_commands

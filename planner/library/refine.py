@@ -18,7 +18,8 @@ from __future__ import annotations
 import signal
 import time as _time
 from contextlib import nullcontext
-from dataclasses import asdict
+from dataclasses import asdict, replace
+from typing import TYPE_CHECKING
 from pathlib import Path
 
 import numpy as np
@@ -26,53 +27,13 @@ import numpy as np
 from planner.io import progress
 from planner.library.journal import WriteFailed
 from planner.library.lock import BuildLock
+from planner.library.twins import entry_arrays, entry_grapple, model_crane, spec_twin
 from planner.library.workers import Interrupted, SignalGuard, WorkerPool
 
-__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
-
-_TWINS: dict = {}   # per process: (spec text, options) -> (crane, twin)
-
-
-def model_crane(spec_text: str, where: str):
-    """The crane of a spec TOML text (a library's stored spec, or a ``--model`` file)."""
-    import tomllib
-
+if TYPE_CHECKING:
     from planner.model import Crane
-    from planner.model.spec import parse_spec
-    return Crane(parse_spec(tomllib.loads(spec_text), where, spec_text))
 
-
-def spec_twin(spec_text: str, where: str, step: float, grapple: tuple | None = None):
-    """(crane, twin) of a spec TOML text at the twin ``step`` [s], built once per process;
-    ``grapple`` (link length [m], pin damping as a share of critical or None): the twin that
-    carries the load on that link (:mod:`planner.model.twin.coupled`)."""
-    from planner.simulation.twin_plant import twin_of
-    key = (spec_text, step, grapple)
-    if key not in _TWINS:
-        crane = model_crane(spec_text, where)
-        if grapple is None:
-            _TWINS[key] = (crane, twin_of(crane, step=step))
-        else:
-            from planner.model.pendulum import Pendulum
-            from planner.model.twin import Twin
-            if crane.spec.effects:
-                raise ValueError(f"model {where}: [[effects]] with a grapple entry: the swing "
-                                 "is refined on the bare twin with its link; allowed: a model "
-                                 "without effects, or swing_weight 0")
-            pend = Pendulum.of(crane, grapple[0], zeta=grapple[1])
-            _TWINS[key] = (crane, Twin(crane, step=step, grapple=pend))
-    return _TWINS[key]
-
-
-def entry_grapple(attrs: dict) -> tuple | None:
-    """The link an entry was planned with (``library build --grapple``: its ``grapple_m`` and
-    ``grapple_zeta``), or None."""
-    g = attrs.get("grapple_m")
-    if g is None or not np.isfinite(g) or g <= 0:
-        return None
-    z = attrs.get("grapple_zeta")
-    return float(g), (None if z is None or not np.isfinite(z) else float(z))
-
+__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
 
 def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str, arrays: dict,
                 options: dict, grapple: tuple | None = None) -> dict:
@@ -112,9 +73,6 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
     refined commands end with the load at rest under the tip. Returns a summary dict; SIGINT /
     SIGTERM stop it promptly (the entry being written completed) and raise
     :class:`~planner.library.workers.Interrupted` with the summary so far."""
-    from dataclasses import replace
-
-    from planner.feedforward import stored_commands
     from planner.library.refined import refined_info, write_refined
     from planner.library.store import LibraryStore
     from planner.refine import SWING_WEIGHT, RefineOptions, for_objective
@@ -167,19 +125,12 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                                 .provenance()["fingerprint"])
                             if (not force and info is not None
                                     and info.get("model", {}).get("fingerprint") == fp
-                                    and info.get("options") == asdict(o)):
+                                    and asdict(o) in (info.get("options"),
+                                                      (info.get("pair") or {}).get("options"))):
                                 state["skipped"] += 1
                                 continue
-                            tr = db.trajectory(i)
-                            cmd = stored_commands(tr, opts.rate)
-                            if cmd is None:
-                                from planner.feedforward import commands
-                                ff = commands(crane, tr, opts.rate)
-                                cmd = (ff.t, ff.u)
-                            arrays = dict(t=tr.t, q=tr.q, qd=tr.qd, qdd=tr.qdd,
-                                          joint_names=list(tr.joint_names),
-                                          t_u=cmd[0], u=cmd[1])
-                            tasks.append((lib_spec, model_spec, model_where, i, arrays,
+                            tasks.append((lib_spec, model_spec, model_where, i,
+                                          entry_arrays(crane, db.trajectory(i), opts.rate),
                                           asdict(o), link))
                             state["swing"] += link is not None
                         state["todo"] = len(tasks)
@@ -194,6 +145,9 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                                 bar.update(1)
                         finally:
                             bar.close()
+                        if opts.energy_entries == "priced":
+                            _check_pairs(db, rows, ids, pool, guard, state, crane,
+                                         (lib_spec, model_spec, model_where), opts, sw)
         except Interrupted as e:
             e.summary = _summary(path, model_where, fingerprint, ids, state, t0,
                                  status="interrupted", signal=signal.Signals(e.signum).name)
@@ -204,6 +158,62 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                                                      "): make room and rerun to resume")) \
                 from None
     return _summary(path, model_where, fingerprint, ids, state, t0, status="ok")
+
+
+def _check_pairs(db, rows, ids, pool, guard, state, crane: Crane, specs, opts, sw) -> None:
+    """The energy entries checked against their time entries on the twin and refined again
+    where dearer (:mod:`planner.library.refine_pairs`)."""
+    from planner.library.refine_pairs import (cheaper_task, commands_digest, move_pairs,
+                                              pair_info, pair_state)
+    from planner.library.refined import write_refined
+    from planner.refine import for_objective
+    from planner.refine.measures import score
+    st_all, tasks = {}, []
+    pairs = state["pairs"] = dict(moves=0, checked=0, dearer=0, made_cheaper=0, costlier=[])
+    for t_id, e_id in move_pairs(rows, ids):
+        pairs["moves"] += 1
+        link = entry_grapple(db.entry_attrs(e_id)) if sw > 0 else None
+        o = for_objective(opts, "energy")
+        o = replace(o, swing_weight=sw) if link else o
+        twin = spec_twin(specs[1], specs[2], opts.step, link)[1]
+        st = pair_state(db, t_id, e_id, twin)
+        if st["current"] or st["energy"]["used"] != "refined" or st.get("energy_J") is None \
+                or st.get("time_J") is None:
+            continue
+        pairs["checked"] += 1
+        if st["energy_J"] <= st["time_J"]:
+            e = st["energy"]
+            with guard.critical():
+                write_refined(db, e_id, e["t_u"], e["u"], dict(e["info"], pair=pair_info(
+                    st, asdict(o), factor=1.0, pump_J=st["energy_J"], costlier=False,
+                    energy_commands=e["digest"])))
+            continue
+        pairs["dearer"] += 1
+        st_all[e_id] = (st, o)
+        tasks.append((*specs, e_id, entry_arrays(crane, st["energy"]["traj"], opts.rate),
+                      asdict(o), link, st["time_J"], score(_predicted(st["energy"]["info"]))))
+    results = (pool.imap_unordered(cheaper_task, tasks) if pool is not None
+               else (cheaper_task(*a) for a in tasks))
+    for r in results:
+        st, o = st_all[r["id"]]
+        e = st["energy"]
+        with guard.critical():
+            if r["u"] is not None:
+                pairs["made_cheaper"] += 1
+                write_refined(db, r["id"], r["t_u"], r["u"], dict(r["info"], pair=pair_info(
+                    st, asdict(o), factor=r["factor"], pump_J=r["pump_J"], costlier=False,
+                    energy_commands=commands_digest(r["u"]), tries=r["tries"])))
+            else:
+                pairs["costlier"].append(r["id"])
+                write_refined(db, r["id"], e["t_u"], e["u"], dict(e["info"], pair=pair_info(
+                    st, asdict(o), factor=None, pump_J=st["energy_J"], costlier=True,
+                    energy_commands=e["digest"], tries=r["tries"])))
+
+
+def _predicted(info: dict) -> dict:
+    """A refinement's predicted landing on the twin (never landed where it has none)."""
+    p = (info.get("predicted") or {}).get("refined")
+    return p if p else dict(rest_offset_m=float("inf"), residual_oscillation_m=float("inf"))
 
 
 def _write(db, r: dict, state: dict, write_refined) -> None:
@@ -223,7 +233,7 @@ def _summary(path, model_where, fingerprint, ids, state, t0, **kw) -> dict:
     cpu = cpu[np.isfinite(cpu)]
     return dict(library=str(path), model=model_where, twin_fingerprint=fingerprint,
                 entries=len(ids), refined=state["written"], skipped_existing=state["skipped"],
-                with_swing=state["swing"],
+                with_swing=state["swing"], energy_pairs=state.get("pairs"),
                 statuses=state["counts"], failed=state["failed"],
                 cpu_per_entry_s=dict(median=float(np.median(cpu)) if cpu.size else None,
                                      p90=float(np.percentile(cpu, 90)) if cpu.size else None),

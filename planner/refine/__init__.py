@@ -126,7 +126,9 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   above that, the move is refined plain as well and the commands nearer to landed kept
   (``predicted["fallback"]`` says which): on part 0 of the 400-entry run 5 of 50 priced
   entries rang 5.1–7.3 mm or rested 27 mm off on the twin as on Exudyn, three of which the
-  plain refinement lands.
+  plain refinement lands. In a library, an energy entry that then costs the twin more pump
+  work than its own time entry is refined again with a heavier price
+  (:mod:`planner.library.refine_pairs`).
 
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its

@@ -36,8 +36,9 @@ def score(measures: dict) -> float:
 def predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
              opts, x0=None):
     """Twin measures of commands ``U`` held from ``t_u`` (valves closed after the last), run
-    in full (the integrator's recovery substeps included) over the cost's horizon, with the
-    swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the
+    in full (the integrator's recovery substeps included) over the cost's horizon, and
+    the pump's work over it (``pump_J``, at the shaft: :meth:`Twin.pump_energy
+    <planner.model.twin.Twin.pump_energy>`), with the swing's (:func:`planner.model.twin.pendulum.swing_measures`) when the twin carries the
     load on its link; None when the twin diverges."""
     t_end = traj.t[0] + K * twin.step
     tu = np.append(t_u, t_u[-1] + 1.0 / opts.rate)
@@ -49,6 +50,7 @@ def predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,
         / opts.rate
     q = run.sample(ts)[0]
     out = landing_measures(crane, ts, q, traj, opts.rest_window)
+    out["pump_J"] = twin.pump_energy(run)
     if run.swing is not None:
         from planner.model.twin.pendulum import swing_measures
         out.update(swing_measures(twin.pendulum, run.t, run.swing, traj.t[-1]))

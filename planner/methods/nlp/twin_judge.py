@@ -21,7 +21,8 @@ quasi-static price can ring more than its own time-optimal move, and cost more o
 :func:`twin_pump_energy` replays a plan's valve feed-forward (:func:`planner.feedforward.
 commands`, 50 Hz, the valves closed after the end, ``SETTLE`` s more) on the model's twin
 (:class:`planner.model.twin.Twin`, its valve physics the model's one definition) and integrates
-the pump's work p_s·ΣQ_in, divided by the pump efficiency like ``evaluate().energy_J``. None
+the pump's work p_s·ΣQ_in (:meth:`Twin.pump_energy <planner.model.twin.Twin.pump_energy>`, the
+figure a refinement prices), divided by the pump efficiency like ``evaluate().energy_J``. None
 where the crane has no twin (no ``[dynamics]``, or an enabled transformer) or the run
 diverged.
 """
@@ -33,7 +34,6 @@ import numpy as np
 
 from planner.feedforward import commands
 from planner.model.twin import Twin
-from planner.model.valves import opening, valve_circuit, valve_flows
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -75,11 +75,4 @@ def commands_pump_energy(crane: Crane, t_u, u, q0, t_end: float,
         return None
     tw = twin if twin is not None else Twin(crane)
     run = tw.simulate(np.asarray(t_u, float), np.asarray(u, float), q0, t_end=t_end)
-    if not run.ok:
-        return None
-    vc = valve_circuit(crane)
-    spool = np.vstack([run.spool[1:], run.spool[-1:]])      # the opening in force over a step
-    q_in = valve_flows(vc, run.p_a, run.p_b, run.p_s, opening(vc, spool))["q_in"].sum(axis=1)
-    w = run.p_s * q_in
-    work = float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(run.t)))
-    return work / crane.spec.pump.efficiency
+    return tw.pump_energy(run) if run.ok else None

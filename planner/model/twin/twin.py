@@ -199,6 +199,18 @@ class Twin:
                                                   [w, ca.gradient(w, X)]))
         return f
 
+    def pump_energy(self, run: TwinRun) -> float:
+        """The pump's work at the shaft [J] over ``run`` (one of this twin's runs): ∫ p_s·Σ q_in
+        dt by the trapezoid on the run's steps, the meter-in flows those of this twin's
+        valves (:meth:`pump_power`, what a refinement's price integrates), divided by the
+        pump efficiency as ``evaluate().energy_J`` is."""
+        X = np.column_stack([run.q, run.qd, run.p_a, run.p_b, run.p_s, run.spool])
+        if X.shape[1] < self.stepper.nx:      # the grapple's swing: not in the pump's power
+            X = np.hstack([X, np.zeros((X.shape[0], self.stepper.nx - X.shape[1]))])
+        w = np.asarray(self.pump_power()(X, np.asarray(self.P, float)[None, :])[0]).ravel()
+        work = float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(run.t))) if w.size > 1 else 0.0
+        return work / self.crane.spec.pump.efficiency
+
     def provenance(self) -> dict:
         """Which twin this is: the machine, its spec file, a fingerprint (sha256, 16 hex) of
         everything that decides a run (the parameter vector, the rigid bodies, the payload,

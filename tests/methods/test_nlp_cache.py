@@ -46,7 +46,12 @@ def test_a_stored_solver_gives_the_same_numbers(umea_lab, cache_dir):
     assert np.array_equal(res.trajectory.q, ref.trajectory.q)
     # the loaded layout serves the numeric bookkeeping
     assert loaded.layout.nw == built.layout.nw == len(loaded.lbw)
-    # energy: the NLP's own energy estimate comes from the stored function too
+
+
+@pytest.mark.slow   # a second compiled solver (~4 s): make bench
+def test_a_stored_energy_solver_gives_the_same_energy(umea_lab, cache_dir):
+    """The NLP's own energy estimate comes from the stored function too."""
+    ref, _ = _own_solution(MoveNLP(umea_lab, "time", "free", N=N, cache="off"))
     e_off = MoveNLP(umea_lab, "energy", "free", N=N, cache="off")
     e_on = MoveNLP(umea_lab, "energy", "free", N=N, cache="build")
     a = e_off.solve(START, GOAL, T_max=1.2 * ref.duration_s)

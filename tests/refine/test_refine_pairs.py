@@ -21,7 +21,7 @@ from planner.refine import RefineOptions
 from planner.refine.measures import score
 
 # without the landing-first fallback: the energy entry keeps its priced refinement
-OPTS = RefineOptions(iterations=6, settle=0.5, rest_window=0.5, calm=0.0, fallback_above=0.0)
+OPTS = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, calm=0.0, fallback_above=0.0)
 
 
 def _pump(crane, db, i):

@@ -16,7 +16,7 @@ import numpy as np
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["log_state", "on_stroke_end", "END_BAND"]
+__all__ = ["log_state", "on_stroke_end", "agrees_over_window", "END_BAND"]
 
 
 def log_state(rec, k: int, samples: int = 9) -> dict:
@@ -63,3 +63,23 @@ def on_stroke_end(crane: Crane, q_log, q_twin, sig_q) -> np.ndarray:
         log_end = (x_l <= ends[:, 0] + tol) | (x_l >= ends[:, 1] - tol)
         twin_end = (x_t <= ends[:, 0] + END_BAND) | (x_t >= ends[:, 1] - END_BAND)
     return log_end & twin_end
+
+
+def agrees_over_window(rec, k0: int, run, sig_p, vented, window: float = 0.2) -> np.ndarray:
+    """Per joint: a twin run carried up to sample ``k0`` of ``rec`` and the log agree on the
+    chamber pressures over the ``window`` [s] before it — the mean of log − twin over the
+    window's samples within 3 σ/√m on both chambers (``sig_p``: the noise of the p_a then the
+    p_b channels; a ``vented`` rod side always agrees): the same ringing, sample by sample,
+    where the window's *average* differs from either at the cut
+    (:meth:`planner.calibration.twin_fit.TwinFit.start_state`)."""
+    n = len(vented)
+    ts = rec.t[max(int(np.searchsorted(rec.t, rec.t[k0] - window)), 0):k0 + 1]
+    ts = ts[ts >= run.t[0] - 1e-9]
+    if ts.size == 0:
+        return np.zeros(n, bool)
+    _, pa, pb, _ = run.sample(ts)
+    k = int(np.searchsorted(rec.t, ts[0] - 1e-9))
+    da = np.mean(rec.p_a[k:k + ts.size] - pa, axis=0)
+    db = np.mean(rec.p_b[k:k + ts.size] - pb, axis=0)
+    e = 3.0 * np.asarray(sig_p, float) / np.sqrt(ts.size)
+    return (np.abs(da) <= e[:n]) & ((np.abs(db) <= e[n:]) | np.asarray(vented, bool))

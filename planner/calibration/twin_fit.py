@@ -29,9 +29,10 @@ previous segment (its pressures, velocities, pump and spools), and only the posi
 re-anchored; the test is per joint (both chambers quiet, else both carried: the rod side
 swings by the piston side's swing times the area ratio and may pass it alone). A chamber
 ringing by less than twice its noise passes that test, yet its window average is still not its
-value at the cut: so a joint whose averages lie within their noise and 1.5 × their spread of
-the twin's carried pressures keeps those (on s100f's clean seed-1001 log, Exudyn, noiseless
-anchors: 1.2 σ RMS left on ``p_slew_b``, 1.8–2.0 over the last segment; with the rule 0.99).
+value at the cut: so a joint whose logged chambers agree with the twin's carried run over the
+window, sample by sample (:func:`~planner.calibration.log_state.agrees_over_window`), keeps the
+twin's pressures (s100f's clean seed-1001 log, Exudyn: ``p_slew_b`` 1.27 → 0.99 σ held out,
+2.0–2.25 → 0.9 over the last segment, against a test of the window *average*).
 No pressures: the model's holding pressures (or the carried state). No holds: one segment.
 
 **Windows (the first stage).** A long segment simulated open loop from one start makes a
@@ -97,7 +98,7 @@ import time
 import numpy as np
 
 from planner.calibration.log_segments import Segment, segments, windows
-from planner.calibration.log_state import log_state, on_stroke_end
+from planner.calibration.log_state import agrees_over_window, log_state, on_stroke_end
 from planner.calibration.noise import channel_noise
 from planner.calibration.twin_params import machine_of, select, twin_parameters
 from planner.calibration.twin_result import UNIDENTIFIED, TwinFitResult, intervals
@@ -264,9 +265,8 @@ class TwinFit:
             end = on_stroke_end(self.crane, s.q0, run.q[-1], self.sig[s.rec][0])
             x0[:n][end] = run.q[-1][end]
             if self.use_p and s.p_a0 is not None:
-                e = 3.0 * self.sig[s.rec][1] / np.sqrt(self.history(self.recs[s.rec], 0.2) - 1)
-                end |= ((np.abs(s.p_a0 - run.p_a[-1]) <= e[:n] + 1.5 * s.sd_a)
-                        & ((np.abs(s.p_b0 - run.p_b[-1]) <= e[n:] + 1.5 * s.sd_b) | self.vented))
+                end |= agrees_over_window(self.recs[s.rec], s.k0, run, self.sig[s.rec][1],
+                                          self.vented)
         else:
             end = np.zeros(n, bool)
         if self.use_p and s.p_a0 is not None:

@@ -57,16 +57,28 @@ def _lab_last_segment():
     return crane.n, fit, fit.segs[-1], fit.sig[0][1]
 
 
+def _carried(fit, seg, p_a, p_b, qd=0.0):
+    """A twin run carried up to the segment's start over its anchor window: pressures
+    ``p_a``, ``p_b`` (window samples × n, or one row held), velocity ``qd``."""
+    from planner.model.twin import TwinRun
+    n, rec = len(seg.q0), fit.recs[seg.rec]
+    t = rec.t[int(np.searchsorted(rec.t, rec.t[seg.k0] - 0.3)):seg.k0 + 1]
+    m = len(t)
+
+    def rows(a):
+        return np.broadcast_to(np.asarray(a, float), (m, n)).copy()
+    return TwinRun(t=t, q=rows(seg.q0), qd=rows(qd), p_a=rows(p_a), p_b=rows(p_b),
+                   p_s=np.full(m, 9.0e6), spool=np.zeros((m, n)), u=np.zeros((m, n)),
+                   newton=np.zeros(m - 1))
+
+
 def test_a_joint_ringing_in_one_chamber_keeps_both_chambers_carried():
     n, fit, seg, sp = _lab_last_segment()
     # joint 0: the piston side rings (3 σ of spread), the rod side passes (0.5 σ);
     # joint 1: both chambers quiet
     seg.sd_a, seg.sd_b = 0.5 * sp[:n].copy(), 0.5 * sp[n:].copy()
     seg.sd_a[0] = 3.0 * sp[0]
-    carried = SimpleNamespace(q=seg.q0[None].copy(), qd=np.full((1, n), 0.01),
-                              p_a=np.full((1, n), 7.0e6),
-                              p_b=np.full((1, n), 3.0e6), p_s=np.array([9.0e6]),
-                              spool=np.zeros((1, n)))
+    carried = _carried(fit, seg, np.full(n, 7.0e6), np.full(n, 3.0e6), qd=0.01)
     x0 = fit.start_state(fit.twin({}), seg, (seg.rec, seg.k0, carried))
     p_a0, p_b0 = x0[2 * n:3 * n], x0[3 * n:4 * n]
     assert p_a0[0] == 7.0e6 and p_b0[0] == 3.0e6      # both from the carried run
@@ -154,21 +166,27 @@ def test_friction_candidates_reach_the_catalogues_largest_trial(machine):
             assert p.to_value(p.z_bounds[1]) >= need, (j, kind)
 
 
-def test_quiet_chambers_that_agree_with_the_twin_keep_the_twins_own_pressures():
+def test_chambers_that_ring_with_the_twin_over_the_window_keep_the_twins_own_pressures():
     """A chamber ringing by less than twice its noise passes as quiet, but its window average
-    is not its value at the cut: where the averages lie within their noise (and 1.5 × their
-    spread) of the twin's carried pressures, the carried ones start the segment; a joint the
-    log contradicts (10 MPa off) starts from the log."""
+    is not its value at the cut: where the logged chambers follow the twin's carried run
+    over the window sample by sample (their mean difference within 3 σ/√m), the run's
+    pressures at the cut start the segment — here the run rings at 0.7 Hz with 1.5 σ about
+    the log's samples, 0.5 σ off them, so its value at the cut is not the window's average;
+    a joint the log contradicts (its run 10 MPa off) starts from the log."""
     n, fit, seg, sp = _lab_last_segment()
+    rec = fit.recs[seg.rec]
     seg.sd_a, seg.sd_b = 0.5 * sp[:n].copy(), 0.5 * sp[n:].copy()     # all quiet
-    near_a = seg.p_a0 + 0.5 * sp[:n]                  # within the noise of the averages
-    near_b = seg.p_b0 - 0.5 * sp[n:]
-    near_a[1] += 10e6                                  # joint 1: the log contradicts it
-    carried = SimpleNamespace(q=seg.q0[None].copy(), qd=np.zeros((1, n)),
-                              p_a=near_a[None], p_b=near_b[None], p_s=np.array([9.0e6]),
-                              spool=np.zeros((1, n)))
-    x0 = fit.start_state(fit.twin({}), seg, (seg.rec, seg.k0, carried))
+    t = rec.t[int(np.searchsorted(rec.t, rec.t[seg.k0] - 0.3)):seg.k0 + 1]
+    k = np.searchsorted(rec.t, t[0])
+    ring = 1.5 * np.sin(2 * np.pi * 0.7 * t)[:, None]
+    rec.p_a[k:seg.k0 + 1] += ring * sp[:n]             # the log rings, the run with it
+    rec.p_b[k:seg.k0 + 1] -= ring * sp[n:]
+    run_a = rec.p_a[k:seg.k0 + 1] + 0.5 * sp[:n]
+    run_b = rec.p_b[k:seg.k0 + 1] - 0.5 * sp[n:]
+    run_a[:, 1] += 10e6                                # joint 1: the log contradicts it
+    x0 = fit.start_state(fit.twin({}), seg, (seg.rec, seg.k0, _carried(fit, seg, run_a, run_b)))
     p_a0, p_b0 = x0[2 * n:3 * n], x0[3 * n:4 * n]
     keep = np.arange(n) != 1
-    np.testing.assert_array_equal(p_a0[keep], near_a[keep])
+    np.testing.assert_allclose(p_a0[keep], run_a[-1, keep])
+    np.testing.assert_allclose(p_b0[keep], run_b[-1, keep])
     assert p_a0[1] == seg.p_a0[1] and p_b0[1] == seg.p_b0[1]

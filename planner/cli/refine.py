@@ -20,7 +20,8 @@ def cmd_library_refine(args):
     try:
         opts = RefineOptions(iterations=args.iterations, tail=args.tail,
                              energy_weight=args.energy_weight,
-                             energy_entries=args.energy_entries)
+                             energy_entries=args.energy_entries,
+                             time_entries=args.time_entries)
     except ValueError as e:
         raise CLIError(str(e).replace("refine option 'iterations'", "--iterations")
                        .replace("refine option 'tail'", "--tail")
@@ -128,6 +129,7 @@ def _rerun(args) -> str:
     words += ["--energy-weight", str(args.energy_weight)] if args.energy_weight else []
     words += (["--energy-entries", args.energy_entries] if args.energy_entries != "priced"
               else [])
+    words += ["--time-entries", args.time_entries] if args.time_entries != "priced" else []
     words += ["--swing-weight", f"{args.swing_weight:g}"] if args.swing_weight is not None \
         else []
     words += ["--model", args.model] if args.model else []
@@ -164,6 +166,11 @@ def add_refine_parser(lsub) -> None:
                         "again with the price x3, then x10, and the first that is cheaper "
                         "and lands as well kept, else it is named costlier) or 'plain' "
                         "(refined as time entries are)")
+    p.add_argument("--time-entries", choices=("priced", "plain"), default="priced",
+                   help="entries planned for least time: 'priced' (default: their pump work "
+                        "in the cost too — weight --energy-weight, else 10 — so that landing "
+                        "does not cost the pump more than it must) or 'plain' (tracking and "
+                        "landing only)")
     p.add_argument("--swing-weight", type=float, metavar="W",
                    help="entries planned with a grapple (library build --grapple): the weight "
                         "of the load's swing after the plan's end, refined on the twin that "

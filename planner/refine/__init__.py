@@ -128,7 +128,8 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   entries rang 5.1–7.3 mm or rested 27 mm off on the twin as on Exudyn, three of which the
   plain refinement lands. In a library, an energy entry that then costs the twin more pump
   work than its own time entry is refined again with a heavier price
-  (:mod:`planner.library.refine_pairs`).
+  (:mod:`planner.library.refine_pairs`). **Time entries** are priced too, lighter
+  (``time_entries``: :mod:`planner.refine.bounds`).
 
 The pump's flow limit and its starvation, the spool lag and dead band, the joint ends are in
 the twin, so the refined commands respect them as the twin sees them. The result carries its
@@ -151,8 +152,9 @@ import numpy as np
 
 from planner.landing import landing_measures, tip_levers
 from planner.model.valves import past_deadband, within_deadband
-from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, closed_valves,
-                                   command_bounds, for_objective)
+from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, TIME_ENTRIES,
+                                   TIME_ENTRY_WEIGHT, closed_valves, command_bounds,
+                                   for_objective)
 from planner.refine.cost import CommandCost
 from planner.refine.measures import horizon as _horizon, predict as _predict, score as _score
 from planner.refine.solve import Solved, minimize_commands
@@ -170,7 +172,8 @@ SWING_WEIGHT = 10.0
 
 __all__ = ["RefineOptions", "RefineStatus", "Refinement", "refine_commands", "landing_measures",
            "tip_levers", "refine_cycle", "after_move", "closed_valves", "command_bounds",
-           "for_objective", "ENERGY_ENTRIES", "ENERGY_ENTRY_WEIGHT",
+           "for_objective", "ENERGY_ENTRIES", "ENERGY_ENTRY_WEIGHT", "TIME_ENTRIES",
+           "TIME_ENTRY_WEIGHT",
            "SWING_WEIGHT"]
 
 
@@ -219,6 +222,7 @@ class RefineOptions:
     idle_reverse: float = 0.05
     fallback_above: float = 4e-3
     energy_entries: str = "priced"
+    time_entries: str = "priced"
     lead: float = 0.3
     idle: float = 1e-3
     restarts: bool = True
@@ -246,9 +250,10 @@ class RefineOptions:
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
-        if self.energy_entries not in ENERGY_ENTRIES:
-            raise ValueError(f"refine option 'energy_entries' = {self.energy_entries!r}; "
-                             f"allowed: {', '.join(ENERGY_ENTRIES)}")
+        for name, allowed in (("energy_entries", ENERGY_ENTRIES), ("time_entries", TIME_ENTRIES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"refine option '{name}' = {getattr(self, name)!r}; "
+                                 f"allowed: {', '.join(allowed)}")
         for name in ("keep_closed", "keep_direction", "restarts"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"refine option '{name}' = {getattr(self, name)!r}; allowed: "

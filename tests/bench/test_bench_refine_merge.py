@@ -72,7 +72,8 @@ def test_options_that_only_touch_energy_entries_may_differ_between_time_parts():
     md = bench_refine.markdown(rep)   # one row per objective beside the whole
     assert "| refined, energy entries | 1 of 1 (100 %)" in md
     assert "| refined, time entries | 2 of 2 (100 %)" in md
-    assert "the time entries differ in {'energy_weight': 0.0, 'keep_direction': False}" in md
+    assert ("the time entries differ in {'energy_weight': 0.0, 'keep_direction': False, "
+            "'time_entries': 'plain'}") in md
     # a part from before energy entries were priced refined them plain
     e0 = _part("--offset 4", [_energy(_row("c:energy", 0.002))], options=dict(iterations=150))
     with pytest.raises(ValueError, match="energy entries of the run '--offset 4'"):

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from planner.model.twin import Twin
-from planner.refine import (ENERGY_ENTRY_WEIGHT, RefineOptions, command_bounds, for_objective,
-                             refine_commands)
+from planner.refine import (ENERGY_ENTRY_WEIGHT, TIME_ENTRY_WEIGHT, RefineOptions,
+                            command_bounds, for_objective, refine_commands)
 from planner.refine.solve import minimize_commands
 
 RATE = 50.0
@@ -120,9 +120,15 @@ def test_refined_commands_keep_the_nominal_direction_on_the_twin(umea_move):
     assert one_way == crane.n      # a rest-to-rest move: every joint one way
 
 
-def test_an_energy_move_is_refined_priced_and_a_time_move_as_given():
+def test_an_energy_move_is_refined_priced_and_a_time_move_priced_lighter():
     o = RefineOptions(iterations=7)
-    assert for_objective(o, "time") is o and for_objective(o, None) is o
+    assert for_objective(o, None) is o
+    t = for_objective(o, "time")
+    assert t.energy_weight == TIME_ENTRY_WEIGHT < ENERGY_ENTRY_WEIGHT
+    assert not t.keep_direction and t.iterations == 7
+    assert for_objective(RefineOptions(energy_weight=5.0), "time").energy_weight == 5.0
+    plain_t = RefineOptions(time_entries="plain")
+    assert for_objective(plain_t, "time") is plain_t
     e = for_objective(o, "energy")
     assert e.keep_direction and e.energy_weight == ENERGY_ENTRY_WEIGHT and e.iterations == 7
     assert for_objective(RefineOptions(energy_weight=5.0), "energy").energy_weight == 5.0

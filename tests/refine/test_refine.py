@@ -22,7 +22,7 @@ from planner.library.store import LibraryStore
 from planner.methods.ruckig import rest_to_rest
 from planner.model.twin import Twin
 from planner.model.twin.shooting import Shooting
-from planner.refine import RefineOptions, RefineStatus, refine_commands
+from planner.refine import TIME_ENTRY_WEIGHT, RefineOptions, RefineStatus, refine_commands
 from tests.conftest import check_adjoint, step_commands
 
 MACHINE = "umea-lab"   # the lightest twin: the compiled adjoint builds quickest
@@ -522,10 +522,11 @@ def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib,
     assert len(r.stderr.splitlines()) == 1
 
 
-def test_library_refine_prices_the_energy_entries_and_not_the_time_entries(crane, tmp_path):
+def test_library_refine_prices_the_energy_entries_heavier_than_the_time_entries(crane, tmp_path):
     """An entry planned for least energy is refined with its pump work in the cost and its
-    joints kept to their directions (planner.refine.for_objective); a time entry as before;
-    ``energy_entries="plain"`` refines both alike. The options each used are stored."""
+    joints kept to their directions (planner.refine.for_objective); a time entry with its
+    pump work priced lighter, its directions free; ``energy_entries="plain"`` and
+    ``time_entries="plain"`` refine both alike. The options each used are stored."""
     path = tmp_path / "lib.h5"
     tr = _move(crane, 0.35, 0.6)
     with LibraryStore.create(path, crane.spec) as db:
@@ -535,12 +536,16 @@ def test_library_refine_prices_the_energy_entries_and_not_the_time_entries(crane
     opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, calm=0.0)
     refine_library(path, options=opts, show_progress=False)
     with LibraryStore.open(path) as db:
-        used = {i: read_refined(db, i)[2]["options"] for i in ("m0:time", "m0:energy")}
-    assert used["m0:time"]["keep_direction"] is False and used["m0:time"]["energy_weight"] == 0
+        # the library's options (an energy entry refined again by the pair check keeps
+        # them under "pair", planner.library.refine_pairs)
+        used = {i: (read_refined(db, i)[2].get("pair") or read_refined(db, i)[2])["options"]
+                for i in ("m0:time", "m0:energy")}
+    assert used["m0:time"]["keep_direction"] is False
+    assert used["m0:time"]["energy_weight"] == TIME_ENTRY_WEIGHT
     assert used["m0:energy"]["keep_direction"] is True
     assert used["m0:energy"]["energy_weight"] == 30.0
     # plain: the energy entry refined as the time entry is (a rerun refines it again)
-    s = refine_library(path, options=replace(opts, energy_entries="plain"),
+    s = refine_library(path, options=replace(opts, energy_entries="plain", time_entries="plain"),
                        show_progress=False)
     assert s["refined"] == 2
     with LibraryStore.open(path) as db:

@@ -20,8 +20,10 @@ from planner.methods.ruckig import rest_to_rest
 from planner.refine import RefineOptions
 from planner.refine.measures import score
 
-# without the landing-first fallback: the energy entry keeps its priced refinement
-OPTS = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, calm=0.0, fallback_above=0.0)
+# without the landing-first fallback: the energy entry keeps its priced refinement; the time
+# entry refined for tracking alone
+OPTS = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, calm=0.0, fallback_above=0.0,
+                     time_entries="plain")
 
 
 def _pump(crane, db, i):

@@ -122,7 +122,8 @@ def test_library_refine_resumes_with_identical_results(lib, tmp_path):
     """A refine stopped after the first entry and rerun gives the file an uninterrupted run
     gives; a rerun with the same twin and options skips every entry."""
     import shutil
-    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5)
+    # the resume, not the price: time entries refined plain (one refinement each)
+    opts = RefineOptions(iterations=2, settle=0.5, rest_window=0.5, time_entries="plain")
     whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
     shutil.copy(lib, whole)
     shutil.copy(lib, part)
@@ -158,7 +159,8 @@ def test_library_refine_calms_the_load_of_an_entry_planned_with_a_grapple(tmp_pa
             db.add(f"m{k}:time", tr, start=crane.tip(tr.q[0]), goal=crane.tip(tr.q[-1]),
                    objective="time", method="ruckig", status="ok",
                    attrs=dict(grapple_m=0.5) if k == 0 else {})
-    opts = RefineOptions(calm=0.0, iterations=4, settle=1.0, rest_window=0.5)
+    opts = RefineOptions(calm=0.0, iterations=4, settle=1.0, rest_window=0.5,
+                         time_entries="plain")    # the swing, not the price
     s = refine_library(path, options=opts, show_progress=False)
     assert (s["refined"], s["with_swing"]) == (2, 1)
     with LibraryStore.open(path) as db:
@@ -487,7 +489,8 @@ def test_library_refine_cycle_resumes_and_refuses_entries_that_do_not_chain(lib,
 
     from planner.library.cycle import refine_cycle_library
     from planner.library.refined import GROUP
-    opts = RefineOptions(calm=0.0, iterations=2, settle=0.5, rest_window=0.5)
+    opts = RefineOptions(calm=0.0, iterations=2, settle=0.5, rest_window=0.5,
+                         time_entries="plain")    # the chaining, not the price
     whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
     shutil.copy(lib, whole)
     s = refine_cycle_library(whole, ["m0:time", "m1:time"], gap=0.5, options=opts)

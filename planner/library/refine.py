@@ -19,8 +19,8 @@ import signal
 import time as _time
 from contextlib import nullcontext
 from dataclasses import asdict, replace
-from typing import TYPE_CHECKING
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
+
 
 def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str, arrays: dict,
                 options: dict, grapple: tuple | None = None) -> dict:

@@ -7,12 +7,14 @@ from typing import TYPE_CHECKING
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from planner.calibration.twin_params import TwinParameter, twin_parameters
 
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["KINDS", "TwinEffect", "twin_candidates"]
+__all__ = ["KINDS", "LEAST", "TwinEffect", "twin_candidates"]
 
 #: candidate name -> (per joint, reported parameter) (module doc)
 KINDS = {
@@ -22,6 +24,19 @@ KINDS = {
     "spool_lag": (False, "tau"), "pump_lag": (False, "tau"), "flow_gain": (True, "scale"),
     "payload_mass": (False, "mass"), "pump_flow_limit": (False, "scale"),
     "time_delay": (False, "delay")}
+
+
+#: the least change of each kind the diagnosis names (twin_diagnosis's module doc, "Tolerance"):
+#: assumed, an order below the smallest realistic effect the catalogue's trials draw
+#: (``Effect.trial_range``) and within a spec number's own precision. Scale factors (bulk
+#: modulus, hose volume, flow gain, pump flow): 1 % of the spec's value (trials: a flow gain
+#: 5–20 % off, a pump 15–40 % short, the oil × 0.3–0.6); Coulomb friction: the force of
+#: 25 kPa on the actuator's smaller area (trials ≥ 150 kPa); viscous friction: 50 kPa at full
+#: speed (trials 0.3–1 MPa); leakage: 0.05 mm/s of drift at 10 MPa (trials 0.5–2 mm/s); a
+#: dead band 1 % of the command range (trials 8–20 %); a lag or delay 5 ms (trials ≥ 60 ms);
+#: a payload 1 % of the spec's load + tool (at least 0.1 kg; trials ≥ 30 %).
+LEAST = {"scale": 0.01, "coulomb_pressure": 25e3, "viscous_pressure": 50e3,
+         "leak_speed": 0.05e-3, "deadband": 0.01, "time": 0.005, "payload_share": 0.01}
 
 
 @dataclass(frozen=True)
@@ -50,6 +65,31 @@ class TwinEffect:
 
     def to_dict(self) -> dict:
         return dict(name=self.name, joint=self.joint, **self.values)
+
+    def size(self, crane: Crane) -> float:
+        """The change from the spec's value in units of the least change worth naming
+        (:data:`LEAST`): below 1 the candidate is within the twin's tolerance."""
+        par = self.param
+        v, v0 = par.to_value(self.z), par.nominal
+        name = self.name
+        if name in ("bulk_modulus", "hose_volume", "flow_gain", "pump_flow_limit"):
+            return abs(v / v0 - 1.0) / LEAST["scale"]
+        if name in ("spool_lag", "pump_lag", "time_delay"):
+            return abs(v - v0) / LEAST["time"]
+        if name == "valve_deadband":
+            return abs(v - v0) / LEAST["deadband"]
+        if name == "payload_mass":
+            return abs(v - v0) / (LEAST["payload_share"] * max(v0, 10.0))
+        a = crane.spec.joints[list(crane.names).index(self.joint)].actuator
+        area = min(a.area_a, a.area_b)         # rotary: the motor's displacement [m³/rad]
+        if name == "coulomb_friction":
+            return abs(v - v0) / (LEAST["coulomb_pressure"] * area)
+        if name == "viscous_friction":
+            v_full = a.flow_gain / area if np.isfinite(a.flow_gain) else 1.0
+            return abs(v - v0) * v_full / area / LEAST["viscous_pressure"]
+        if name == "leakage":                   # the drift of the loaded chamber at 10 MPa
+            return abs(v - v0) * 1e7 / a.area_a / LEAST["leak_speed"]
+        raise ValueError(f"candidate {name!r}: no least size (allowed: {', '.join(KINDS)})")
 
     @property
     def key(self) -> tuple:

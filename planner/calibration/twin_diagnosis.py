@@ -47,15 +47,15 @@ the moving averages, then within ±10 % on the samples, as the raw misfit has on
 per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
 workflow scores (score = J_nominal − J_fit − k·ln n, :attr:`threshold` 30).
 
-**Tolerance.** The twin is a model of the machine, not the machine: on a clean 30 s log a
-few candidates win the held-out score at sizes no engineer would act on (a stick's flow gain
-× 1.0012, the oil × 1.0006, a boom leaking 0.02 mm/s at 10 MPa — cat215b and s100f, Exudyn,
-benchmarks/results/discrepancy_twin_fresh2.md), the structural differences between two
-implementations of the same physics. A fit whose change from the spec is below the least
-size worth naming (:data:`planner.calibration.twin_candidates.LEAST`, an order below the
-smallest realistic effect) is never named; the best such fit that scores is *the twin within
-tolerance*: the other fits are scored against it (their score less its score) and the
-verdict reads the residual left after it in place of the spec's.
+**Stroke ends** (:mod:`planner.calibration.ends`, as the quasi-static workflow): rows where
+the twin at the spec's values lies within 3 position-noise σ of an end stop are out of the fit,
+the scores and the verdict (the prediction there is the log): a landing on the stop a few ms
+off the twin's leaves the whole decelerating force for a sample (s100f, Exudyn: one 14.7 σ
+sample left a −519 kg payload `unexplained`; with the rule it is named at −518.8 kg).
+
+**Tolerance** (:data:`planner.calibration.twin_candidates.LEAST`, that module's doc): a fit
+below the least size worth naming is never named; the best such fit that scores is the twin
+within tolerance — the others are scored against it, the verdict reads the residual after it.
 
 **Verdict**: :func:`planner.calibration.verdict.judge` with the same
 :class:`~planner.calibration.verdict.Evidence`, noise bounds, ``TIE_Z`` and credibility tests
@@ -72,6 +72,7 @@ import time as _time
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from planner.calibration.ends import near_stroke_end
 from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
                                         check_recording, verdict_fields)
 from planner.calibration.signature import signature_text
@@ -223,9 +224,16 @@ class TwinDiagnosis:
         self.Y = np.hstack(Y)
         block = np.floor((self.t - rec.t[0]) / self.block_s).astype(int)
         self.train, self.test = block % 2 == 0, block % 2 == 1
-        pb.fit_rows = self.train
         self.z_nom = np.array([c.z for c in self.cands])
         self._cache = {}
+        # no claim near a stroke end (planner.calibration.ends, as the quasi-static workflow):
+        # the rows where the twin at the spec's values lies within 3 σ of an end stop are
+        # out of the fit, the held-out scores and the verdict
+        pb.fit_rows, self.near = self.train, None
+        self.near = near_stroke_end(crane, self.predict(())[:, :n], sq)
+        self.train, self.test = self.train & ~self.near, self.test & ~self.near
+        pb.fit_rows = self.train
+        self._cache = {}        # the anchors' position errors now from the rows kept
 
     def predict(self, effects=()) -> np.ndarray:
         """Twin channels (rows × channels) with ``effects`` (TwinEffects) on."""
@@ -236,7 +244,10 @@ class TwinDiagnosis:
             for e in effects:
                 z[names.index(e.param.name)] = e.z
             self.pb.mask = None
-            self._cache[key] = self.Y + self.pb.matrix(z) * self.sig
+            Yp = self.Y + self.pb.matrix(z) * self.sig
+            # near a stroke end the twin makes no claim: the log itself (no residual there)
+            self._cache[key] = Yp if self.near is None else np.where(self.near[:, None],
+                                                                     self.Y, Yp)
         return self._cache[key]
 
     def _J(self, Yp, mask) -> float:

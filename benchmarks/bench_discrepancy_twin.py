@@ -225,7 +225,9 @@ def markdown(rep) -> list:
          f"{n_m} machines, {rep['wall_s'] / 60:.1f} min). The truth: the Exudyn plant replaying "
          "the trials' test sequence open loop, seed 001's sensor noise; the diagnosis: "
          "`discrepancy --model twin` (planner/calibration/twin_diagnosis.py), the quasi-static "
-         "workflow's verdict rules and thresholds.", "",
+         "workflow's verdict rules, thresholds and stroke-end rule, and the twin's tolerance "
+         "(a fit below the least size worth naming is never named: twin_candidates.LEAST)."
+         + (f" Code: commit {rep['commit']}." if rep.get("commit") else ""), "",
          "| measure | result | target (issue 28) |", "| --- | ---: | ---: |",
          f"| hidden effect: named right or a tie with it | {ok} of {len(hid)} | ≥ 90 % |",
          f"| hidden effect: confidently wrong (named another) | {wrong} of {len(hid)} | ≤ 3 % |",
@@ -241,7 +243,7 @@ def markdown(rep) -> list:
     L += ["", "## Reading", "",
           f"The twin's best single-effect fit is the hidden effect on its joint in {best} of "
           f"{len(hid)} hidden cases, and it names a wrong effect in {wrong} of {len(hid)}; "
-          f"{near} right fits are judged `not credible` by the unchanged rules (the residual "
+          f"{near} right fits are judged `not credible` by the rules (the residual "
           "left after them is not noise). The diagnosis re-anchors each segment as "
           "`calibrate` does (TwinFit: a joint ringing through a hold keeps the twin's own "
           "state, both chambers; the diagnosis keeps its position too)" + (

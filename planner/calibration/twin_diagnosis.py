@@ -41,17 +41,17 @@ step per candidate ranks them by the training misfit it would remove. Only the b
 :attr:`TwinDiagnosis.fits`, the oil, and the hose volume whose moving-averaged misfit falls
 most at ×0.25 … 4 (:data:`PROBE`: a hose, as the oil, rings in another phase when far off,
 and the step from the spec's value misranks it) are fitted nonlinearly on the training rows: a
-scan of the parameter's range with the spec's value and the Gauss–Newton step, then a bounded
-scalar search between the best point's neighbours (the bulk modulus and a hose volume first on
-the moving averages, then within ±10 % on the samples, as the raw misfit has one narrow valley
-per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
+scan of the parameter's range (log: 9 factors; linear: 17 points) with the spec's value and
+the Gauss–Newton step (a linear valley can be 2.5 % of the range: s100f's jib dead band), then a
+bounded scalar search between the best point's neighbours (the bulk modulus and a hose volume
+first on the moving averages, then within ±10 % on the samples, as the raw misfit has one
+narrow valley per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
 workflow scores (score = J_nominal − J_fit − k·ln n, :attr:`threshold` 30).
 
-**Stroke ends** (:mod:`planner.calibration.ends`, as the quasi-static workflow): rows where
-the twin at the spec's values lies within 3 position-noise σ of an end stop are out of the fit,
-the scores and the verdict (the prediction there is the log): a landing on the stop a few ms
-off the twin's leaves the whole decelerating force for a sample (s100f, Exudyn: one 14.7 σ
-sample left a −519 kg payload `unexplained`; with the rule it is named at −518.8 kg).
+**Stroke ends** (:mod:`planner.calibration.ends`, as the quasi-static workflow): rows where the
+twin at the spec lies within 3 position σ of an end stop are out of the fit, scores and verdict
+(the prediction there is the log): a landing a few ms off the twin's leaves the decelerating
+force for a sample (s100f, Exudyn: one 14.7 σ sample left a −519 kg payload `unexplained`).
 
 **Tolerance** (:data:`planner.calibration.twin_candidates.LEAST`, that module's doc): a fit
 below the least size worth naming is never named; the best such fit that scores is the twin
@@ -351,7 +351,7 @@ class TwinDiagnosis:
         # within ±10 % of it (the raw misfit's valley of this ringing phase)
         sm = TwinFit.SMOOTH if c.name in ("bulk_modulus", "hose_volume") else 0.0
         grid = ([c.z + math.log(f) for f in self.SCAN] if c.param.log
-                else list(np.linspace(lo, hi, len(self.SCAN))))
+                else list(np.linspace(lo, hi, 2 * len(self.SCAN) - 1)))
         pts = sorted({float(np.clip(g, lo, hi)) for g in grid + [c.z, z_gn]})
         cs = [cost(g, sm) for g in pts]
         b = int(np.argmin(cs))

@@ -58,6 +58,7 @@ def test_hidden_dead_band_is_named_on_its_joint(lab):
     assert res.gap_reduction > 0.8
 
 
+@pytest.mark.slow   # 7 s; the oil is named on 12 of 12 Exudyn recordings (discrepancy_twin_fresh3)
 def test_soft_oil_is_named(lab):
     beta = lab.spec.dynamics.bulk_modulus
     res = diagnose(lab, {"bulk_modulus": 0.5 * beta}, OIL)

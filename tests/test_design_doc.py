@@ -2,7 +2,9 @@
 citation points at a design file outside the repository, the layer table is the one
 tests/test_architecture.py enforces, and every package path the document names exists.
 """
+import os
 import re
+from functools import lru_cache
 from pathlib import Path
 
 from tests.test_architecture import LAYERS
@@ -10,15 +12,26 @@ from tests.test_architecture import LAYERS
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "design.md"
 # a citation: design.md, then (within a few characters of punctuation) the quoted section name
+SKIP = ("build", "demo-output", "__pycache__")
 CITATION = re.compile(r'design\.md[^"\n]{0,20}?"([^"\n]+)"')
 
 
+@lru_cache(maxsize=1)
+def _source_list():
+    """(relative path, text) of every .py and .md file, hidden folders (the virtual
+    environment among them), build outputs and demo output pruned before they are walked."""
+    out = []
+    for top, dirs, files in os.walk(ROOT):
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIP)
+        for f in sorted(files):
+            if f.endswith((".py", ".md")) and not f.startswith("."):
+                p = Path(top) / f
+                out.append((p.relative_to(ROOT), p.read_text(encoding="utf-8")))
+    return tuple(out)
+
+
 def _sources():
-    for p in sorted(ROOT.rglob("*")):
-        rel = p.relative_to(ROOT)
-        if p.suffix in (".py", ".md") and p.is_file() and \
-                not any(x.startswith(".") or x in ("build", "demo-output") for x in rel.parts):
-            yield rel, p.read_text(encoding="utf-8")
+    yield from _source_list()
 
 
 def _sections(text: str) -> set[str]:

@@ -40,7 +40,8 @@ rows (the even blocks of ``block_s`` s, as the quasi-static workflow); a bounded
 step per candidate ranks them by the training misfit it would remove. Only the best
 :attr:`TwinDiagnosis.fits`, the oil, and the hose volume whose moving-averaged misfit falls
 most at ×0.25 … 4 (:data:`PROBE`: a hose, as the oil, rings in another phase when far off,
-and the step from the spec's value misranks it) are fitted nonlinearly on the training rows: a
+and the step from the spec's value misranks it), and the payload where a probe at the same
+factors halves that misfit (it moves the slew's ringing) are fitted nonlinearly on the training rows: a
 scan of the parameter's range (log: 9 factors; linear: 17 points) with the spec's value and
 the Gauss–Newton step (a linear valley can be 2.5 % of the range: s100f's jib dead band), then a
 bounded scalar search between the best point's neighbours (the bulk modulus and a hose volume
@@ -76,12 +77,11 @@ from planner.calibration.ends import near_stroke_end
 from planner.calibration.result import (Candidate, DiscrepancyResult, channel_fields,
                                         check_recording, verdict_fields)
 from planner.calibration.signature import signature_text
-from planner.calibration.twin_fit import TwinFit
 from planner.calibration.twin_candidates import KINDS, TwinEffect, twin_candidates
-from planner.calibration.twin_params import machine_of
+from planner.calibration.twin_fit import TwinFit
+from planner.calibration.twin_problem import DiagnosisProblem
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
 from planner.calibration.where import locate
-from planner.model.twin import Twin
 
 if TYPE_CHECKING:
     from planner.model import Crane
@@ -90,89 +90,17 @@ if TYPE_CHECKING:
 #: the ranking's secant step in the scaled parameter: (linear: one typical size, log: ×1.2)
 SECANT = {False: 1.0, True: 0.2}
 ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
+#: a payload probe must bring the moving-averaged misfit below this share of the spec's to be
+#: fitted besides the ranking's best (a clean log's misfit is noise: no probe halves it)
+PAYLOAD_FALL = 0.5
 #: factors a hose volume is probed at (TwinDiagnosis._probe): √2 apart, as the scan (the
 #: moving-averaged misfit's valley is about ±30 % wide: s100f's jib hoses × 2.85, probed
 #: at × 2 and × 4 only, ranked 0.45 and 0.58 of the spec's misfit, at × 2.83 0.02)
 PROBE = tuple(float(f) for f in np.geomspace(0.25, 4.0, 9) if abs(f - 1.0) > 1e-9)
-ANCHOR_S = 0.2      # [s] the window a segment's start is averaged over (TwinFit's)
 _FD_STEP = 1e-3     # forward-difference step in the scaled parameter (TwinFit's)
 STEP = 1e-3         # [s] the twin's step in the diagnosis (module doc)
 
 __all__ = ["TwinDiagnosis", "TwinEffect", "twin_candidates", "KINDS"]
-
-class _Problem(TwinFit):
-    """:class:`TwinFit` whose parameters are the candidates' (some of them the twin's own
-    inputs rather than spec numbers: hose factor, valve gain, payload, pump flow), its
-    residual optionally restricted to the rows of ``mask`` (the training blocks)."""
-
-    def __init__(self, crane: Crane, rec, params, hold, step, workers):
-        super().__init__(crane, [rec], parameters=["bulk_modulus"], hold=hold, step=step,
-                         workers=workers, anchor="log")
-        self.params = list(params)
-        self.mask = None        # rows the residual vector keeps (None: every row)
-        self.fit_rows = None    # rows the anchors' position errors are estimated on
-
-    def twin(self, values: dict) -> Twin:
-        crane, v = self.crane, dict(values)
-        dyn0 = crane.spec.dynamics
-        gain = np.ones(crane.n)
-        for i, j in enumerate(crane.names):
-            f = v.pop(f"hose.{j}", None)
-            if f is not None:
-                a, b = dyn0.joints[j].hose_volume
-                v[f"hose_a.{j}"] = a * f
-                if crane.spec.joints[i].actuator.acting != "single":   # rod side vented
-                    v[f"hose_b.{j}"] = b * f
-            gain[i] = v.pop(f"gain.{j}", 1.0)
-        payload = v.pop("payload", None)
-        pump = v.pop("pump_flow", 1.0)
-        dyn, db = machine_of(crane, v)
-        return Twin(crane, dynamics=dyn, deadband=db, payload=payload, gain_scale=gain,
-                    pump_scale=pump, step=self.step)
-
-    def start_state(self, tw: Twin, s, carry) -> np.ndarray:
-        """TwinFit's start, except that a joint with a chamber still ringing through the
-        hold (TwinFit's test: a pressure spread over twice its noise) keeps the twin's own
-        carried position too, not only its pressures and velocity: the joint is not at rest,
-        so the hold's average position is not its state at the cut."""
-        x0 = TwinFit.start_state(self, tw, s, carry)
-        if (s.sd_a is None or carry is None or carry[0] != s.rec or carry[1] != s.k0
-                or not self.use_p):
-            return x0
-        n, sp = self.crane.n, self.sig[s.rec][1]
-        ring = (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])
-        x0[:n][ring] = carry[2].q[-1][ring]
-        return x0
-
-    def matrix(self, z) -> np.ndarray:
-        """The scaled residual (model − log) as rows × channels (module doc), each segment's
-        positions shifted by its anchor's error: the mean position residual over the
-        segment's training rows, within the anchor's noise (± 3 σ/√m) — the start pose as a
-        nuisance parameter, as in the quasi-static workflow, bounded by what noise explains."""
-        rq, rp = TwinFit.residuals(self, z, split=True)
-        n = self.crane.n
-        rq = rq.reshape(-1, n).copy()
-        if self.fit_rows is not None:
-            t = self.recs[0].t
-            m = max(int(round(ANCHOR_S / float(t[1] - t[0]))), 1)
-            lim = 3.0 / math.sqrt(m)
-            k = 0
-            for sg in self.segs:
-                rows = slice(k, k + sg.k1 - sg.k0)
-                tr = self.fit_rows[rows]
-                if tr.any():
-                    rq[rows] -= np.clip(rq[rows][tr].mean(axis=0), -lim, lim)
-                k += sg.k1 - sg.k0
-        if not rp.size:
-            return rq
-        P = rp.reshape(-1, 2 * n)     # p_a of every joint, then p_b: interleaved per joint
-        return np.hstack([rq, np.stack([P[:, :n], P[:, n:]], axis=2).reshape(len(P), -1)])
-
-    def residuals(self, z, split: bool = False):
-        if split or self.mask is None:
-            return TwinFit.residuals(self, z, split)
-        return self.matrix(z)[self.mask].ravel()
-
 
 class TwinDiagnosis:
     """The verdict with the twin as the model (module doc). ``fit(recording)`` ->
@@ -208,7 +136,7 @@ class TwinDiagnosis:
     def _prepare(self, rec: Recording) -> None:
         crane, n = self.crane, self.crane.n
         check_recording(rec, n, self.block_s)
-        self.pb = pb = _Problem(crane, rec, [c.param for c in self.cands], self.hold,
+        self.pb = pb = DiagnosisProblem(crane, rec, [c.param for c in self.cands], self.hold,
                                 self.step, self.workers)
         rows = np.concatenate([np.arange(s.k0 + 1, s.k1 + 1) for s in pb.segs])
         self.rows = rows
@@ -284,25 +212,28 @@ class TwinDiagnosis:
         out.sort(key=lambda x: -x[0])
         return out, float(r0 @ r0)
 
-    def _probe(self, kind: str):
+    def _probe(self, kind: str, fall: float = 1.0):
         """The candidate of ``kind`` (at its best probe) whose moving-averaged training misfit
-        falls most at the factors :data:`PROBE` of its spec value, or None when none falls: a
-        hose volume's misfit has one valley per ringing phase, as the oil's, so its
-        Gauss–Newton step from the spec's value can rank it low when it is far off (s100f, the
-        jib's hoses × 2.85 on Exudyn: 7th of the ranking, never fitted, and the log
-        `unexplained`)."""
+        falls most at the factors :data:`PROBE` of its spec value, or None when none falls
+        below ``fall`` × the spec's: a hose volume's misfit has one valley per ringing phase,
+        as the oil's, so its Gauss–Newton step from the spec's value can rank it low when it
+        is far off (s100f, the jib's hoses × 2.85 on Exudyn: 7th of the ranking, never
+        fitted, and the log `unexplained`); so has a payload far off (it moves the slew's
+        inertia and with it the slew's ringing: cat215b on Exudyn with 1297 kg less aboard,
+        nominal misfit 10 M, 7.9 k at the truth — never fitted, `unexplained`)."""
         pb = self.pb
         pb.mask, pb.smooth = self.train, TwinFit.SMOOTH
         best = None
         try:
             r = pb.residuals(self.z_nom)
-            j0 = float(r @ r)
+            j0 = fall * float(r @ r)
             for i, c in enumerate(self.cands):
                 if c.name != kind:
                     continue
                 lo, hi = c.param.z_bounds
                 for f in PROBE:
-                    z = float(np.clip(c.z + math.log(f), lo, hi))
+                    z = float(np.clip(c.z + math.log(f) if c.param.log
+                                      else c.param.to_z(c.param.nominal * f), lo, hi))
                     r = pb.residuals(self._z_with(i, z))
                     if float(r @ r) < j0 and (best is None or float(r @ r) < best[0]):
                         best = (float(r @ r), c.at(z))
@@ -392,9 +323,10 @@ class TwinDiagnosis:
             # so a Gauss-Newton step from the spec's value can rank it low when it is off
             todo += [x for x in ranked_gn[self.n_fits:] if x[1].name in ALWAYS and x[2] > 0]
             # and the hose volume that the probes favour (its ringing phase, as the oil's)
-            hose = self._probe("hose_volume")
-            if hose is not None and hose.param.name not in {x[1].param.name for x in todo}:
-                todo.append((0.0, hose, 1.0))
+            # (and the payload, where a probe halves the misfit: the slew's inertia)
+            for far in (self._probe("hose_volume"), self._probe("payload_mass", PAYLOAD_FALL)):
+                if far is not None and far.param.name not in {x[1].param.name for x in todo}:
+                    todo.append((0.0, far, 1.0))
             names = [x.param.name for x in self.cands]
             for red, c, gg in todo:
                 f = self._fit_one(self.cands[names.index(c.param.name)], c.z)

@@ -49,7 +49,8 @@ class DiagnosisProblem(TwinFit):
         self.params = list(params)
         self.mask = None        # rows the residual vector keeps (None: every row)
         self.fit_rows = None    # rows the anchors' position errors are estimated on
-        self.carried = {}       # segment's first sample -> joints started at the twin's q
+        self.carried = {}       # segment's first sample -> joints not at rest at the cut
+        self.hold = float(hold)
 
     def twin(self, values: dict) -> Twin:
         crane, v = self.crane, dict(values)
@@ -70,21 +71,44 @@ class DiagnosisProblem(TwinFit):
                     pump_scale=pump, step=self.step)
 
     def start_state(self, tw: Twin, s, carry) -> np.ndarray:
-        """TwinFit's start, except that a joint with a chamber still ringing through the
-        hold (TwinFit's test: a pressure spread over twice its noise) keeps the twin's own
-        carried position too, not only its pressures and velocity: the joint is not at rest,
-        so the hold's average position is not its state at the cut."""
+        """TwinFit's start, except that a joint not at rest at the cut keeps the twin's own
+        carried position too, not only its pressures and velocity — the hold's average
+        position is not its state there: a chamber still ringing through the hold (TwinFit's
+        test: a pressure spread over twice its noise) or the logged position still moving
+        over the hold (:meth:`moving`). Such a joint's start error is the chain's
+        (:meth:`matrix` shifts it freely)."""
         x0 = TwinFit.start_state(self, tw, s, carry)
         n = self.crane.n
-        self.carried[s.k0] = np.zeros(n, bool)
-        if (s.sd_a is None or carry is None or carry[0] != s.rec or carry[1] != s.k0
-                or not self.use_p):
-            return x0
-        sp = self.sig[s.rec][1]
-        ring = (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])
-        x0[:n][ring] = carry[2].q[-1][ring]
-        self.carried[s.k0] = ring
+        free = self.moving(s)
+        if s.sd_a is not None and self.use_p:
+            sp = self.sig[s.rec][1]
+            free = free | (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])
+        self.carried[s.k0] = free
+        if carry is not None and carry[0] == s.rec and carry[1] == s.k0:
+            x0[:n][free] = carry[2].q[-1][free]
         return x0
+
+    def moving(self, s) -> np.ndarray:
+        """(n,) bool: the joints whose logged position is not at rest at the cut — a parabola
+        least-squares fitted over the last :attr:`hold` s before it has there a slope, or a
+        value off the anchor (the average of the last :data:`ANCHOR_S` s), beyond 3 of its
+        standard errors (the sensor's σ through the fit's weights). A slew coasting through
+        a soft hose's slow ringing keeps its pressures quiet (cat215b's swing, hoses × 3.77,
+        on Exudyn: through a turning point at the cut, the anchor 2.1 σ off the true position
+        there, its chambers within their noise)."""
+        r, n = self.recs[s.rec], self.crane.n
+        a = int(np.searchsorted(r.t, r.t[s.k0] - self.hold - 1e-9))
+        if s.k0 + 1 - a < 6:
+            return np.zeros(n, bool)
+        tt = r.t[a:s.k0 + 1] - r.t[s.k0]
+        P = np.linalg.pinv(np.vander(tt, 3))           # rows: t², t, 1 coefficients
+        w = P[2].copy()
+        last = tt >= -ANCHOR_S - 1e-9
+        w[last] -= 1.0 / last.sum()                    # value at the cut − the anchor
+        Y = r.q[a:s.k0 + 1]
+        sq = self.sig[s.rec][0]
+        return ((np.abs(w @ Y) > 3.0 * sq * np.linalg.norm(w))
+                | (np.abs(P[1] @ Y) > 3.0 * sq * np.linalg.norm(P[1])))
 
     def matrix(self, z) -> np.ndarray:
         """The scaled residual (model − log) as rows × channels, each segment's positions

@@ -315,3 +315,25 @@ def test_a_ringing_joints_carried_start_is_shifted_freely_an_anchored_one_within
     lim = 3.0 / np.sqrt(10)
     assert M[:10].mean(axis=0) == pytest.approx([1.5 - lim, 1.5 - lim])   # both anchored
     assert M[10:].mean(axis=0) == pytest.approx([0.0, 0.0], abs=1e-12)    # carried; small
+
+
+def test_a_joint_through_a_turning_point_at_the_cut_is_not_at_rest():
+    """DiagnosisProblem.moving: a logged position that sweeps through a turning point at the
+    cut (a slow ringing: the hold's average 2 σ off the position there, its slope still ~0)
+    and one still sliding are not at rest; one at rest with the sensor's noise is."""
+    from planner.calibration.twin_problem import DiagnosisProblem
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 2.0, 0.02)
+    sig = 1e-3
+    q = np.column_stack([sig * rng.standard_normal(t.size),              # at rest
+                         -0.06 * (t - 1.80) ** 2 * 40 + sig * rng.standard_normal(t.size),
+                         0.05 * t + sig * rng.standard_normal(t.size)])  # sliding
+    prob = DiagnosisProblem.__new__(DiagnosisProblem)
+    prob.crane, prob.hold = SimpleNamespace(n=3), 0.5
+    prob.recs = [SimpleNamespace(t=t, q=q)]
+    prob.sig = {0: (np.full(3, sig), None)}
+    k0 = int(np.searchsorted(t, 1.9))
+    got = prob.moving(SimpleNamespace(rec=0, k0=k0))
+    avg = q[k0 - 10:k0 + 1, 1].mean() - (-0.06 * 40 * (t[k0] - 1.80) ** 2)
+    assert abs(avg) > 2 * sig            # the anchor's error the test is about
+    assert got.tolist() == [False, True, True]

@@ -44,9 +44,10 @@ and the step from the spec's value misranks it), and the payload where a probe a
 factors halves that misfit (it moves the slew's ringing) are fitted nonlinearly on the training rows: a
 scan of the parameter's range (log: 9 factors; linear: 17 points) with the spec's value and
 the Gauss–Newton step (a linear valley can be 2.5 % of the range: s100f's jib dead band), then a
-bounded scalar search between the best point's neighbours (the bulk modulus and a hose volume
-first on the moving averages, then within ±10 % on the samples, as the raw misfit has one
-narrow valley per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
+bounded scalar search between the best point's neighbours (the bulk modulus, a hose volume
+and the payload on one-second windows from the log's own states first — TwinFit's first
+stage: a window sees one second of phase error — then within ±10 % on the whole segments, as
+the raw misfit has one narrow valley per ringing phase). Each fit is scored on the *held-out* rows exactly as the quasi-static
 workflow scores (score = J_nominal − J_fit − k·ln n, :attr:`threshold` 30).
 
 **Stroke ends** (:mod:`planner.calibration.ends`, as the quasi-static workflow): rows where the
@@ -93,6 +94,10 @@ ALWAYS = ("bulk_modulus",)   # fitted whatever its Gauss-Newton rank (see fit)
 #: a payload probe must bring the moving-averaged misfit below this share of the spec's to be
 #: fitted besides the ranking's best (a clean log's misfit is noise: no probe halves it)
 PAYLOAD_FALL = 0.5
+#: candidates whose raw misfit has one narrow valley per ringing phase (the slew's slow mode
+#: sets it: umea-lab's slew hoses × 3.77 on Exudyn, the valley ±3 % wide even on 2 s moving
+#: averages, a wrong one at × 3.2): fitted on one-second windows first (_fit_one)
+RINGING = ("bulk_modulus", "hose_volume", "payload_mass")
 #: factors a hose volume is probed at (TwinDiagnosis._probe): √2 apart, as the scan (the
 #: moving-averaged misfit's valley is about ±30 % wide: s100f's jib hoses × 2.85, probed
 #: at × 2 and × 4 only, ranked 0.45 and 0.58 of the spec's misfit, at × 2.83 0.02)
@@ -260,35 +265,37 @@ class TwinDiagnosis:
             h = _FD_STEP if zi + _FD_STEP <= hi else -_FD_STEP
             return ((fun([zi + h]) - fun([zi])) / h)[:, None]
 
-        def cost(zi, smooth=0.0):
-            if smooth == 0.0:
+        def cost(zi, windows=False):
+            if not windows:
                 r = fun([zi])
                 return float(r @ r)
-            pb.smooth = smooth
+            pb.segs = pb.windows
             try:
                 return float(np.sum(pb.residuals(self._z_with(i, zi)) ** 2))
             finally:
-                pb.smooth = 0.0
+                pb.segs = pb.full_segs
 
-        def brent(a, b, smooth=0.0):
-            sol = minimize_scalar(lambda x: cost(float(x), smooth), bounds=(a, b),
+        def brent(a, b, windows=False):
+            sol = minimize_scalar(lambda x: cost(float(x), windows), bounds=(a, b),
                                   method="bounded",
                                   options=dict(maxiter=self.iterations, xatol=1e-3))
             return float(sol.x)
         # a scan (log: factors 0.25-4, linear: the whole range) with the spec's value and
         # the Gauss-Newton step, then a bounded scalar search between the best point's
-        # neighbours; the oil and the hoses on the moving averages first (the ringing's
-        # phase removed: one smooth valley, TwinFit's first stage), then on the samples
-        # within ±10 % of it (the raw misfit's valley of this ringing phase)
-        sm = TwinFit.SMOOTH if c.name in ("bulk_modulus", "hose_volume") else 0.0
+        # neighbours; the ringing's parameters (RINGING) on one-second windows from the
+        # log's own states first (TwinFit's first stage: a window sees one second of phase
+        # error, so one wide valley), then on the whole segments within ±10 % of it (the
+        # valley of this ringing phase)
+        win = c.name in RINGING
         grid = ([c.z + math.log(f) for f in self.SCAN] if c.param.log
                 else list(np.linspace(lo, hi, 2 * len(self.SCAN) - 1)))
         pts = sorted({float(np.clip(g, lo, hi)) for g in grid + [c.z, z_gn]})
-        cs = [cost(g, sm) for g in pts]
+        cs = [cost(g, win) for g in pts]
         b = int(np.argmin(cs))
-        z = brent(pts[max(b - 1, 0)], pts[min(b + 1, len(pts) - 1)], sm)
-        if sm:
-            z = brent(max(z - 0.1, lo), min(z + 0.1, hi))
+        z = brent(pts[max(b - 1, 0)], pts[min(b + 1, len(pts) - 1)], win)
+        if win:
+            w = 0.1 if c.param.log else 0.1 * abs(z) + 1e-3
+            z = brent(max(z - w, lo), min(z + w, hi))
         best = min([c.z, z_gn, z], key=cost)
         z = best
         g = jac([z])[:, 0]

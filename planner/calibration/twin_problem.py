@@ -79,6 +79,9 @@ class DiagnosisProblem(TwinFit):
         (:meth:`matrix` shifts it freely)."""
         x0 = TwinFit.start_state(self, tw, s, carry)
         n = self.crane.n
+        if s.window:        # a window starts from the log's own state (TwinFit's)
+            self.carried[s.k0] = np.zeros(n, bool)
+            return x0
         free = self.moving(s)
         if s.sd_a is not None and self.use_p:
             sp = self.sig[s.rec][1]

@@ -299,7 +299,19 @@ class TwinDiagnosis:
             pts = sorted({float(np.clip(g, lo, hi)) for g in grid + [c.z, z_gn]})
             cs = [cost(g, how) for g in pts]
             b = int(np.argmin(cs))
-            z = brent(pts[max(b - 1, 0)], pts[min(b + 1, len(pts) - 1)], how)
+            a, e = pts[max(b - 1, 0)], pts[min(b + 1, len(pts) - 1)]
+            if not c.param.log:
+                # a linear scan's bracket spans 2/16 of the range, and a valley can be 1/80 of
+                # it beside a plateau (s100f's jib dead band: 0.1833, 9 k; 0.19 and up, 68 k;
+                # the bracket's golden-section probes both on the plateau): 8 more points
+                # in it, the search then between the best one's neighbours
+                sub = list(np.linspace(a, e, 10)[1:-1])
+                cs2 = [cost(g, how) for g in sub]
+                if min(cs2) < cs[b]:
+                    k = int(np.argmin(cs2))
+                    fine = [a] + sub + [e]
+                    a, e = fine[k], fine[k + 2]
+            z = brent(a, e, how)
             if how != "raw":
                 w = 0.1 if c.param.log else 0.1 * abs(z) + 1e-3
                 z = brent(max(z - w, lo), min(z + w, hi))

@@ -339,7 +339,7 @@ def test_a_joint_through_a_turning_point_at_the_cut_is_not_at_rest():
     assert got.tolist() == [False, True, True]
 
 
-@pytest.mark.slow   # ~1 min: a 30 s log; the bench's umea-lab seed 1001 is the Exudyn case
+@pytest.mark.slow   # 2-3 min of CPU (a 30 s log); the bench's umea-lab seed 1001 is the Exudyn case
 def test_a_slow_ringing_hose_is_fitted_in_its_own_valley(lab):
     """umea-lab's slew hoses × 3.77: the slew's slow ringing gives the misfit one valley
     about ±3 % wide per ringing phase, even on moving averages (a wrong one near × 3.2); the

@@ -51,6 +51,7 @@ class DiagnosisProblem(TwinFit):
         self.fit_rows = None    # rows the anchors' position errors are estimated on
         self.carried = {}       # segment's first sample -> joints not at rest at the cut
         self.hold = float(hold)
+        self._moving = {}       # (log, segment's first sample) -> moving(), computed once
 
     def twin(self, values: dict) -> Twin:
         crane, v = self.crane, dict(values)
@@ -82,7 +83,9 @@ class DiagnosisProblem(TwinFit):
         if s.window:        # a window starts from the log's own state (TwinFit's)
             self.carried[s.k0] = np.zeros(n, bool)
             return x0
-        free = self.moving(s)
+        if (s.rec, s.k0) not in self._moving:      # the log's, the same on every run
+            self._moving[(s.rec, s.k0)] = self.moving(s)
+        free = self._moving[(s.rec, s.k0)].copy()
         if s.sd_a is not None and self.use_p:
             sp = self.sig[s.rec][1]
             free = free | (s.sd_a >= 2.0 * sp[:n]) | (s.sd_b >= 2.0 * sp[n:])

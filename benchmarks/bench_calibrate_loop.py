@@ -173,6 +173,11 @@ def main():
                     help="one report from parts run on the same machines and calibrations")
     ap.add_argument("--markdown", metavar="JSON")
     ap.add_argument("--tag", default="calibrate_loop", help="result file name stem")
+    ap.add_argument("--start", choices=("nominal", "refined"), default="nominal",
+                    help="the calibrated twin's refinement starts from the nominal commands "
+                         "or from the spec's twin's refinement (library refine --start)")
+    ap.add_argument("--refine-iterations", type=int, default=150,
+                    help="L-BFGS-B iterations of the calibrated twin's refinement (150)")
     a = ap.parse_args()
     if a.markdown:
         rep = json.loads(Path(a.markdown).read_text())
@@ -234,7 +239,7 @@ def main():
             print(f"{r['machine']}: {r['status']} {r.get('cpu_s', 0):.0f} s", flush=True)
     fits = done
     cal_wall = time.perf_counter() - t0
-    opts = RefineOptions()
+    opts = RefineOptions(iterations=a.refine_iterations)
     refine = {}
     t1 = time.perf_counter()
     for m in machines:
@@ -246,7 +251,7 @@ def main():
             shutil.copyfile(sel, lib)
         refine[m["name"]] = refine_library(lib, model=f["spec"], workers=a.workers,
                                            limit=len(chain), options=opts,
-                                           show_progress=False)
+                                           show_progress=False, start=a.start)
         refine[m["name"]]["cpu_s"] = _entry_cpu(lib, chain)
         print(f"refined on cal-{m['name']}: {refine[m['name']].get('refined')}", flush=True)
     refine_wall = time.perf_counter() - t1
@@ -272,7 +277,8 @@ def main():
                calibrate_wall_s=cal_wall, refine_wall_s=refine_wall, replay_wall_s=replay_wall,
                options=opts.__dict__, delay_max=a.delay_max, lag_max=a.lag_max,
                anchor=a.anchor, library=str(sel), calibrations=str(cal_dir),
-               duration=a.duration, iterations=a.iterations, excitation=a.excitation)
+               duration=a.duration, iterations=a.iterations, excitation=a.excitation,
+               start=a.start)
     atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
     atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
 
@@ -422,8 +428,11 @@ def markdown(rep) -> str:
            for part in (r if isinstance(r, list) else [r]) for c in part.get("cpu_s", [])
            if c == c]
     if cpu:
-        L += ["", f"Refinement on the calibrated twins: {len(cpu)} entries, CPU per entry "
-              f"median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."]
+        how = ("from the spec's twin's refinement (`library refine --start refined`)"
+               if rep.get("start") == "refined" else "from the nominal commands")
+        L += ["", f"Refinement on the calibrated twins: {len(cpu)} entries, "
+              f"{rep['options']['iterations']} L-BFGS-B iterations at most, started {how}; "
+              f"CPU per entry median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."]
     if rep.get("figure"):
         L += ["", f"![landing before and after calibration]({rep['figure']})"]
     L += ["", "## Calibrated parameters beside the truth", "",

@@ -32,7 +32,8 @@ from planner.io import atomic_write_text  # noqa: E402
 from planner.library.query import library_crane  # noqa: E402
 from planner.library.refined import entry_commands, refined_info, write_refined  # noqa: E402
 from planner.library.store import LibraryStore  # noqa: E402
-from planner.refine import RefineOptions, refine_cycle  # noqa: E402
+from planner.refine import RefineOptions  # noqa: E402
+from planner.refine.cycle import refine_cycle  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 

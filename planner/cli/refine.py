@@ -27,6 +27,9 @@ def cmd_library_refine(args):
                        .replace("refine option 'tail'", "--tail")
                        .replace("refine option 'energy_weight'", "--energy-weight")) from None
     if args.cycle is not None:
+        if args.start != "nominal":
+            raise CLIError(f"--start {args.start}: not with --cycle (a cycle's moves are "
+                           "refined from their nominal commands)")
         return _cycle(args, opts)
     if args.gap is not None:
         raise CLIError("--gap: only with --cycle (the valves closed between a cycle's moves)")
@@ -37,7 +40,7 @@ def cmd_library_refine(args):
         s = refine_library(args.library, model=args.model, workers=args.workers,
                            scheduler=args.scheduler, limit=args.limit, options=opts,
                            force=args.force, show_progress=not (args.json == "-"),
-                           swing_weight=args.swing_weight)
+                           swing_weight=args.swing_weight, start=args.start)
     except Interrupted as e:
         s = getattr(e, "summary", None)
         if s:
@@ -56,6 +59,8 @@ def cmd_library_refine(args):
                 if c["median"] is not None else "")
         swing = (f"; {s['with_swing']} with the load on its grapple link"
                  if s.get("with_swing") else "")
+        swing += (f"; {s['started_from_refined']} started from their stored refined commands"
+                  if s.get("started_from_refined") else "")
         print(f"{s['library']}: {s['refined']} entries refined on the twin of {s['model']} "
               f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}{swing}), "
               f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
@@ -182,6 +187,12 @@ def add_refine_parser(lsub) -> None:
                         "the twin; they must chain (see planner/library/cycle.py)")
     p.add_argument("--gap", type=float, metavar="S",
                    help="with --cycle: seconds with the valves closed between moves (3)")
+    p.add_argument("--start", choices=("nominal", "refined"), default="nominal",
+                   help="where each entry's search starts: 'nominal' (default: its nominal "
+                        "commands) or 'refined' (its stored refined commands where it has "
+                        "them, e.g. refined on the spec's twin before a calibration, when the "
+                        "new twin prices them lower; with fewer --iterations a library is "
+                        "refined again on a calibrated twin in a fraction of the time)")
     p.add_argument("--force", action="store_true",
                    help="refine entries already refined by the same twin again")
     add_json_arg(p)

@@ -1,5 +1,5 @@
 """``library refine LIB.h5 --cycle ID,ID,…``: the entries of one work cycle refined as one
-(issue 27, the work cycle; :func:`planner.refine.refine_cycle`).
+(issue 27, the work cycle; :func:`planner.refine.cycle.refine_cycle`).
 
 A move refined alone assumes it starts at rest with the load-holding pressures and the
 unloaded chambers at tank. Back to back it starts from what the move before left: on the
@@ -42,7 +42,8 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
     from planner.library.twins import spec_twin
     from planner.library.refined import refined_info, read_refined, write_refined
     from planner.library.store import LibraryStore
-    from planner.refine import RefineOptions, after_move, for_objective, refine_commands
+    from planner.refine import RefineOptions, for_objective, refine_commands
+    from planner.refine.cycle import after_move
     from planner.feedforward import commands, stored_commands
     opts = options or RefineOptions()
     path, ids = Path(path), [str(i) for i in ids]

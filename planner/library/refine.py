@@ -33,13 +33,17 @@ from planner.library.workers import Interrupted, SignalGuard, WorkerPool
 if TYPE_CHECKING:
     from planner.model import Crane
 
-__all__ = ["refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
+#: where ``library refine`` starts each entry's search (:func:`refine_library`)
+START_CHOICES = ("nominal", "refined")
+
+__all__ = ["START_CHOICES", "refine_library", "refine_task", "model_crane", "spec_twin", "entry_grapple"]
 
 
 def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str, arrays: dict,
                 options: dict, grapple: tuple | None = None) -> dict:
     """One entry refined (runs in a worker): ``arrays`` holds the trajectory (t, q, qd, qdd,
-    joint_names) and the nominal commands (t_u, u); ``grapple``: the twin carries the load
+    joint_names), the nominal commands (t_u, u) and optionally the commands to start from
+    (t_start, u_start); ``grapple``: the twin carries the load
     on that link (:func:`spec_twin`). Never raises: a failure comes back as a status "failed"
     with its reason."""
     from planner.refine import RefineOptions, refine_commands
@@ -53,7 +57,9 @@ def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str,
                                                      grapple)
         traj = Trajectory(t=arrays["t"], q=arrays["q"], qd=arrays["qd"], qdd=arrays["qdd"],
                           joint_names=tuple(arrays["joint_names"]))
-        r = refine_commands(crane, traj, arrays["t_u"], arrays["u"], twin=twin, options=opts)
+        start = (arrays["t_start"], arrays["u_start"]) if "t_start" in arrays else None
+        r = refine_commands(crane, traj, arrays["t_u"], arrays["u"], twin=twin, options=opts,
+                            start=start)
         info = dict(r.info(), cpu_s=_time.process_time() - c0)
         return dict(id=entry_id, t_u=r.t_u, u=r.u, info=info)
     except Exception as e:   # one entry must not stop the others
@@ -64,17 +70,22 @@ def refine_task(lib_spec: str, model_spec: str, model_where: str, entry_id: str,
 
 def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None = None,
                    limit: int | None = None, options=None, force: bool = False,
-                   show_progress: bool = True, swing_weight: float | None = None) -> dict:
+                   show_progress: bool = True, swing_weight: float | None = None,
+                   start: str = "nominal") -> dict:
     """Refine the ok entries of the library ``path`` (the first ``limit``) on the twin of
     ``model`` (a spec file; default the library's spec) with
     :class:`~planner.refine.RefineOptions` ``options``. An entry planned with a grapple
     (``library build --grapple``, :func:`entry_grapple`) is refined on the twin that carries
     the load on that link, its swing after the plan's end costing ``swing_weight`` (None:
     :data:`planner.refine.SWING_WEIGHT`; 0: the tip alone, the twin without the link): the
-    refined commands end with the load at rest under the tip. Returns a summary dict; SIGINT /
+    refined commands end with the load at rest under the tip. ``start`` "refined": each
+    entry's search starts from its stored refined commands where it has them (an earlier
+    refinement — on the spec's twin, before a calibration) instead of its nominal ones, where
+    the new twin prices them lower (:func:`planner.refine.refine_commands`); "nominal" (the
+    default) always from the nominal ones. Returns a summary dict; SIGINT /
     SIGTERM stop it promptly (the entry being written completed) and raise
     :class:`~planner.library.workers.Interrupted` with the summary so far."""
-    from planner.library.refined import refined_info, write_refined
+    from planner.library.refined import read_refined, refined_info, write_refined
     from planner.library.store import LibraryStore
     from planner.refine import SWING_WEIGHT, RefineOptions, for_objective
     opts = options or RefineOptions()
@@ -84,6 +95,8 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
     path = Path(path)
     if workers < 1:
         raise ValueError(f"workers = {workers}; allowed: >= 1")
+    if start not in START_CHOICES:
+        raise ValueError(f"start = {start!r}; allowed: {', '.join(START_CHOICES)}")
     t0 = _time.perf_counter()
     with LibraryStore.open(path, "r") as db:
         lib_spec = db.spec_toml
@@ -103,7 +116,7 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                          "needed)")
     fingerprint = twin.provenance()["fingerprint"]
     ids = ids[:limit] if limit is not None else ids
-    state = dict(written=0, skipped=0, counts={}, failed=[], cpu=[], swing=0)
+    state = dict(written=0, skipped=0, counts={}, failed=[], cpu=[], swing=0, warm=0)
     with SignalGuard() as guard:
         pool = None
         if scheduler:
@@ -130,8 +143,12 @@ def refine_library(path, *, model=None, workers: int = 1, scheduler: str | None 
                                                       (info.get("pair") or {}).get("options"))):
                                 state["skipped"] += 1
                                 continue
-                            tasks.append((lib_spec, model_spec, model_where, i,
-                                          entry_arrays(crane, db.trajectory(i), opts.rate),
+                            arrays = entry_arrays(crane, db.trajectory(i), opts.rate)
+                            got = read_refined(db, i) if start == "refined" else None
+                            if got is not None:
+                                arrays.update(t_start=got[0], u_start=got[1])
+                                state["warm"] += 1
+                            tasks.append((lib_spec, model_spec, model_where, i, arrays,
                                           asdict(o), link))
                             state["swing"] += link is not None
                         state["todo"] = len(tasks)
@@ -234,7 +251,8 @@ def _summary(path, model_where, fingerprint, ids, state, t0, **kw) -> dict:
     cpu = cpu[np.isfinite(cpu)]
     return dict(library=str(path), model=model_where, twin_fingerprint=fingerprint,
                 entries=len(ids), refined=state["written"], skipped_existing=state["skipped"],
-                with_swing=state["swing"], energy_pairs=state.get("pairs"),
+                with_swing=state["swing"], started_from_refined=state.get("warm", 0),
+                energy_pairs=state.get("pairs"),
                 statuses=state["counts"], failed=state["failed"],
                 cpu_per_entry_s=dict(median=float(np.median(cpu)) if cpu.size else None,
                                      p90=float(np.percentile(cpu, 90)) if cpu.size else None),

@@ -152,6 +152,7 @@ import numpy as np
 
 from planner.landing import landing_measures, tip_levers
 from planner.model.valves import past_deadband, within_deadband
+from planner.refine.bounds import DITHER as _DITHER, start_openings
 from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, TIME_ENTRIES,
                                    TIME_ENTRY_WEIGHT, closed_valves, command_bounds,
                                    for_objective)
@@ -164,7 +165,6 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.model.twin import Twin
 
-_DITHER = 1e-6  # the start of a command that is exactly 0 (see refine_commands)
 #: the swing term's weight where the grapple is known (``plan --feedforward twin``): a swing
 #: amplitude costs a third of a tip error of its size after the plan's end (on two s100f
 #: forwarder moves: the twin's swing left 0.3 mm, its tip's rest offset 0.1 mm)
@@ -309,7 +309,7 @@ class Refinement:
 
 def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None = None,
                     options: RefineOptions | None = None, pendulum=None,
-                    x0=None) -> Refinement:
+                    x0=None, start=None) -> Refinement:
     """Refine the commands ``u`` (M, n), held from ``t_u`` (M,) on the control grid of
     ``traj`` (the nominal feed-forward), on ``twin`` (default: the spec's, at the options'
     step) so that the twin follows ``traj`` and comes to rest at its goal (module doc);
@@ -318,17 +318,20 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     ``pendulum`` — a :class:`~planner.model.pendulum.Pendulum` or a length [m] — else the
     spec's ``[dynamics.grapple]``). ``x0``: the twin's state to start from (default its rest
     state at the plan's start: holding pressures, the unloaded chambers at tank) — in a work
-    cycle, the state the previous move leaves (:func:`refine_cycle`). Never raises for a move
-    the twin cannot run: the status says so."""
+    cycle, the state the previous move leaves (:func:`planner.refine.cycle.refine_cycle`).
+    ``start``: (t_s, u_s), commands to start the search from instead of the nominal ones (an
+    earlier refinement of the move, on the twin before calibration; :func:`start_openings`),
+    taken where this twin prices them below the nominal commands (``predicted["start"]``).
+    Never raises for a move the twin cannot run: the status says so."""
     opts = options or RefineOptions()
-    r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0)
+    r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
     constrained = opts.keep_direction or opts.keep_closed or opts.energy_weight > 0
     if not (r.ok and constrained and opts.fallback_above > 0
             and _score(r.predicted["refined"]) > opts.fallback_above):
         return r
     # the landing first (module doc): the move refined without the constraints and the price
     plain = replace(opts, keep_direction=False, keep_closed=False, energy_weight=0.0)
-    r2 = _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0)
+    r2 = _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0, start)
     taken = r2.status == RefineStatus.IMPROVED and \
         _score(r2.predicted["refined"]) < _score(r.predicted["refined"])
     out = r2 if taken else r
@@ -342,7 +345,7 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
 
 
 def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptions,
-                 pendulum, x0) -> Refinement:
+                 pendulum, x0, start=None) -> Refinement:
     """One refinement with ``opts`` (:func:`refine_commands` without its fallback)."""
     from planner.model.twin import Twin
     from planner.model.twin.shooting import Shooting
@@ -401,6 +404,13 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
     J0, _ = cost(U0.ravel())
     cost.fail = 100.0 * J0 + 1.0
     z, fine, nit, evals = U0.ravel(), int(opts.iterations), 0, 0
+    began = dict(commands="nominal")
+    if start is not None:       # a given start (an earlier refinement), where it prices lower
+        zs = start_openings(start, traj.t[0], Ku, db, lo, hi, opts.rate).ravel()
+        Js, _ = cost(zs)
+        began = dict(commands="given" if Js < J0 else "nominal (the given priced higher)",
+                     cost=float(Js))
+        z = zs if Js < J0 else z
     if opts.coarse_step > twin.step and opts.iterations > opts.polish:
         # most iterations on the twin at the coarse step (half the work per run; its tip
         # within ~1 mm of the fine twin's on planned moves), the last ``polish`` on the twin
@@ -423,7 +433,7 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
     U = past_deadband(res.x.reshape(Ku, n), db)
     refined = _predict(crane, twin, traj, t_all, U, K, opts, x0) if res.fun < J0 else None
     pred = dict(nominal=nominal, cost_nominal=float(J0), cost_refined=float(min(res.fun, J0)),
-                horizon=horizon)
+                horizon=horizon, start=began)
     if refined is None:
         why = ("no better commands on the twin" if res.fun >= J0 else
                "the twin diverged on the optimised commands")
@@ -457,42 +467,3 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
     return Refinement(t_all[:last], U, RefineStatus.IMPROVED, str(res.message), nit,
                       evals, dict(pred, refined=refined), lengthened,
                       wall_s=time.perf_counter() - wall0, **base)
-
-
-def refine_cycle(crane: Crane, moves, *, twin: Twin | None = None,
-                 options: RefineOptions | None = None, gap: float = 3.0):
-    """A work cycle refined as one: ``moves`` ((traj, t_u, u) per move, in the order the
-    machine runs them, each move's nominal commands) each refined (:func:`refine_commands`)
-    from the twin's state that the refined move before it leaves (:func:`after_move`): its
-    position, residual motion and the chamber pressures it trapped (a forwarder's slew stops
-    with 10–40 bar in both chambers, its telescope's rod side climbs to 250 bar over a cycle on
-    the twin, where a move refined alone assumes the unloaded chamber at tank). The first move
-    starts at rest. Returns (refinements, start states: None for rest, else the twin's state
-    at that move's start)."""
-    from planner.model.twin import Twin
-    opts = options or RefineOptions()
-    twin = twin if twin is not None else Twin(crane, step=opts.step)
-    x, out, starts = None, [], []
-    for traj, t_u, u in moves:
-        r = refine_commands(crane, traj, t_u, u, twin=twin, options=opts, x0=x)
-        out.append(r)
-        starts.append(x)
-        x = after_move(twin, traj, r.t_u, r.u, x, gap, opts.rate)
-    return out, starts
-
-
-def after_move(twin: Twin, traj: Trajectory, t_u, u, x0, gap: float, rate: float = 50.0):
-    """The twin's state when the next move of a work cycle starts: commands ``u`` held from
-    ``t_u`` (on ``traj``'s clock) from the state ``x0`` (None: rest at the plan's start), then
-    the valves closed until ``gap`` s after the later of the plan's end and the last command
-    (on the ``rate`` [Hz] grid). None when the twin diverges (it cannot say)."""
-    n, dt = twin.crane.n, 1.0 / rate
-    t_r = np.asarray(t_u, float) - traj.t[0]
-    span = round((max(traj.duration, t_r[-1] + dt) + gap) * rate) / rate
-    run = twin.simulate(np.append(t_r, t_r[-1] + dt),
-                        np.vstack([np.asarray(u, float), np.zeros((1, n))]),
-                        traj.q[0] if x0 is None else x0[:n], t_end=span, x0=x0)
-    if not run.ok:
-        return None
-    return np.concatenate([run.q[-1], run.qd[-1], run.p_a[-1], run.p_b[-1], [run.p_s[-1]],
-                           run.spool[-1]] + ([run.swing[-1]] if run.swing is not None else []))

@@ -21,8 +21,11 @@ from dataclasses import replace
 import numpy as np
 
 __all__ = ["ENERGY_ENTRIES", "ENERGY_ENTRY_WEIGHT", "TIME_ENTRIES", "TIME_ENTRY_WEIGHT",
-           "closed_valves", "command_bounds", "for_objective"]
+           "closed_valves", "command_bounds", "for_objective", "start_openings"]
 
+#: the start of a command that is exactly 0 (a closed valve is a kink of the flow whose
+#: adjoint slope is 0: see :func:`planner.refine.refine_commands`)
+DITHER = 1e-6
 #: how a move planned for least energy is refined (:func:`for_objective`): "priced" (its pump
 #: work in the cost, its joints kept to their directions) or "plain" (as a time move)
 ENERGY_ENTRIES = ("priced", "plain")
@@ -86,3 +89,30 @@ def command_bounds(u, Ku: int, opts) -> tuple:
     return lo, hi
 
 
+
+
+def start_openings(start, t0: float, Ku: int, db, lo, hi, rate: float) -> np.ndarray:
+    """(Ku, n): the openings to start a refinement from, given commands ``start`` = (t_s,
+    u_s) held on the ``rate`` grid from the plan's start ``t0`` (an earlier refinement: it may
+    end before or after the Ku rows — rows past them dropped, missing ones closed); as
+    openings past the dead bands ``db`` (:func:`~planner.model.valves.within_deadband`),
+    inside the bounds (``lo``, ``hi``), a closed free one cracked by the dither (module doc of
+    :mod:`planner.refine`). ValueError for commands off that grid or of another width."""
+    from planner.model.valves import within_deadband
+    t_s = np.asarray(start[0], float).ravel()
+    u_s = np.atleast_2d(np.asarray(start[1], float))
+    n = lo.shape[1]
+    dt = 1.0 / rate
+    if u_s.shape != (t_s.size, n) or t_s.size < 1 or abs(t_s[0] - t0) > 1e-9 or (
+            t_s.size > 1 and np.max(np.abs(np.diff(t_s) - dt)) > 1e-6):
+        raise ValueError(f"refine: start commands of shape {u_s.shape} from t = "
+                         f"{t_s[0] if t_s.size else float('nan'):g} s; expected ({t_s.size}, "
+                         f"{n}) on the {rate:g} Hz grid from the plan's start t = {t0:g} s")
+    U = np.zeros((Ku, n))
+    m = min(Ku, t_s.size)
+    U[:m] = within_deadband(np.clip(u_s[:m], -1.0, 1.0), db)
+    U = np.clip(U, lo, hi)
+    shut = (lo == 0.0) & (hi == 0.0)
+    crack = (U == 0.0) & ~shut
+    U[crack] = np.where(hi > 0.0, DITHER, -DITHER)[crack]
+    return U

@@ -440,7 +440,7 @@ def test_a_cycle_refines_each_move_from_the_state_the_one_before_leaves(crane, t
     replay of the first refined move (its commands, then the valves closed until the next
     start), not the rest state; from there its refined commands land the twin better than its
     nominal ones do; and a refinement given the rest state as ``x0`` is the plain one."""
-    from planner.refine import refine_cycle
+    from planner.refine.cycle import refine_cycle
     back = _move(crane, 0.65, 0.35)
     opts = RefineOptions(calm=0.0, iterations=8, settle=1.5)
     moves = [(m, *stored_commands(m)) for m in (move, back)]

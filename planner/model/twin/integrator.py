@@ -68,13 +68,18 @@ class Stepper:
         self.nx = nx
         npar = rhs.size1_in(3)
         xk, xm, ys = ca.SX.sym("xk", nx), ca.SX.sym("xm", nx), ca.SX.sym("y", nx)
-        u, fx, P = ca.SX.sym("u", n), ca.SX.sym("f_x", n), ca.SX.sym("P", npar)
+        u, fx = ca.SX.sym("u", n), ca.SX.sym("f_x", n)
+        # the parameters and the step size h: an input, not a constant, so that one compiled
+        # chunk serves every step of a machine (the twin at 2 ms, the diagnosis at 1 ms, the
+        # substeps of a chunk redone) — compiled once instead of once per step size
+        Pe = ca.SX.sym("P", npar + 1)
+        P, hs = Pe[:npar], Pe[npar]
         jac = ca.Function("twin_jac", [ys, u, fx, P], [ca.jacobian(rhs(ys, u, fx, P), ys)])
-        c = 2.0 / 3.0 * self.h
+        c = 2.0 / 3.0 * hs
         m = self.spool_mask()                   # 1 on the exactly stepped spool rows
         keep = ca.DM(1.0 - m)
         y = 2 * xk - xm
-        exact = self.exact_spools(xk, u, P)
+        exact = self.exact_spools(xk, u, P, hs)
         y = keep * y + ca.DM(m) * exact
         J = ca.SX.eye(nx) - c * ca.mtimes(ca.diag(keep), jac(y, u, fx, P))
         # solved in scaled states (1 rad, 1 MPa, …; D⁻¹·J·D): the symbolic solve does not
@@ -89,7 +94,7 @@ class Stepper:
             dy = keep * d * ca.solve(J, G / d)      # the spool rows stay exact
             y = y - dy
         err = ca.mmax(ca.fabs(dy) * inv_scale)
-        step = ca.Function("twin_bdf2", [ca.vertcat(xk, xm), u, fx, P],
+        step = ca.Function("twin_bdf2", [ca.vertcat(xk, xm), u, fx, Pe],
                            [ca.vertcat(y, xk), err], {"cse": True})
         self.step_sx = step
         self._f = jit_function(step.mapaccum("twin_chunk", self.chunk))
@@ -105,20 +110,21 @@ class Stepper:
             m[4 * self.n + 1:5 * self.n + 1] = 1.0
         return m
 
-    def spool_decay(self, P):
-        """e^{−h/τ}, the exact step of a spool's lag (SX or float ``P``); 0 without τ."""
+    def spool_decay(self, P, h=None):
+        """e^{−h/τ}, the exact step of a spool's lag (SX or float ``P``; ``h`` SX or float,
+        default the stepper's); 0 without τ."""
         if self.tau_index is None:
             return 0.0
-        return ca.exp(-self.h / P[self.tau_index])
+        return ca.exp(-(self.h if h is None else h) / P[self.tau_index])
 
-    def exact_spools(self, xk, u, P):
+    def exact_spools(self, xk, u, P, h=None):
         """The state vector with the spool rows at their exact value after one step (the other
         rows: zero) — ū + (s_k − ū)·e^{−h/τ}."""
         if self.tau_index is None:
             return ca.SX.zeros(self.nx)
         n = self.n
         ub = ca.fmin(ca.fmax(u, -1.0), 1.0)
-        E = self.spool_decay(P)
+        E = self.spool_decay(P, h)
         s = ub + (xk[4 * n + 1:5 * n + 1] - ub) * E
         return ca.vertcat(ca.SX.zeros(4 * n + 1), s, ca.SX.zeros(self.nx - 5 * n - 1))
 
@@ -140,7 +146,7 @@ class Stepper:
             x_prev = x0 - self.h * f0 if np.all(np.isfinite(f0)) else x0
         _, ev, (xx, ub, fb, pb), (Xb, Eb) = self._chunk_buffer()
         xx[:self.nx], xx[self.nx:] = x0, x_prev
-        pb[:] = np.asarray(P, float).reshape(1, -1)
+        pb[:] = np.append(np.asarray(P, float), self.h).reshape(1, -1)   # h: the last input
         out = np.empty((Kp + 1, self.nx))
         err = np.empty(Kp)
         out[0] = x0
@@ -161,14 +167,15 @@ class Stepper:
 
     def _chunk_buffer(self):
         """The compiled chunk's call buffer bound to arrays filled in place (no conversion per
-        call): inputs the history (2nx,), commands and forces (chunk, n), parameters (chunk,
-        npar); outputs the states with their history (chunk, 2nx), the updates (chunk,) —
+        call): inputs the history (2nx,), commands and forces (chunk, n), parameters and the
+        step (chunk, npar + 1); outputs the states with their history (chunk, 2nx), the updates (chunk,) —
         row-major (chunk, k) is the column-major (k, chunk) CasADi reads and writes."""
         if self._buffer is None:
             C, n = self.chunk, self.n
             self._buffer = bound_buffer(
                 self._f, [np.zeros(2 * self.nx), np.zeros((C, n)), np.zeros((C, n)),
-                          np.zeros((C, self._npar))], [np.zeros((C, 2 * self.nx)), np.zeros(C)])
+                          np.zeros((C, self._npar + 1))],
+                [np.zeros((C, 2 * self.nx)), np.zeros(C)])
         return self._buffer
 
     def _refined(self, xx, u, f_x, P):

@@ -70,7 +70,8 @@ class Shooting:
         # is the column-major (k, C) CasADi reads and writes (no conversion per call)
         self._buffer = bound_buffer(
             self._adj, [np.zeros(2 * nx), np.zeros((C, nx)), np.zeros((C, n)),
-                        np.zeros((C, n)), np.repeat(np.asarray(twin.P, float)[None, :], C, 0),
+                        np.zeros((C, n)),
+                        np.repeat(np.append(np.asarray(twin.P, float), st.h)[None, :], C, 0),
                         np.zeros((C, nx))], [np.zeros((C, 2 * nx)), np.zeros((C, n))])
 
     def steps(self, K: int) -> int:
@@ -120,16 +121,17 @@ def _adjoint_step(rhs, n: int, st):
     W₂·dx_{k−1} + B·du_k, W₁ = diag(4/3 | E), W₂ = diag(−1/3 | 0), B = (c·∂f/∂u | (1 −
     E)·∂ū/∂u). Carrying (μ_{k+1}, μ_{k+2}), the total adjoint of x_{k+1} is ā = ∂J/∂x_{k+1}
     + W₁·μ_{k+1} + W₂·μ_{k+2}; then μ_k = A⁻ᵀ·ā and ∂J/∂u_k = Bᵀ·μ_k. Inputs (carry (2nx), y,
-    u, f_x, P, seed); outputs (carry (μ_k, μ_{k+1}), ∂J/∂u_k)."""
+    u, f_x, (P, h), seed); outputs (carry (μ_k, μ_{k+1}), ∂J/∂u_k)."""
     import casadi as ca
     nx = st.nx
-    c = 2.0 / 3.0 * st.h
     y, u, fx = ca.SX.sym("y", nx), ca.SX.sym("u", n), ca.SX.sym("f_x", n)
-    P = ca.SX.sym("P", rhs.size1_in(3))
+    Pe = ca.SX.sym("P", rhs.size1_in(3) + 1)     # the parameters and the step h, as the
+    P, h = Pe[:-1], Pe[-1]                       # forward chunk takes them (one compile)
+    c = 2.0 / 3.0 * h
     carry, seed = ca.SX.sym("carry", 2 * nx), ca.SX.sym("seed", nx)
     m = ca.DM(st.spool_mask())
     keep = 1.0 - m
-    E = st.spool_decay(P)
+    E = st.spool_decay(P, h)
     f = rhs(y, u, fx, P)
     A = ca.SX.eye(nx) - c * ca.mtimes(ca.diag(keep), ca.jacobian(f, y))
     w1 = 4.0 / 3.0 * keep + E * m
@@ -144,7 +146,7 @@ def _adjoint_step(rhs, n: int, st):
     B = (c * ca.mtimes(ca.diag(keep), ca.jacobian(f, u))
          + (1.0 - E) * ca.jacobian(_spool_rows(ub, n, nx), u))
     gu = ca.mtimes(B.T, mu)
-    return ca.Function("twin_adjoint_step", [carry, y, u, fx, P, seed],
+    return ca.Function("twin_adjoint_step", [carry, y, u, fx, Pe, seed],
                        [ca.vertcat(mu, carry[:nx]), gu], {"cse": True})
 
 

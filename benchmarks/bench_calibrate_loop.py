@@ -430,8 +430,9 @@ def markdown(rep) -> str:
     if cpu:
         how = ("from the spec's twin's refinement (`library refine --start refined`)"
                if rep.get("start") == "refined" else "from the nominal commands")
+        its = (rep.get("options") or {}).get("iterations")
         L += ["", f"Refinement on the calibrated twins: {len(cpu)} entries, "
-              f"{rep['options']['iterations']} L-BFGS-B iterations at most, started {how}; "
+              + (f"{its} L-BFGS-B iterations at most, " if its else "") + f"started {how}; "
               f"CPU per entry median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."]
     if rep.get("figure"):
         L += ["", f"![landing before and after calibration]({rep['figure']})"]

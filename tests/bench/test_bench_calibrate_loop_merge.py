@@ -45,7 +45,7 @@ def test_parts_merge_into_one_report_with_a_row_per_objective():
     md = loop.markdown(rep)
     assert "| m1 | refined on the calibrated twin | 2 of 3 (67 %)" in md
     assert "| time | 2 of 2 (100 %)" in md and "| energy | 0 of 1 (0 %)" in md
-    assert "3 entries, CPU per entry median 30 s" in md
+    assert "3 entries, started from the nominal commands; CPU per entry median 30 s" in md
 
 
 def test_parts_with_another_calibration_or_a_repeated_entry_are_refused():

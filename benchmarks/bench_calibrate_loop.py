@@ -226,6 +226,10 @@ def main():
         p = cal_dir / f"cal-{m['name']}.json"
         if p.exists():
             done[m["name"]] = json.loads(p.read_text())
+            spec = cal_dir / f"cal-{m['name']}.toml"
+            if done[m["name"]].get("spec") and not Path(done[m["name"]]["spec"]).exists() \
+                    and spec.exists():       # calibrations kept elsewhere (a results folder)
+                done[m["name"]]["spec"] = str(spec)
         elif a.calibrations:
             sys.exit(f"--calibrations {cal_dir}: no cal-{m['name']}.json")
     todo = [m for m in machines if m["name"] not in done]
@@ -299,7 +303,9 @@ def merge(parts: list, names: list) -> dict:
     fits = {}
     for p, nm in zip(parts, names):
         for m, f in p["fits"].items():
-            if m in fits and f.get("spec") != fits[m].get("spec"):
+            same = (json.dumps(f.get("fit"), sort_keys=True, default=float)
+                    == json.dumps(fits.get(m, {}).get("fit"), sort_keys=True, default=float))
+            if m in fits and not same:     # the fitted values, wherever the spec was kept
                 sys.exit(f"--merge {nm}: machine {m} calibrated differently ({f.get('spec')})")
             fits.setdefault(m, f)
         if p["machines"][0].get("delay") != first["machines"][0].get("delay") or \

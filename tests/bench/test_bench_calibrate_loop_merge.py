@@ -22,11 +22,12 @@ def _row(i, machine, commands, offset, osc=0.001):
                 peak_osc_m=osc)
 
 
-def _part(argv, ids, offsets, spec="/w/cal-m1.toml", delay=0.01, lib="sel-p0.h5"):
+def _part(argv, ids, offsets, spec="/w/cal-m1.toml", delay=0.01, lib="sel-p0.h5",
+          params=None):
     rows = [_row(i, "m1", c, o) for i, o in zip(ids, offsets)
             for c in ("nominal", "refined", "calibrated")]
     fit = dict(status="ok", spec=spec, log_s=120.0, fit=dict(
-        runtime_s=10.0, twin_runs=5, status="done", parameters={},
+        runtime_s=10.0, twin_runs=5, status="done", parameters=params or {},
         rms_before=dict(positions=9.0, pressures=9.0),
         rms_after=dict(positions=1.0, pressures=1.0)))
     return dict(date="2026-11-27 21:00 UTC", platform="x", cpus=2, load=[1.0, 1.0, 1.0],
@@ -51,7 +52,11 @@ def test_parts_merge_into_one_report_with_a_row_per_objective():
 def test_parts_with_another_calibration_or_a_repeated_entry_are_refused():
     a = _part("--library p0", ["a:time"], [0.002])
     with pytest.raises(SystemExit, match="calibrated differently"):
-        loop.merge([a, _part("x", ["c:time"], [0.001], spec="/v/cal-m1.toml")], ["a", "b"])
+        loop.merge([a, _part("x", ["c:time"], [0.001], params=dict(bulk_modulus=1.2e9))],
+                   ["a", "b"])
+    # the same fit, its spec kept elsewhere (a results folder, another session): one machine
+    rep = loop.merge([a, _part("x", ["c:time"], [0.001], spec="/v/cal-m1.toml")], ["a", "b"])
+    assert sorted(rep["chain"]) == ["a:time", "c:time"]
     with pytest.raises(SystemExit, match="other drawn machines"):
         loop.merge([a, _part("x", ["c:time"], [0.001], delay=0.02)], ["a", "b"])
     with pytest.raises(SystemExit, match="entry a:time on m1 twice"):

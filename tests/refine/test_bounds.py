@@ -101,8 +101,9 @@ def test_keep_direction_must_be_a_bool():
 
 def test_refined_commands_keep_the_nominal_direction_on_the_twin(umea_move):
     crane, move, t_u, u = umea_move
+    # the constrained refinement alone (its plain fallback is tested below)
     opts = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0,
-                         keep_direction=True, idle_reverse=0.0)
+                         keep_direction=True, idle_reverse=0.0, fallback_above=0.0)
     r = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts)
     end = u.shape[0] - int(round(opts.lead * RATE))
     lo, hi = command_bounds(u, r.u.shape[0], opts)

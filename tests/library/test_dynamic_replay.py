@@ -7,21 +7,15 @@ from planner.feedforward import commands
 from planner.library.dynamic import replay_library
 from planner.library.store import LibraryStore
 from planner.methods.ruckig import rest_to_rest
+from tests.library.helpers import move_library
 
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory):
     """Two slow Ruckig moves with their 50 Hz feed-forward, and one failed entry."""
     crane = Crane.from_id("s100f")
-    L = crane.limit_arrays()
     path = tmp_path_factory.mktemp("dyn") / "lib.h5"
-    with LibraryStore.create(path, crane.spec) as db:
-        for k, (a, b) in enumerate([(0.45, 0.55), (0.55, 0.4)]):
-            q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (a, b))
-            tr = rest_to_rest(crane, q0, q1, scale=0.3).trajectory
-            tr = commands(crane, tr, 50.0).attach(tr, knots=True)
-            db.add(f"m{k}:time", tr, start=crane.tip(q0), goal=crane.tip(q1),
-                   objective="time", method="ruckig", status="ok")
+    with move_library(path, crane, [(0.45, 0.55), (0.55, 0.4)], scale=0.3) as db:
         db.add("m2:time", None, start=(1, 1, 0), goal=(2, 1, 0), objective="time",
                method="ruckig", status="failed", reason="test")
     return path

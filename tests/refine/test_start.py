@@ -17,6 +17,7 @@ from planner.library.refined import read_refined
 from planner.library.store import LibraryStore
 from planner.model.twin import Twin
 from planner.refine import RefineOptions, RefineStatus, refine_commands
+from tests.library.helpers import move_library
 
 OPTS = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0, time_entries="plain")
 
@@ -67,18 +68,8 @@ def test_a_start_off_the_command_grid_is_refused_with_its_shape(umea_move):
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory, umea_move):
-    from planner.methods.ruckig import rest_to_rest
-    from planner.feedforward import commands
-    crane = umea_move[0]
-    L = crane.limit_arrays()
     path = tmp_path_factory.mktemp("start") / "lib.h5"
-    with LibraryStore.create(path, crane.spec) as db:
-        for k, (a, b) in enumerate([(0.35, 0.6), (0.6, 0.4)]):
-            q0, q1 = (L["q_min"] + f * (L["q_max"] - L["q_min"]) for f in (a, b))
-            tr = rest_to_rest(crane, q0, q1, scale=0.8).trajectory
-            tr = commands(crane, tr, 50.0).attach(tr, knots=True)
-            db.add(f"m{k}:time", tr, start=crane.tip(tr.q[0]), goal=crane.tip(tr.q[-1]),
-                   objective="time", method="ruckig", status="ok")
+    move_library(path, umea_move[0], [(0.35, 0.6), (0.6, 0.4)], scale=0.8).close()
     return path
 
 

@@ -5,9 +5,10 @@
   and the flags; written atomically, checked by its checksum before it is loaded), so every
   later process loads it in a millisecond instead of compiling again; falls back to CasADi's
   interpreter when no compiler is available, or when ``CRANE_PLANNER_JIT=0``. The C
-  optimisation level is ``CRANE_PLANNER_JIT_OPT`` (0–3, default 2: an s100f twin compiles in
-  ~22 s and runs a 10 s move in 0.37 s; at 1, ~12 s and 0.42 s; at 0, ~8 s and 0.68 s — the
-  test suite, which runs many machines briefly, uses 1). Processes that need the same function
+  optimisation level is ``CRANE_PLANNER_JIT_OPT`` (0–3, default 2; measured on the s100f
+  twin against 2: at 1 it compiles in 0.56 × the time and runs 1.15 × slower, at 0 in 0.37 ×
+  and 1.85 × slower — the test suite, which builds many machines and runs each briefly,
+  uses 1). Processes that need the same function
   at once compile it once: the others wait on its lock file and load it.
 * :class:`Batched` evaluates a function over N samples through CasADi's buffer interface on a
   mapped copy: a C-ordered numpy array of shape (N, m) has exactly the memory layout of CasADi's

@@ -72,6 +72,15 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   5–26 mm of ringing at 20–100 mm of tip error during the move; from the nominal commands a
   5 × end weight alone calmed some (d00-p12 22.9 → 2.4 mm) and made others worse (d03-p09
   26 → 61 mm). Started from the first stage's result it keeps what that one found.
+* **A given start** (``start``, ``library refine --start refined``): a move refined already —
+  on the spec's twin, before the twin was calibrated — may start from those commands instead
+  of the nominal ones, where the new twin prices them lower (``predicted["start"]``; on the
+  calibrated twins of ``calibrate_loop_warm40.md`` 35 of 48 entries did). With 40 iterations
+  instead of 150, judged on Exudyn (6 drawn machines × 8 entries): 44 of 48 land against 46
+  of 48 from the nominal commands with 150 (``calibrate_loop_polish.md``), at 19 s of CPU
+  per entry instead of 48 (median); the four it adds are rest offsets of 5.4–20.6 mm the
+  twin predicted at under 1 mm — fewer iterations leave commands less robust to what the
+  calibration missed. A trade, not the default.
 * **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
   commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
   controller's dead-band compensation sends. In command units a valve inside its dead band is

@@ -3,22 +3,13 @@ session.
 
 ``crane`` runs a test on every machine; ``cranab850``, ``umea_lab``, ``s100f`` and ``cat215b``
 name one. ``random_configs`` draws joint configurations inside a machine's limits.
-
-The suite compiles the model's functions at ``-O1`` (``CRANE_PLANNER_JIT_OPT``, unless set):
-it builds many twins briefly, and at ``-O1`` a twin compiles in about half the time of the
-default ``-O2`` for ~15 % slower runs (``planner/model/numeric.py``); what is tested is the
-same code.
 """
-import os
+import numpy as np
+import pytest
+from hypothesis import settings
 
-os.environ.setdefault("CRANE_PLANNER_JIT_OPT", "1")
-
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-from hypothesis import settings  # noqa: E402
-
-from planner import Crane  # noqa: E402
-from planner.problems import crane_ids  # noqa: E402
+from planner import Crane
+from planner.problems import crane_ids
 
 settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True,
                           print_blob=True)

@@ -7,8 +7,9 @@
   interpreter when no compiler is available, or when ``CRANE_PLANNER_JIT=0``. The C
   optimisation level is ``CRANE_PLANNER_JIT_OPT`` (0–3, default 2; measured on the s100f
   twin against 2: at 1 it compiles in 0.56 × the time and runs 1.15 × slower, at 0 in 0.37 ×
-  and 1.85 × slower; the test suite on a fresh cache: 222.6 s at 1, 219.3 s at 2). Processes that need the same function
-  at once compile it once: the others wait on its lock file and load it.
+  and 1.85 × slower; the test suite on a fresh cache: 222.6 s at 1, 219.3 s at 2).
+  Processes that need the same function at once compile it once: the others wait on its
+  lock file and load it.
 * :class:`Batched` evaluates a function over N samples through CasADi's buffer interface on a
   mapped copy: a C-ordered numpy array of shape (N, m) has exactly the memory layout of CasADi's
   column-major (m, N) matrix, so inputs and outputs are copied straight between numpy arrays

@@ -160,8 +160,8 @@ from enum import Enum
 import numpy as np
 
 from planner.landing import landing_measures, tip_levers
-from planner.model.valves import past_deadband, within_deadband
-from planner.refine.bounds import DITHER as _DITHER, start_openings
+from planner.model.valves import past_deadband
+from planner.refine.bounds import start_openings
 from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, TIME_ENTRIES,
                                    TIME_ENTRY_WEIGHT, closed_valves, command_bounds,
                                    for_objective)
@@ -393,15 +393,12 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
 
     cost, K = problem(twin)
     db = cost.db
-    U0 = np.zeros((Ku, n))        # the openings the nominal commands ask for
-    U0[:t_u.size] = within_deadband(np.clip(u, -1.0, 1.0), db)
-    # a closed valve is a kink of the flow (|o|): its derivative there is 0 to the adjoint, so
-    # a command that starts at exactly 0 (an idle joint, the tail) would never move; a
-    # hair's opening gives it a slope (the optimiser crosses zero where the other side pays)
+    # the openings the nominal commands ask for; a closed valve is a kink of the flow (|o|):
+    # its derivative there is 0 to the adjoint, so a command that starts at exactly 0 (an idle
+    # joint, the tail) would never move; a hair's opening gives it a slope (the optimiser
+    # crosses zero where the other side pays) — start_openings cracks it
     lo, hi = command_bounds(u, Ku, opts)
-    shut = (lo == 0.0) & (hi == 0.0)
-    U0 = np.clip(U0, lo, hi)
-    U0[(U0 == 0.0) & ~shut] = np.where(hi > 0.0, _DITHER, -_DITHER)[(U0 == 0.0) & ~shut]
+    U0 = start_openings((t_u, u), traj.t[0], Ku, db, lo, hi, opts.rate)
     box = (lo.ravel(), hi.ravel())
     t_all = traj.t[0] + dt * np.arange(Ku)
     base = dict(model=twin.provenance(), options=asdict(opts))

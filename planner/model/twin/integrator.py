@@ -38,6 +38,8 @@ from planner.model.numeric import bound_buffer, jit_function
 
 __all__ = ["Stepper", "STATE_SCALE", "state_scale"]
 
+_CHUNKS: dict = {}   # per process: (rhs, n, newton, chunk, spool) → (rhs, step, compiled chunk)
+
 #: per-state scale of the Newton update check: q, q̇ (1), pressures (1 MPa), spools (1)
 STATE_SCALE = {"q": 1.0, "qd": 1.0, "p": 1e6, "spool": 1.0}
 
@@ -64,14 +66,25 @@ class Stepper:
         self._fine = None
         self.refined = 0
         self.tau_index = tau_index
-        nx = rhs.size1_in(0)
-        self.nx = nx
-        npar = rhs.size1_in(3)
+        self.nx = rhs.size1_in(0)
+        self._npar = rhs.size1_in(3)
+        # the step size is an input of the chunk (below), so every stepper of this right-hand
+        # side — another step, the substeps of :meth:`_refined` — shares one symbolic build and
+        # one compiled chunk in a process (building and hashing it alone takes about a second)
+        key = (id(rhs), self.n, self.newton, self.chunk, tau_index)
+        got = _CHUNKS.get(key)
+        if got is None or got[0] is not rhs:
+            got = _CHUNKS[key] = (rhs, *self._build())
+        _, self.step_sx, self._f = got
+        self.compiled = self._f is not None and self._f.is_a("External")
+        self._buffer = None     # the chunk's call buffer, bound on first use (:meth:`_chunk`)
+
+    def _build(self):
+        """(the step as an SX function, the compiled chunk of ``chunk`` steps)."""
+        rhs, n, nx, npar = self._rhs, self.n, self.nx, self._npar
         xk, xm, ys = ca.SX.sym("xk", nx), ca.SX.sym("xm", nx), ca.SX.sym("y", nx)
         u, fx = ca.SX.sym("u", n), ca.SX.sym("f_x", n)
-        # the parameters and the step size h: an input, not a constant, so that one compiled
-        # chunk serves every step of a machine (the twin at 2 ms, the diagnosis at 1 ms, the
-        # substeps of a chunk redone) — compiled once instead of once per step size
+        # the parameters and the step size h: an input, not a constant (see __init__)
         Pe = ca.SX.sym("P", npar + 1)
         P, hs = Pe[:npar], Pe[npar]
         jac = ca.Function("twin_jac", [ys, u, fx, P], [ca.jacobian(rhs(ys, u, fx, P), ys)])
@@ -96,11 +109,7 @@ class Stepper:
         err = ca.mmax(ca.fabs(dy) * inv_scale)
         step = ca.Function("twin_bdf2", [ca.vertcat(xk, xm), u, fx, Pe],
                            [ca.vertcat(y, xk), err], {"cse": True})
-        self.step_sx = step
-        self._f = jit_function(step.mapaccum("twin_chunk", self.chunk))
-        self.compiled = self._f is not None and self._f.is_a("External")
-        self._npar = npar
-        self._buffer = None     # the chunk's call buffer, bound on first use (:meth:`_chunk`)
+        return step, jit_function(step.mapaccum("twin_chunk", self.chunk))
 
     def spool_mask(self) -> np.ndarray:
         """1 on the spool rows (4n + 1 … 5n, stepped exactly), 0 elsewhere (BDF2); all 0 when

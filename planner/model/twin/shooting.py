@@ -59,10 +59,10 @@ class Shooting:
         self.twin = twin
         st = twin.stepper
         self.stepper, self.n, self.nx, self.C, self.h = st, twin.crane.n, st.nx, st.chunk, st.h
-        key = id(st)
+        key = id(st._f)     # one adjoint per compiled chunk (whatever the stepper's step)
         rev = _REVERSE.get(key)
-        if rev is None or rev[0] is not st:
-            rev = _REVERSE[key] = (st, jit_function(_adjoint_step(twin.f_rhs, self.n, st)
+        if rev is None or rev[0] is not st._f:
+            rev = _REVERSE[key] = (st._f, jit_function(_adjoint_step(twin.f_rhs, self.n, st)
                                                     .mapaccum("twin_adjoint", st.chunk)))
         self._adj = rev[1]
         C, n, nx = self.C, self.n, self.nx

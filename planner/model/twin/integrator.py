@@ -19,7 +19,8 @@ chunk redone in substeps) takes x_{k−1} = x_k − h·f(x_k): BDF2 is then cons
 (at rest, x_{k−1} = x_k; a bare x_{k−1} = x_k would make the first step an implicit Euler step
 of 2h/3 — a lag of h/3 for a run that starts moving).
 
-The step is an SX function (symbolic solve of the sparse linear system, expanded), mapped
+The step is an SX function (the sparse linear system solved by symbolic elimination over its
+structure, :mod:`planner.model.twin.linsolve`), mapped
 over ``chunk`` steps with :meth:`casadi.Function.mapaccum` and compiled as a whole
 (:func:`planner.model.numeric.jit_function`): one call from Python integrates ``chunk`` steps,
 the commands and extra forces given per step, through the function's call buffer bound once to
@@ -35,6 +36,7 @@ import casadi as ca
 import numpy as np
 
 from planner.model.numeric import bound_buffer, jit_function
+from planner.model.twin.linsolve import sparse_lu
 
 __all__ = ["Stepper", "STATE_SCALE", "state_scale"]
 
@@ -96,15 +98,15 @@ class Stepper:
         y = keep * y + ca.DM(m) * exact
         J = ca.SX.eye(nx) - c * ca.mtimes(ca.diag(keep), jac(y, u, fx, P))
         # solved in scaled states (1 rad, 1 MPa, …; D⁻¹·J·D): the symbolic solve does not
-        # pivot, and unscaled its rounding reaches the small states
+        # pivot, and unscaled its rounding reaches the small states; factored once
         d = ca.DM(state_scale(n, nx))
-        J = J * ca.mtimes(1.0 / d, d.T)
+        solve = sparse_lu(J * ca.mtimes(1.0 / d, d.T))
         b = 4.0 / 3.0 * xk - 1.0 / 3.0 * xm
         inv_scale = ca.DM(1.0 / state_scale(n, nx))
         dy = ca.SX.zeros(nx)
         for _ in range(self.newton):
             G = keep * (y - b - c * rhs(y, u, fx, P))
-            dy = keep * d * ca.solve(J, G / d)      # the spool rows stay exact
+            dy = keep * d * solve(G / d)            # the spool rows stay exact
             y = y - dy
         err = ca.mmax(ca.fabs(dy) * inv_scale)
         step = ca.Function("twin_bdf2", [ca.vertcat(xk, xm), u, fx, Pe],

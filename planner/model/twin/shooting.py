@@ -33,6 +33,7 @@ import numpy as np
 from planner.model.commands import shift_steps, shift_steps_transposed
 from planner.model.numeric import bound_buffer, jit_function
 from planner.model.twin.integrator import state_scale
+from planner.model.twin.linsolve import sparse_lu
 
 if TYPE_CHECKING:
     from planner.model.twin.twin import Twin
@@ -141,7 +142,7 @@ def _adjoint_step(rhs, n: int, st):
     # entries of 1 and 1e10 unscaled (the adjoint recursion then amplifies the rounding)
     d = ca.DM(state_scale(n, nx))
     As = A * ca.mtimes(1.0 / d, d.T)             # D⁻¹·A·D
-    mu = ca.solve(As.T, d * a) / d
+    mu = sparse_lu(As.T)(d * a) / d
     ub = ca.fmin(ca.fmax(u, -1.0), 1.0)
     B = (c * ca.mtimes(ca.diag(keep), ca.jacobian(f, u))
          + (1.0 - E) * ca.jacobian(_spool_rows(ub, n, nx), u))

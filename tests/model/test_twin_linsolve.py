@@ -36,7 +36,8 @@ def test_solves_as_numpy_on_random_sparse_systems(seed):
 
 
 def test_the_order_is_a_permutation_and_eliminates_a_leaf_first():
-    # a star: the centre joins every leaf, so minimum degree takes leaves first (ties: the lower index)
+    # a star: the centre joins every leaf, so minimum degree takes leaves first
+    # (ties: the lower index)
     r = [0, 0, 0, 1, 2, 3]
     c = [1, 2, 3, 0, 0, 0]
     order = elimination_order(ca.Sparsity.triplet(4, 4, r, c))

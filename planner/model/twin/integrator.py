@@ -179,8 +179,8 @@ class Stepper:
     def _chunk_buffer(self):
         """The compiled chunk's call buffer bound to arrays filled in place (no conversion per
         call): inputs the history (2nx,), commands and forces (chunk, n), parameters and the
-        step (chunk, npar + 1); outputs the states with their history (chunk, 2nx), the updates (chunk,) —
-        row-major (chunk, k) is the column-major (k, chunk) CasADi reads and writes."""
+        step (chunk, npar + 1); outputs the states with their history (chunk, 2nx), the
+        updates (chunk,) — row-major (chunk, k) is the column-major (k, chunk) CasADi reads and writes."""
         if self._buffer is None:
             C, n = self.chunk, self.n
             self._buffer = bound_buffer(

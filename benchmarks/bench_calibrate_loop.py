@@ -300,7 +300,7 @@ def merge(parts: list, names: list) -> dict:
     first = parts[0]
     rep = dict(first, argv=" + ".join(p["argv"] for p in parts), parts=list(map(str, names)),
                rows=[], chain=[], refine={})
-    fits = {}
+    fits, drawn = {}, {}
     for p, nm in zip(parts, names):
         for m, f in p["fits"].items():
             same = (json.dumps(f.get("fit"), sort_keys=True, default=float)
@@ -308,8 +308,14 @@ def merge(parts: list, names: list) -> dict:
             if m in fits and not same:     # the fitted values, wherever the spec was kept
                 sys.exit(f"--merge {nm}: machine {m} calibrated differently ({f.get('spec')})")
             fits.setdefault(m, f)
-        if p["machines"][0].get("delay") != first["machines"][0].get("delay") or \
-                p.get("lag_max") != first.get("lag_max"):
+        for m in p["machines"]:     # parts may hold other machines (--only); one draw a name
+            k = drawn.setdefault(m["name"], m)
+            if json.dumps(k, sort_keys=True, default=float) != \
+                    json.dumps(m, sort_keys=True, default=float):
+                sys.exit(f"--merge {nm}: machine {m['name']} drawn otherwise than in an "
+                         "earlier part")
+        if p.get("lag_max") != first.get("lag_max") or \
+                p.get("delay_max") != first.get("delay_max"):
             sys.exit(f"--merge {nm}: other drawn machines than {names[0]}")
         seen = {(r["machine"], r["id"], r["commands"]) for r in rep["rows"]}
         dup = [r for r in p["rows"] if (r["machine"], r["id"], r["commands"]) in seen]
@@ -319,8 +325,7 @@ def merge(parts: list, names: list) -> dict:
         rep["chain"] += [i for i in p["chain"] if i not in rep["chain"]]
         for m, r in p.get("refine", {}).items():
             rep["refine"].setdefault(m, []).append(r)
-    names_m = {m["name"]: m for p in parts for m in p["machines"]}
-    rep["machines"] = [names_m[k] for k in sorted(names_m)]
+    rep["machines"] = [drawn[k] for k in sorted(drawn)]
     rep["truth"] = {k: v for p in parts for k, v in p["truth"].items()}
     rep["fits"] = fits
     rep["parts_libraries"] = [p.get("library", "") for p in parts]

@@ -23,16 +23,17 @@ def _row(i, machine, commands, offset, osc=0.001):
 
 
 def _part(argv, ids, offsets, spec="/w/cal-m1.toml", delay=0.01, lib="sel-p0.h5",
-          params=None):
-    rows = [_row(i, "m1", c, o) for i, o in zip(ids, offsets)
+          params=None, machine="m1"):
+    rows = [_row(i, machine, c, o) for i, o in zip(ids, offsets)
             for c in ("nominal", "refined", "calibrated")]
     fit = dict(status="ok", spec=spec, log_s=120.0, fit=dict(
         runtime_s=10.0, twin_runs=5, status="done", parameters=params or {},
         rms_before=dict(positions=9.0, pressures=9.0),
         rms_after=dict(positions=1.0, pressures=1.0)))
     return dict(date="2026-11-27 21:00 UTC", platform="x", cpus=2, load=[1.0, 1.0, 1.0],
-                argv=argv, chain=list(ids), machines=[_machine("m1", delay)],
-                truth=dict(m1={}), fits=dict(m1=fit), refine=dict(m1=dict(cpu_s=[30.0 + 10 * k for k in range(len(ids))])),
+                argv=argv, chain=list(ids), machines=[_machine(machine, delay)],
+                truth={machine: {}}, fits={machine: fit},
+                refine={machine: dict(cpu_s=[30.0 + 10 * k for k in range(len(ids))])},
                 rows=rows, settle=3.0, lag_max=0.02, anchor="twin", duration=120.0,
                 iterations=12, excitation=None, library=lib)
 
@@ -57,7 +58,23 @@ def test_parts_with_another_calibration_or_a_repeated_entry_are_refused():
     # the same fit, its spec kept elsewhere (a results folder, another session): one machine
     rep = loop.merge([a, _part("x", ["c:time"], [0.001], spec="/v/cal-m1.toml")], ["a", "b"])
     assert sorted(rep["chain"]) == ["a:time", "c:time"]
-    with pytest.raises(SystemExit, match="other drawn machines"):
+    with pytest.raises(SystemExit, match="machine m1 drawn otherwise"):
         loop.merge([a, _part("x", ["c:time"], [0.001], delay=0.02)], ["a", "b"])
     with pytest.raises(SystemExit, match="entry a:time on m1 twice"):
         loop.merge([a, _part("x", ["a:time"], [0.001])], ["a", "b"])
+
+
+def test_parts_on_other_machines_merge_and_a_machine_drawn_twice_otherwise_is_refused():
+    """The 100-entry loop runs one machine per part (``--only mN``): each part's machine list
+    holds only its own machine, and the merged report holds all of them."""
+    a = _part("--only m1", ["a:time"], [0.002])
+    b = _part("--only m2", ["a:time"], [0.001], spec="/w/cal-m2.toml", delay=0.02,
+              machine="m2")
+    rep = loop.merge([a, b], ["a", "b"])
+    assert [m["name"] for m in rep["machines"]] == ["m1", "m2"]
+    assert sorted(rep["fits"]) == ["m1", "m2"]
+    assert len([r for r in rep["rows"] if r["commands"] == "calibrated"]) == 2
+    c = _part("--only m2", ["b:time"], [0.001], spec="/w/cal-m2.toml", delay=0.03,
+              machine="m2")
+    with pytest.raises(SystemExit, match="machine m2 drawn otherwise"):
+        loop.merge([a, b, c], ["a", "b", "c"])

@@ -247,16 +247,21 @@ def merge(parts: list, argv: str, amend: list = ()) -> dict:
     return rep
 
 
+def copy_entry(src, dst, entry_id: str):
+    """Add the ok entry ``entry_id`` of the open library ``src`` to the writable ``dst``
+    (its plan, start, goal, objective, method and build attributes; not its refinement)."""
+    r = next(x for x in src.index_rows() if x["id"] == entry_id)
+    at = src.entry_attrs(entry_id)
+    dst.add(entry_id, src.trajectory(entry_id), start=r["start"], goal=r["goal"],
+            objective=r["objective"], method=r["method"], status="ok",
+            attrs={k: v for k, v in at.items() if k in ("suite", "solve_s", "clearance_m")})
+
+
 def _select(library: Path, ids, sel: Path):
     part = sel.with_name(sel.name + ".part")
     with LibraryStore.open(library) as src, LibraryStore.create(part, _spec(src)) as dst:
         for i in ids:
-            r = next(x for x in src.index_rows() if x["id"] == i)
-            at = src.entry_attrs(i)
-            dst.add(i, src.trajectory(i), start=r["start"], goal=r["goal"],
-                    objective=r["objective"], method=r["method"], status="ok",
-                    attrs={k: v for k, v in at.items()
-                           if k in ("suite", "solve_s", "clearance_m")})
+            copy_entry(src, dst, i)
     os.replace(part, sel)
 
 

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench_refine import _spec  # noqa: E402
+from bench_refine import _spec, copy_entry  # noqa: E402
 
 from planner.library.refined import GROUP, read_refined  # noqa: E402
 from planner.library.store import LibraryStore  # noqa: E402
@@ -60,12 +60,7 @@ def join(parts: list[Path], out: Path, only: list[str] | None = None) -> list[st
     with LibraryStore.create(part, spec, overwrite=True) as dst:
         for i in ids:
             with LibraryStore.open(where[i]) as src:
-                r = next(x for x in src.index_rows() if x["id"] == i)
-                at = src.entry_attrs(i)
-                dst.add(i, src.trajectory(i), start=r["start"], goal=r["goal"],
-                        objective=r["objective"], method=r["method"], status="ok",
-                        attrs={k: v for k, v in at.items()
-                               if k in ("suite", "solve_s", "clearance_m")})
+                copy_entry(src, dst, i)
                 g = dst.group(i)
                 g.copy(src.group(i)[GROUP], g, name=GROUP)
                 dst.commit()

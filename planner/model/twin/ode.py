@@ -56,6 +56,7 @@ import casadi as ca
 from planner.model.actuators import stroke_expr
 from planner.model.dynamics import rnea
 from planner.model.dynamics_spec import P_ATM
+from planner.model.twin.linsolve import sparse_lu
 from planner.model.twin.params import PER_ACTUATOR, SCALARS
 from planner.model.valve_physics import OPEN_EPS
 from planner.model.valve_physics import function as valve_function
@@ -178,7 +179,7 @@ def build_rhs(crane: Crane, spec=None):
     M = ca.jacobian(tau_id, qdd_sym)
     h = ca.substitute(tau_id, qdd_sym, ca.DM.zeros(n))
     M = ca.substitute(M, qdd_sym, ca.DM.zeros(n))
-    qdd = ca.solve(M, tau - h)
+    qdd = sparse_lu(M)(tau - h)     # M is symmetric positive definite: no pivot needed
     dsp = (ca.fmin(ca.fmax(U, -1.0), 1.0) - sp) / sc["tau_spool"]
     xdot = ca.vertcat(qd, qdd, ca.vertcat(*dpa), ca.vertcat(*dpb), dps, dsp)
     rhs = ca.Function("twin_rhs", [X, U, FX, P], [xdot], ["x", "u", "f_x", "P"], ["xdot"])

@@ -6,10 +6,12 @@ matrix writes a dense symbolic factorisation: 14 782 instructions for that syste
 the compiled step, and most of the time the C compiler spends on it. Gaussian elimination over
 the structure alone, in a minimum-degree order of A + Aᵀ, writes 862 for the same system.
 
-Like ``casadi.solve`` on SX it does not pivot: the matrix is scaled first (the callers solve in
-1 rad, 1 MPa, … units) and is the identity plus c = 2h/3 times the Jacobian, whose pivots stay
-near one at the twin's steps (the caller checks each step's Newton update, so a step where this
-fails is seen, refined in substeps, and reported).
+Like ``casadi.solve`` on SX it does not pivot. The Newton matrix is scaled first (the callers
+solve in 1 rad, 1 MPa, … units) and is the identity plus c = 2h/3 times the Jacobian, whose
+pivots stay near one at the twin's steps (the caller checks each step's Newton update, so a
+step where this fails is seen, refined in substeps, and reported). The right-hand side's mass
+matrix (:mod:`planner.model.twin.ode`) is symmetric positive definite, where elimination
+without pivoting is stable.
 
 :func:`sparse_lu` factors once; the returned function solves for any number of right-hand
 sides (the step's three Newton iterations share one factorisation).

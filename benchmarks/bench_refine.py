@@ -143,6 +143,7 @@ def effective_options(options: dict, objective) -> dict:
         o.pop("idle_reverse")
     if not (o["keep_direction"] or o["keep_closed"] or o["energy_weight"] > 0):
         o.pop("fallback_above")   # acts only on a refinement that keeps or prices
+    o.pop("restart_iterations")   # acts only on a given start, which these parts never take
     return o
 
 

@@ -80,7 +80,11 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   of 48 from the nominal commands with 150 (``calibrate_loop_polish.md``), at 19 s of CPU
   per entry instead of 48 (median); the four it adds are rest offsets of 5.4–20.6 mm the
   twin predicted at under 1 mm — fewer iterations leave commands less robust to what the
-  calibration missed. A trade, not the default.
+  calibration missed. A trade, not the default. A given start can also lead the search into
+  a valley the nominal commands' search avoids (a time entry on a calibrated twin rang 9.4 mm
+  from it, 2.0 mm from the nominal commands with 150 iterations, 4.1 mm with 40): where the
+  move from a given start is predicted above ``fallback_above`` it is refined again from the
+  nominal commands (``restart_iterations``) and the better kept (``predicted["restart"]``).
 * **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
   commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
   controller's dead-band compensation sends. In command units a valve inside its dead band is
@@ -212,7 +216,9 @@ class RefineOptions:
     ``fallback_above`` [m]: where a refinement that keeps directions, closes valves or prices
     the pump work leaves the twin predicting a rest offset or ringing above this, the move is
     refined without them as well and the commands nearer to landed kept (0: never) (module
-    doc)."""
+    doc); ``restart_iterations``: where a move refined from a given start is predicted above
+    ``fallback_above``, it is refined again from the nominal commands with these iterations
+    (0: never; module doc)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -239,6 +245,7 @@ class RefineOptions:
     calm_weight: float = 5.0
     calm_below: float = 2.5e-3
     ls_ramp: float = 1e-3
+    restart_iterations: int = 150
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
@@ -255,7 +262,8 @@ class RefineOptions:
                   ("calm_below", self.calm_below, 0.0, 1.0),
                   ("ls_ramp", self.ls_ramp, 0.0, 0.1),
                   ("idle_reverse", self.idle_reverse, 0.0, 1.0),
-                  ("fallback_above", self.fallback_above, 0.0, 1.0))
+                  ("fallback_above", self.fallback_above, 0.0, 1.0),
+                  ("restart_iterations", self.restart_iterations, 0, 10000))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -334,20 +342,37 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     Never raises for a move the twin cannot run: the status says so."""
     opts = options or RefineOptions()
     r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
+    off = opts.fallback_above > 0 and r.ok and \
+        _score(r.predicted["refined"]) > opts.fallback_above
+    if off and opts.restart_iterations > 0 and start is not None and \
+            r.predicted.get("start", {}).get("commands") == "given":
+        # a given start can lead the search into a valley that the search from the nominal
+        # commands avoids: refined again from those, the better kept (module doc)
+        again = replace(opts, iterations=opts.restart_iterations)
+        r = _keep_better(r, _refine_once(crane, traj, t_u, u, twin, again, pendulum, x0),
+                         "restart", "nominal", opts)
+        off = _score(r.predicted["refined"]) > opts.fallback_above
     constrained = opts.keep_direction or opts.keep_closed or opts.energy_weight > 0
-    if not (r.ok and constrained and opts.fallback_above > 0
-            and _score(r.predicted["refined"]) > opts.fallback_above):
+    if not (off and constrained):
         return r
     # the landing first (module doc): the move refined without the constraints and the price
     plain = replace(opts, keep_direction=False, keep_closed=False, energy_weight=0.0)
-    r2 = _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0, start)
+    return _keep_better(r, _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0, start),
+                        "fallback", "plain", opts)
+
+
+def _keep_better(r: Refinement, r2: Refinement, key: str, name: str,
+                 opts: RefineOptions) -> Refinement:
+    """The better landing (by the twin) of a refinement ``r`` and a second try ``r2``, the
+    second's record in ``predicted[key]`` (taken, the threshold, ``first``, ``name`` and its
+    status and iterations); the costs of both counted."""
     taken = r2.status == RefineStatus.IMPROVED and \
         _score(r2.predicted["refined"]) < _score(r.predicted["refined"])
     out = r2 if taken else r
-    out.predicted = dict(out.predicted, fallback=dict(
-        taken=bool(taken), above_m=opts.fallback_above, first=r.predicted["refined"],
-        plain=r2.predicted.get("refined"), plain_status=str(r2.status),
-        plain_iterations=r2.iterations))
+    out.predicted = dict(out.predicted, **{key: {
+        "taken": bool(taken), "above_m": opts.fallback_above, "first": r.predicted["refined"],
+        name: r2.predicted.get("refined"), f"{name}_status": str(r2.status),
+        f"{name}_iterations": r2.iterations}})
     out.options, out.wall_s = asdict(opts), r.wall_s + r2.wall_s
     out.iterations, out.evaluations = r.iterations + r2.iterations, r.evaluations + r2.evaluations
     return out

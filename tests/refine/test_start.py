@@ -19,7 +19,8 @@ from planner.model.twin import Twin
 from planner.refine import RefineOptions, RefineStatus, refine_commands
 from tests.library.helpers import move_library
 
-OPTS = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0, time_entries="plain")
+OPTS = RefineOptions(iterations=6, settle=1.0, rest_window=0.5, calm=0.0, time_entries="plain",
+                     restart_iterations=0)   # the restart: its own test
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +55,32 @@ def test_a_start_that_prices_above_the_nominal_commands_is_not_taken(umea_move):
                         options=replace(OPTS, iterations=1), start=(t_u, shut))
     assert r.predicted["start"]["commands"].startswith("nominal (the given priced higher)")
     assert r.predicted["start"]["cost"] > r.predicted["cost_nominal"]
+
+
+def test_a_given_start_predicted_off_is_refined_again_from_the_nominal_commands(
+        umea_move, first):
+    """Where the move refined from a given start is predicted off (above fallback_above), it
+    is refined again from the nominal commands and the better landing by the twin is kept,
+    both recorded and both paid for; a start not taken (priced higher) is not retried."""
+    from planner.refine.measures import score
+    crane, move, t_u, u = umea_move
+    opts = replace(OPTS, iterations=2, fallback_above=1e-9,     # every move counts as off
+                   restart_iterations=2)
+    r = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts,
+                        start=(first.t_u, first.u))
+    rs = r.predicted["restart"]
+    assert rs["nominal_status"] == str(RefineStatus.IMPROVED)
+    cold = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts)
+    assert "restart" not in cold.predicted
+    assert rs["nominal"] == pytest.approx(cold.predicted["refined"], rel=1e-9)
+    best = min(score(rs["first"]), score(rs["nominal"]))
+    assert score(r.predicted["refined"]) == pytest.approx(best, rel=1e-12)
+    assert r.predicted["start"]["commands"] == ("nominal" if rs["taken"] else "given")
+    assert r.iterations > rs["nominal_iterations"]       # both searches are counted
+    shut = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts,
+                           start=(t_u, np.zeros_like(u)))
+    assert "restart" not in shut.predicted
+    assert shut.predicted["start"]["commands"].startswith("nominal (the given priced higher)")
 
 
 def test_a_start_off_the_command_grid_is_refused_with_its_shape(umea_move):

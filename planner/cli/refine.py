@@ -61,6 +61,8 @@ def cmd_library_refine(args):
                  if s.get("with_swing") else "")
         swing += (f"; {s['started_from_refined']} started from their stored refined commands"
                   if s.get("started_from_refined") else "")
+        swing += (f", {s['restarted']} of them predicted off and refined again from the "
+                  f"nominal commands ({s['restart_taken']} kept)" if s.get("restarted") else "")
         print(f"{s['library']}: {s['refined']} entries refined on the twin of {s['model']} "
               f"(fingerprint {s['twin_fingerprint']}; {s['statuses'] or 'none'}{swing}), "
               f"{s['skipped_existing']} already refined, {s['seconds']:.1f} s{cost}")
@@ -192,7 +194,9 @@ def add_refine_parser(lsub) -> None:
                         "commands) or 'refined' (its stored refined commands where it has "
                         "them, e.g. refined on the spec's twin before a calibration, when the "
                         "new twin prices them lower; with fewer --iterations a library is "
-                        "refined again on a calibrated twin in a fraction of the time)")
+                        "refined again on a calibrated twin in a fraction of the time; an "
+                        "entry the twin then predicts off is refined again from its nominal "
+                        "commands, the better kept)")
     p.add_argument("--force", action="store_true",
                    help="refine entries already refined by the same twin again")
     add_json_arg(p)

@@ -239,6 +239,10 @@ def _write(db, r: dict, state: dict, write_refined) -> None:
     st = info.get("status", "failed")
     state["counts"][st] = state["counts"].get(st, 0) + 1
     state["cpu"].append(info.get("cpu_s", float("nan")))
+    rs = (info.get("predicted") or {}).get("restart")
+    if rs:      # refined again from the nominal commands (a given start predicted off)
+        state["restarted"] = state.get("restarted", 0) + 1
+        state["restart_taken"] = state.get("restart_taken", 0) + bool(rs.get("taken"))
     if st == "failed" or r["u"] is None:
         state["failed"].append(dict(id=r["id"], reason=info.get("reason", "")))
         return
@@ -252,6 +256,7 @@ def _summary(path, model_where, fingerprint, ids, state, t0, **kw) -> dict:
     return dict(library=str(path), model=model_where, twin_fingerprint=fingerprint,
                 entries=len(ids), refined=state["written"], skipped_existing=state["skipped"],
                 with_swing=state["swing"], started_from_refined=state.get("warm", 0),
+                restarted=state.get("restarted", 0), restart_taken=state.get("restart_taken", 0),
                 energy_pairs=state.get("pairs"),
                 statuses=state["counts"], failed=state["failed"],
                 cpu_per_entry_s=dict(median=float(np.median(cpu)) if cpu.size else None,

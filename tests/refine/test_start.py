@@ -121,6 +121,16 @@ def test_library_refine_on_another_twin_starts_from_the_stored_refinement(lib, t
             assert info["predicted"]["start"]["commands"] in (
                 "given", "nominal (the given priced higher)")
             assert info["model"]["fingerprint"] != before[i][2]["model"]["fingerprint"]
+    assert s["restarted"] == 0          # restart_iterations = 0
+    # every entry counted off: those that took their given start are refined again from the
+    # nominal commands, counted in the summary and recorded per entry
+    again = replace(opts, fallback_above=1e-9, restart_iterations=1)
+    s = refine_library(path, model=model, options=again, show_progress=False, start="refined",
+                       force=True)
+    with LibraryStore.open(path) as db:
+        infos = [read_refined(db, i)[2]["predicted"] for i in db.ids()]
+    assert s["restarted"] == sum("restart" in p for p in infos) > 0
+    assert s["restart_taken"] == sum(p["restart"]["taken"] for p in infos if "restart" in p)
     with pytest.raises(ValueError, match="start = 'best'; allowed: nominal, refined"):
         refine_library(path, options=opts, show_progress=False, start="best")
 

@@ -442,9 +442,18 @@ def markdown(rep) -> str:
         how = ("from the spec's twin's refinement (`library refine --start refined`)"
                if rep.get("start") == "refined" else "from the nominal commands")
         its = (rep.get("options") or {}).get("iterations")
+        parts = [p for r in rep.get("refine", {}).values()
+                 for p in (r if isinstance(r, list) else [r])]
+        again = sum(p.get("restarted", 0) for p in parts)
+        kept = sum(p.get("restart_taken", 0) for p in parts)
+        restart = (f" {again} entries the calibrated twin predicted off (above "
+                   f"{1e3 * rep['options'].get('fallback_above', 0):g} mm) were refined again "
+                   f"from the nominal commands ({rep['options'].get('restart_iterations')} "
+                   f"iterations), the better kept: {kept} times the restart." if again else "")
         L += ["", f"Refinement on the calibrated twins: {len(cpu)} entries, "
               + (f"{its} L-BFGS-B iterations at most, " if its else "") + f"started {how}; "
-              f"CPU per entry median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."]
+              f"CPU per entry median {np.median(cpu):.0f} s, p90 {np.percentile(cpu, 90):.0f} s."
+              + restart]
     if rep.get("figure"):
         L += ["", f"![landing before and after calibration]({rep['figure']})"]
     L += ["", "## Calibrated parameters beside the truth", "",

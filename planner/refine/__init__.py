@@ -83,8 +83,9 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   calibration missed. A trade, not the default. A given start can also lead the search into
   a valley the nominal commands' search avoids (a time entry on a calibrated twin rang 9.4 mm
   from it, 2.0 mm from the nominal commands with 150 iterations, 4.1 mm with 40): where the
-  move from a given start is predicted above ``fallback_above`` it is refined again from the
-  nominal commands (``restart_iterations``) and the better kept (``predicted["restart"]``).
+  move from a given start is predicted above ``fallback_above`` (or, the start priced higher,
+  the fewer iterations left it there) it is refined again from the nominal commands with
+  ``restart_iterations`` and the better kept (``predicted["restart"]``).
 * **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
   commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
   controller's dead-band compensation sends. In command units a valve inside its dead band is
@@ -216,9 +217,8 @@ class RefineOptions:
     ``fallback_above`` [m]: where a refinement that keeps directions, closes valves or prices
     the pump work leaves the twin predicting a rest offset or ringing above this, the move is
     refined without them as well and the commands nearer to landed kept (0: never) (module
-    doc); ``restart_iterations``: where a move refined from a given start is predicted above
-    ``fallback_above``, it is refined again from the nominal commands with these iterations
-    (0: never; module doc)."""
+    doc); ``restart_iterations``: a move refined from a given start and predicted off is
+    refined again from the nominal commands with these (0: never; module doc)."""
     iterations: int = 150
     tail: float = 0.5
     settle: float = 2.0
@@ -344,10 +344,10 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
     off = opts.fallback_above > 0 and r.ok and \
         _score(r.predicted["refined"]) > opts.fallback_above
-    if off and opts.restart_iterations > 0 and start is not None and \
-            r.predicted.get("start", {}).get("commands") == "given":
-        # a given start can lead the search into a valley that the search from the nominal
-        # commands avoids: refined again from those, the better kept (module doc)
+    given = r.predicted.get("start", {}).get("commands") == "given"
+    if off and start is not None and opts.restart_iterations > (0 if given else opts.iterations):
+        # a given start may lead into a valley the nominal commands' search avoids, or (priced
+        # higher) leave that search with the warm start's fewer iterations (module doc)
         again = replace(opts, iterations=opts.restart_iterations)
         r = _keep_better(r, _refine_once(crane, traj, t_u, u, twin, again, pendulum, x0),
                          "restart", "nominal", opts)

@@ -61,7 +61,8 @@ def test_a_given_start_predicted_off_is_refined_again_from_the_nominal_commands(
         umea_move, first):
     """Where the move refined from a given start is predicted off (above fallback_above), it
     is refined again from the nominal commands and the better landing by the twin is kept,
-    both recorded and both paid for; a start not taken (priced higher) is not retried."""
+    both recorded and both paid for; a start not taken (priced higher) is retried only with
+    more iterations than the first search had."""
     from planner.refine.measures import score
     crane, move, t_u, u = umea_move
     opts = replace(OPTS, iterations=2, fallback_above=1e-9,     # every move counts as off
@@ -79,8 +80,13 @@ def test_a_given_start_predicted_off_is_refined_again_from_the_nominal_commands(
     assert r.iterations > rs["nominal_iterations"]       # both searches are counted
     shut = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts,
                            start=(t_u, np.zeros_like(u)))
-    assert "restart" not in shut.predicted
+    assert "restart" not in shut.predicted      # the same search again: not repeated
     assert shut.predicted["start"]["commands"].startswith("nominal (the given priced higher)")
+    # priced higher with the warm start's fewer iterations: the nominal search with more
+    longer = refine_commands(crane, move, t_u, u, twin=Twin(crane),
+                             options=replace(opts, restart_iterations=3),
+                             start=(t_u, np.zeros_like(u)))
+    assert longer.predicted["restart"]["nominal_iterations"] > 0
 
 
 def test_a_start_off_the_command_grid_is_refused_with_its_shape(umea_move):

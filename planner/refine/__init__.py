@@ -73,19 +73,14 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   5 × end weight alone calmed some (d00-p12 22.9 → 2.4 mm) and made others worse (d03-p09
   26 → 61 mm). Started from the first stage's result it keeps what that one found.
 * **A given start** (``start``, ``library refine --start refined``): a move refined already —
-  on the spec's twin, before the twin was calibrated — may start from those commands instead
-  of the nominal ones, where the new twin prices them lower (``predicted["start"]``; on the
-  calibrated twins of ``calibrate_loop_warm40.md`` 35 of 48 entries did). With 40 iterations
-  instead of 150, judged on Exudyn (6 drawn machines × 8 entries): 44 of 48 land against 46
-  of 48 from the nominal commands with 150 (``calibrate_loop_polish.md``), at 19 s of CPU
-  per entry instead of 48 (median); the four it adds are rest offsets of 5.4–20.6 mm the
-  twin predicted at under 1 mm — fewer iterations leave commands less robust to what the
-  calibration missed. A trade, not the default. A given start can also lead the search into
-  a valley the nominal commands' search avoids (a time entry on a calibrated twin rang 9.4 mm
-  from it, 2.0 mm from the nominal commands with 150 iterations, 4.1 mm with 40): where the
-  move from a given start is predicted above ``fallback_above`` (or, the start priced higher,
-  the fewer iterations left it there) it is refined again from the nominal commands with
-  ``restart_iterations`` and the better kept (``predicted["restart"]``).
+  on the spec's twin, before the twin was calibrated — may start from those commands, where
+  the new twin prices them below the nominal ones (``predicted["start"]``), with fewer
+  iterations (40 against 150: 19 against 48 s CPU per entry, ``calibrate_loop_warm40.md``).
+  A given start can lead the search into a valley the nominal commands' search avoids (a
+  calibrated twin's time entry rang 9.4 mm from it, 2.0 mm from the nominal commands with
+  150 iterations, 4.1 with 40); where the move is predicted above ``fallback_above``, the
+  whole refinement runs again from the nominal commands with ``restart_iterations`` and the
+  better is kept (``predicted["restart"]``; ``calibrate_loop_100.md``).
 * **Dead bands**: the unknowns are the valve openings past each valve's dead band, not the
   commands; the commands sent are their dead-band inverse (:func:`past_deadband`), as a valve
   controller's dead-band compensation sends. In command units a valve inside its dead band is
@@ -171,7 +166,8 @@ from planner.refine.bounds import (ENERGY_ENTRIES, ENERGY_ENTRY_WEIGHT, TIME_ENT
                                    TIME_ENTRY_WEIGHT, closed_valves, command_bounds,
                                    for_objective)
 from planner.refine.cost import CommandCost
-from planner.refine.measures import horizon as _horizon, predict as _predict, score as _score
+from planner.refine.measures import horizon as _horizon, keep_better, predict as _predict
+from planner.refine.measures import score as _score
 from planner.refine.solve import Solved, minimize_commands
 from planner.trajectory import Trajectory
 
@@ -341,41 +337,36 @@ def refine_commands(crane: Crane, traj: Trajectory, t_u, u, *, twin: Twin | None
     taken where this twin prices them below the nominal commands (``predicted["start"]``).
     Never raises for a move the twin cannot run: the status says so."""
     opts = options or RefineOptions()
-    r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
-    off = opts.fallback_above > 0 and r.ok and \
-        _score(r.predicted["refined"]) > opts.fallback_above
+    r = _refine_landing_first(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
     given = r.predicted.get("start", {}).get("commands") == "given"
-    if off and start is not None and opts.restart_iterations > (0 if given else opts.iterations):
+    if _off(r, opts) and start is not None and \
+            opts.restart_iterations > (0 if given else opts.iterations):
         # a given start may lead into a valley the nominal commands' search avoids, or (priced
-        # higher) leave that search with the warm start's fewer iterations (module doc)
+        # higher) leave that search with the warm start's fewer iterations (module doc): the
+        # whole refinement again from the nominal commands, the better kept
         again = replace(opts, iterations=opts.restart_iterations)
-        r = _keep_better(r, _refine_once(crane, traj, t_u, u, twin, again, pendulum, x0),
-                         "restart", "nominal", opts)
-        off = _score(r.predicted["refined"]) > opts.fallback_above
+        r = keep_better(r, _refine_landing_first(crane, traj, t_u, u, twin, again, pendulum,
+                                                  x0, None), "restart", "nominal", opts)
+    return r
+
+
+def _off(r: Refinement, opts: RefineOptions) -> bool:
+    return opts.fallback_above > 0 and r.ok and \
+        _score(r.predicted["refined"]) > opts.fallback_above
+
+
+def _refine_landing_first(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptions,
+                          pendulum, x0, start) -> Refinement:
+    """One refinement, and where it keeps directions, closes valves or prices the pump work
+    and is predicted off, the move refined without those as well, the better kept."""
+    r = _refine_once(crane, traj, t_u, u, twin, opts, pendulum, x0, start)
     constrained = opts.keep_direction or opts.keep_closed or opts.energy_weight > 0
-    if not (off and constrained):
+    if not (constrained and _off(r, opts)):
         return r
     # the landing first (module doc): the move refined without the constraints and the price
     plain = replace(opts, keep_direction=False, keep_closed=False, energy_weight=0.0)
-    return _keep_better(r, _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0, start),
+    return keep_better(r, _refine_once(crane, traj, t_u, u, twin, plain, pendulum, x0, start),
                         "fallback", "plain", opts)
-
-
-def _keep_better(r: Refinement, r2: Refinement, key: str, name: str,
-                 opts: RefineOptions) -> Refinement:
-    """The better landing (by the twin) of a refinement ``r`` and a second try ``r2``, the
-    second's record in ``predicted[key]`` (taken, the threshold, ``first``, ``name`` and its
-    status and iterations); the costs of both counted."""
-    taken = r2.status == RefineStatus.IMPROVED and \
-        _score(r2.predicted["refined"]) < _score(r.predicted["refined"])
-    out = r2 if taken else r
-    out.predicted = dict(out.predicted, **{key: {
-        "taken": bool(taken), "above_m": opts.fallback_above, "first": r.predicted["refined"],
-        name: r2.predicted.get("refined"), f"{name}_status": str(r2.status),
-        f"{name}_iterations": r2.iterations}})
-    out.options, out.wall_s = asdict(opts), r.wall_s + r2.wall_s
-    out.iterations, out.evaluations = r.iterations + r2.iterations, r.evaluations + r2.evaluations
-    return out
 
 
 def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptions,

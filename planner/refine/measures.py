@@ -1,9 +1,11 @@
 """What :func:`planner.refine.refine_commands` measures on the twin: the horizon its cost
-sees (:func:`horizon`), the twin's landing measures of a command sequence (:func:`predict`)
-and how far they are from landed (:func:`score`)."""
+sees (:func:`horizon`), the twin's landing measures of a command sequence (:func:`predict`),
+how far they are from landed (:func:`score`) and which of two refinements lands better
+(:func:`keep_better`)."""
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,7 +17,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
     from planner.model.twin import Twin
 
-__all__ = ["horizon", "score", "predict"]
+__all__ = ["horizon", "score", "predict", "keep_better"]
 
 
 def horizon(twin: Twin, traj: Trajectory, opts):
@@ -31,6 +33,23 @@ def horizon(twin: Twin, traj: Trajectory, opts):
 def score(measures: dict) -> float:
     """How far a prediction is from landed: the larger of its rest offset and ringing [m]."""
     return max(measures["rest_offset_m"], measures["residual_oscillation_m"])
+
+
+def keep_better(r, r2, key: str, name: str, opts):
+    """The better landing (by the twin) of a refinement ``r`` and a second try ``r2`` (each a
+    :class:`planner.refine.Refinement`), the second's record in ``predicted[key]`` (taken,
+    the threshold, ``first``, ``name`` and its status and iterations); the costs of both
+    counted."""
+    taken = str(r2.status) == "improved" and \
+        score(r2.predicted["refined"]) < score(r.predicted["refined"])
+    out = r2 if taken else r
+    out.predicted = dict(out.predicted, **{key: {
+        "taken": bool(taken), "above_m": opts.fallback_above, "first": r.predicted["refined"],
+        name: r2.predicted.get("refined"), f"{name}_status": str(r2.status),
+        f"{name}_iterations": r2.iterations}})
+    out.options, out.wall_s = asdict(opts), r.wall_s + r2.wall_s
+    out.iterations, out.evaluations = r.iterations + r2.iterations, r.evaluations + r2.evaluations
+    return out
 
 
 def predict(crane: Crane, twin: Twin, traj: Trajectory, t_u, U, K: int,

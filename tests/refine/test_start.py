@@ -89,6 +89,25 @@ def test_a_given_start_predicted_off_is_refined_again_from_the_nominal_commands(
     assert longer.predicted["restart"]["nominal_iterations"] > 0
 
 
+def test_the_restart_is_the_whole_refinement_and_its_record_survives_the_landing_fallback(
+        umea_move, first):
+    """A priced refinement predicted off takes the landing-first fallback (the move without
+    the price); the restart from the nominal commands is that whole refinement again — its own
+    fallback included — and its record is kept whichever of them lands better."""
+    crane, move, t_u, u = umea_move
+    opts = replace(OPTS, iterations=2, fallback_above=1e-9, restart_iterations=3,
+                   energy_weight=1.0)
+    r = refine_commands(crane, move, t_u, u, twin=Twin(crane), options=opts,
+                        start=(first.t_u, first.u))
+    rs = r.predicted["restart"]
+    cold = refine_commands(crane, move, t_u, u, twin=Twin(crane),
+                           options=replace(opts, iterations=3))
+    assert "fallback" in cold.predicted          # the cold refinement's own fallback ran
+    assert rs["nominal"] == pytest.approx(cold.predicted["refined"], rel=1e-9)
+    if rs["taken"]:
+        assert "fallback" in r.predicted
+
+
 def test_a_start_off_the_command_grid_is_refused_with_its_shape(umea_move):
     crane, move, t_u, u = umea_move
     with pytest.raises(ValueError, match=r"start commands of shape \(\d+, 2\)"):

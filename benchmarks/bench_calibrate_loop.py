@@ -145,7 +145,8 @@ def calibrate_task(lib: str, work: str, m: dict, duration: float, iterations: in
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--work", required=True, help="bench_refine_robust's work folder "
+    ap.add_argument("--work", help="bench_refine_robust's work folder (required unless --merge "
+                    "or --markdown) "
                     "(sel.h5, chain.json)")
     ap.add_argument("--robust", default=str(RESULTS / "refine_robust.json"))
     ap.add_argument("--machines", type=int, default=6)
@@ -189,6 +190,8 @@ def main():
         atomic_write_text(RESULTS / f"{a.tag}.json", json.dumps(rep, indent=1, default=float))
         atomic_write_text(RESULTS / f"{a.tag}.md", markdown(rep))
         return
+    if not a.work:
+        ap.error("--work is required (unless --merge or --markdown)")
     work = Path(a.work)
     work.mkdir(parents=True, exist_ok=True)
     if a.library:

@@ -24,8 +24,7 @@ def parts(tmp_path_factory):
     d = tmp_path_factory.mktemp("join")
     crane = Crane.from_id("s100f")
     pairs = [(0.3, 0.6), (0.4, 0.5), (0.6, 0.35), (0.5, 0.45)]
-    with move_library(d / "all.h5", crane, pairs, scale=0.8):
-        pass
+    move_library(d / "all.h5", crane, pairs, scale=0.8).close()
     out = []
     for k, ids in enumerate((["m0:time", "m2:time"], ["m1:time", "m3:time"])):
         p = d / f"part{k}.h5"

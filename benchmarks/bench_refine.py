@@ -128,11 +128,11 @@ def effective_options(options: dict, objective) -> dict:
     """The refine options an entry of ``objective`` gets from a part run with ``options``
     (:func:`planner.refine.for_objective`; an option the part's code did not have yet takes
     the value that means what that code did: its default, but ``energy_entries`` and
-    ``time_entries`` "plain" and ``idle_reverse`` and ``fallback_above`` 0)."""
+    ``time_entries`` "plain" and ``idle_reverse``, ``fallback_above`` and ``tube_weight`` 0)."""
     from dataclasses import asdict
     from planner.refine import for_objective
     known = dict(energy_entries="plain", time_entries="plain", idle_reverse=0.0,
-                 fallback_above=0.0)
+                 fallback_above=0.0, tube_weight=0.0)
     known.update({k: v for k, v in options.items() if k in RefineOptions.__dataclass_fields__})
     o = asdict(for_objective(RefineOptions(**known), objective))
     if objective != "energy":   # how energy moves are refined does not touch the others

@@ -242,6 +242,7 @@ class RefineOptions:
     calm_below: float = 2.5e-3
     ls_ramp: float = 1e-3
     restart_iterations: int = 150
+    tube_weight: float = 100.0
 
     def __post_init__(self):
         checks = (("iterations", self.iterations, 1, 10000), ("tail", self.tail, 0.0, 10.0),
@@ -259,7 +260,8 @@ class RefineOptions:
                   ("ls_ramp", self.ls_ramp, 0.0, 0.1),
                   ("idle_reverse", self.idle_reverse, 0.0, 1.0),
                   ("fallback_above", self.fallback_above, 0.0, 1.0),
-                  ("restart_iterations", self.restart_iterations, 0, 10000))
+                  ("restart_iterations", self.restart_iterations, 0, 10000),
+                  ("tube_weight", self.tube_weight, 0.0, 1e6))
         for name, v, lo, hi in checks:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo <= v <= hi):
                 raise ValueError(f"refine option '{name}' = {v!r}; allowed: {lo:g} .. {hi:g}")
@@ -401,11 +403,11 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
     Ku = t_u.size + int(round(tail * opts.rate))
     pend = twin.pendulum if opts.swing_weight > 0 else None
 
-    def problem(tw, end_weight=None, ramp=opts.ls_ramp):
+    def problem(tw, end_weight=None, ramp=opts.ls_ramp, tube=(0.0, 0.0)):
         sh = Shooting(tw.with_ls_ramp(ramp))
         R = int(round(dt / tw.step))
         K = sh.steps((Ku + 1) * R + int(round(settle / tw.step)))
-        return CommandCost(sh, traj, Ku, R, K, opts, crane, pend, x0, end_weight), K
+        return CommandCost(sh, traj, Ku, R, K, opts, crane, pend, x0, end_weight, tube), K
 
     cost, K = problem(twin)
     db = cost.db
@@ -465,7 +467,8 @@ def _refine_once(crane: Crane, traj: Trajectory, t_u, u, twin, opts: RefineOptio
     calm, restarts = None, int(getattr(res, "restarts", 0))
     if opts.calm > 0 and opts.calm_weight > 1.0 and _score(refined) > opts.calm_below:
         # the calm stage (module doc): from where the first ended, the end weighed heavier
-        cost2, _ = problem(twin, opts.end_weight * opts.calm_weight, 0.0)
+        cost2, _ = problem(twin, opts.end_weight * opts.calm_weight, 0.0,
+                           (opts.calm_below, opts.tube_weight))
         J2, _ = cost2(res.x)
         cost2.fail = 100.0 * J2 + 1.0
         r2 = minimize_commands(cost2, res.x, max(int(round(opts.calm * opts.iterations)), 1),

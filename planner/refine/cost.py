@@ -21,7 +21,8 @@ class CommandCost:
     """The cost of :mod:`planner.refine`'s module doc and its gradient with respect to the control-grid commands."""
 
     def __init__(self, shooting, traj: Trajectory, Ku: int, R: int, K: int, opts, crane: Crane,
-                 pendulum=None, x0=None, end_weight: float | None = None):
+                 pendulum=None, x0=None, end_weight: float | None = None,
+                 tube: tuple[float, float] = (0.0, 0.0)):
         self.sh, self.Ku, self.R, self.K, self.pendulum = shooting, Ku, R, K, pendulum
         n = traj.n
         h = shooting.h
@@ -35,6 +36,13 @@ class CommandCost:
         # default tolerances suit)
         self.W = 1e6 * h * w_t[:, None] * tip_levers(crane, self.q_ref) ** 2
         self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
+        # the landing tube (calm stage): after the plan's end the tip's distance from the goal
+        # [mm] past ``tube[0]`` [m] costs tube[1]·(d² − r²)² — nothing inside it, steeply
+        # outside, so the peak (a late arrival, a swing) is what it pays for, not the mean
+        self.after = self.tk > traj.t[-1] + 1e-9
+        self.r2 = (1e3 * tube[0]) ** 2
+        self.w_tube = h * tube[1] if tube[0] > 0 else 0.0
+        self.L2 = 1e6 * tip_levers(crane, self.q_ref[self.after]) ** 2 if self.w_tube else None
         self.smooth = 1e6 * opts.smooth
         # the pump's work [kJ] over the whole record, in mm²·s per kJ (energy entries)
         self.w_energy = 1e-3 * h * opts.energy_weight
@@ -62,6 +70,11 @@ class CommandCost:
         J = float(np.sum(self.W * e * e))
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
+        if self.w_tube:
+            ea = e[self.after]
+            x = np.maximum(np.sum(self.L2 * ea * ea, axis=1) - self.r2, 0.0)
+            J += self.w_tube * float(np.sum(x * x))
+            dJdx[self.after, :self.n] += (4.0 * self.w_tube * x)[:, None] * self.L2 * ea
         if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
             from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
             nb = 5 * self.n + 1

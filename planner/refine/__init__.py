@@ -66,7 +66,9 @@ optimised on the twin (:mod:`planner.model.twin`) by single shooting:
   offset or ringing above ``calm_below`` (2.5 mm, half the landing tolerance), a second
   L-BFGS-B from where it ended, on the machine's twin, with the end weighed ``calm_weight`` ×
   heavier and ``calm`` × ``iterations`` more iterations; kept when the twin predicts the move closer to
-  landed (the larger of rest offset and ringing), and said so in ``predicted["calm"]``. The
+  landed (the larger of rest offset and ringing), and said so in ``predicted["calm"]``; the tip
+  outside a landing tube of radius ``calm_below`` after the plan's end costs it steeply
+  (``tube_weight``, :mod:`planner.refine.cost`). The
   first stage's weights trade ringing against the tip error during the move: on the s100f
   part-0 misses of ``refine_s100f-400-p0.md`` the twin (= Exudyn there, to < 1 mm) predicted
   5–26 mm of ringing at 20–100 mm of tip error during the move; from the nominal commands a
@@ -206,8 +208,8 @@ class RefineOptions:
     the calm stage's iterations, ``calm`` × ``iterations`` (0: none), with the end weighed
     ``calm_weight`` × more,
     run where the first stage leaves the twin predicting a rest offset or ringing above
-    ``calm_below`` [m]; ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening;
-    0: optimise on the machine's twin itself); ``idle_reverse``: with ``keep_direction``, the
+    ``calm_below`` [m], the calm stage's landing tube weighed ``tube_weight`` (0: none);
+    ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening; 0: optimise on the machine's twin itself); ``idle_reverse``: with ``keep_direction``, the
     largest opening a joint the plan moves one way may get the other way in its idle rows (a
     held joint putting its droop right; 0: none; it acts only with ``keep_direction``);
     ``fallback_above`` [m]: where a refinement that keeps directions, closes valves or prices

@@ -1,6 +1,21 @@
 """The cost that :func:`planner.refine.refine_commands` minimises over the valve openings on
 the control grid, with its exact gradient by the twin's adjoint (the terms are described in
-:mod:`planner.refine`'s module doc)."""
+:mod:`planner.refine`'s module doc).
+
+**The landing tube** (the calm stage's, ``RefineOptions.tube_weight``): after the plan's end
+the tip's distance d from the goal past the radius r (``calm_below``, 2.5 mm: half the landing
+tolerance) costs ``tube_weight``·(d² − r²)² [mm⁴] per second; inside the tube, nothing. The
+squared error the other terms integrate barely prices a peak: a move that reaches its goal
+9 mm late at the plan's end and creeps in within 0.15 s costs 30·81·0.05 ≈ 120 mm²·s against
+thousands for the tip error during the move, so the optimiser kept the lateness — and a landing
+is judged by its largest distance from the rest point after the plan's end. On the eight
+moves of ``calibrate_loop_100.md`` that the calibrated twins predicted furthest off (5.0–9.8 mm,
+the largest at the plan's end in six: late, not ringing), refined again from the same warm
+start: 3.0–5.6 mm with the tube (5 of 8 within 4 mm), 4.4–9.1 mm with a 150-iteration restart
+instead; its price, the tip error during the move 54–185 mm against 40–85 mm and up to 1.4 ×
+the pump work (the loop with it: ``benchmarks/results/calibrate_loop_100t.md``). d is
+measured as the tracking term measures the tip: Σ_j ℓ_j²·e_j², each joint's own tip
+displacement.
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -54,6 +69,13 @@ class CommandCost:
         self.fail = 1e30
         self.db = np.asarray(shooting.twin.params.per["deadband"], float)
 
+    def tube(self, ea):
+        """The landing tube's cost of the joint errors ``ea`` after the plan's end (one row
+        per step) and its gradient: the tip's distance² [mm²] taken as Σ_j ℓ_j²·e_j² (the
+        tracking term's measure: each joint's tip displacement, squared and summed)."""
+        x = np.maximum(np.sum(self.L2 * ea * ea, axis=1) - self.r2, 0.0)
+        return self.w_tube * float(np.sum(x * x)), (4.0 * self.w_tube * x)[:, None] * self.L2 * ea
+
     def steps(self, U):
         us = np.zeros((self.K, self.n))
         us[:self.Ku * self.R] = np.repeat(U, self.R, axis=0)
@@ -71,10 +93,9 @@ class CommandCost:
         dJdx = np.zeros_like(run.x)
         dJdx[:, :self.n] = 2.0 * self.W * e
         if self.w_tube:
-            ea = e[self.after]
-            x = np.maximum(np.sum(self.L2 * ea * ea, axis=1) - self.r2, 0.0)
-            J += self.w_tube * float(np.sum(x * x))
-            dJdx[self.after, :self.n] += (4.0 * self.w_tube * x)[:, None] * self.L2 * ea
+            Jt, dt = self.tube(e[self.after])
+            J += Jt
+            dJdx[self.after, :self.n] += dt
         if self.pendulum is not None:    # the swing's states follow the twin's (5n + 1)
             from planner.model.twin.pendulum import amplitude2, amplitude2_gradient
             nb = 5 * self.n + 1

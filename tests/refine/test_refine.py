@@ -101,6 +101,7 @@ def test_refined_commands_land_the_twin_better_than_the_nominal_ones(crane, twin
                                        (dict(calm=-0.5), "calm"),
                                        (dict(calm_weight=0.5), "calm_weight"),
                                        (dict(calm_below=-1e-3), "calm_below"),
+                                       (dict(tube_weight=-1.0), "tube_weight"),
                                        (dict(energy_entries="cheap"), "energy_entries")])
 def test_bad_options_name_the_field(kw, field):
     with pytest.raises(ValueError, match=f"'{field}'"):

@@ -11,11 +11,12 @@ thousands for the tip error during the move, so the optimiser kept the lateness 
 is judged by its largest distance from the rest point after the plan's end. On the eight
 moves of ``calibrate_loop_100.md`` that the calibrated twins predicted furthest off (5.0–9.8 mm,
 the largest at the plan's end in six: late, not ringing), refined again from the same warm
-start: 3.0–5.6 mm with the tube (5 of 8 within 4 mm), 4.4–9.1 mm with a 150-iteration restart
-instead; its price, the tip error during the move 54–185 mm against 40–85 mm and up to 1.4 ×
+start: 3.0–5.6 mm with the tube (5 of 8 within 4 mm); without it, refined again from the
+nominal commands with 150 or 400 iterations, four of them stayed at 7.3–9.1 mm. Its price, the tip error during the move 54–185 mm against 40–85 mm and up to 1.4 ×
 the pump work (the loop with it: ``benchmarks/results/calibrate_loop_100t.md``). d is
 measured as the tracking term measures the tip: Σ_j ℓ_j²·e_j², each joint's own tip
 displacement.
+"""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING

@@ -209,9 +209,10 @@ class RefineOptions:
     ``calm_weight`` × more,
     run where the first stage leaves the twin predicting a rest offset or ringing above
     ``calm_below`` [m], the calm stage's landing tube weighed ``tube_weight`` (0: none);
-    ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening; 0: optimise on the machine's twin itself); ``idle_reverse``: with ``keep_direction``, the
-    largest opening a joint the plan moves one way may get the other way in its idle rows (a
-    held joint putting its droop right; 0: none; it acts only with ``keep_direction``);
+    ``ls_ramp``: the optimisation twin's load-sensing ramp (an opening; 0: optimise on the
+    machine's twin itself); ``idle_reverse``: with ``keep_direction``, the largest opening a
+    joint the plan moves one way may get the other way in its idle rows (a held joint putting
+    its droop right; 0: none; it acts only with ``keep_direction``);
     ``fallback_above`` [m]: where a refinement that keeps directions, closes valves or prices
     the pump work leaves the twin predicting a rest offset or ringing above this, the move is
     refined without them as well and the commands nearer to landed kept (0: never) (module

@@ -12,8 +12,11 @@ is judged by its largest distance from the rest point after the plan's end. On t
 moves of ``calibrate_loop_100.md`` that the calibrated twins predicted furthest off (5.0–9.8 mm,
 the largest at the plan's end in six: late, not ringing), refined again from the same warm
 start: 3.0–5.6 mm with the tube (5 of 8 within 4 mm); without it, refined again from the
-nominal commands with 150 or 400 iterations, four of them stayed at 7.3–9.1 mm. Its price, the tip error during the move 54–185 mm against 40–85 mm and up to 1.4 ×
-the pump work (the loop with it: ``benchmarks/results/calibrate_loop_100t.md``). d is
+nominal commands with 150 or 400 iterations, four of them stayed at 7.3–9.1 mm. Its price on
+those eight (by the twin): the tip error during the move 54–185 mm against 40–85 mm, up to
+1.4 × the pump work. On the loop's 600 (``benchmarks/results/calibrate_loop_100t.md``, judged
+on Exudyn): 553 land against 533 without it; the tip error during the move median 30.9 mm
+against 30.2, p90 63.9 against 59.3; the twin's pump work 1.3 % more over the sums. d is
 measured as the tracking term measures the tip: Σ_j ℓ_j²·e_j², each joint's own tip
 displacement.
 """
@@ -50,7 +53,8 @@ class CommandCost:
         # goal, 6 m stretched out on the way; weighted at the goal only, the optimiser paid a
         # mid-move slew error an eleventh of its tip error); J in mm²·s (the scale L-BFGS-B's
         # default tolerances suit)
-        self.W = 1e6 * h * w_t[:, None] * tip_levers(crane, self.q_ref) ** 2
+        lev2 = tip_levers(crane, self.q_ref) ** 2
+        self.W = 1e6 * h * w_t[:, None] * lev2
         self.W_swing = 1e6 * h * opts.swing_weight * (self.tk > traj.t[-1] + 1e-9)
         # the landing tube (calm stage): after the plan's end the tip's distance from the goal
         # [mm] past ``tube[0]`` [m] costs tube[1]·(d² − r²)² — nothing inside it, steeply
@@ -58,7 +62,7 @@ class CommandCost:
         self.after = self.tk > traj.t[-1] + 1e-9
         self.r2 = (1e3 * tube[0]) ** 2
         self.w_tube = h * tube[1] if tube[0] > 0 else 0.0
-        self.L2 = 1e6 * tip_levers(crane, self.q_ref[self.after]) ** 2 if self.w_tube else None
+        self.L2 = 1e6 * lev2[self.after]
         self.smooth = 1e6 * opts.smooth
         # the pump's work [kJ] over the whole record, in mm²·s per kJ (energy entries)
         self.w_energy = 1e-3 * h * opts.energy_weight

@@ -58,6 +58,32 @@ def test_hidden_dead_band_is_named_on_its_joint(lab):
     assert res.gap_reduction > 0.8
 
 
+def test_a_name_must_carry_the_gap(lab, monkeypatch):
+    """A fit judged named that removes less than MIN_SHARE of the above-noise residual is not
+    named (twin_diagnosis's module doc): the dead band above, with the least share set past
+    any fit's (1.01), is read as with no fit past the threshold, the message saying why."""
+    from planner.calibration import twin_diagnosis as td
+    monkeypatch.setattr(td, "MIN_SHARE", 1.01)
+    boom = lab.names[1]
+    res = diagnose(lab, {f"deadband.{boom}": 0.03}, DEADBAND)
+    assert res.verdict in ("explained", "unexplained") and res.effect is None, res.message
+    assert "valve_deadband" in res.message and "not named" in res.message
+
+
+def test_the_share_removed_is_of_the_slow_residual_above_noise():
+    """_share against a residual whose slow part the oracle knows: a slow sine of 20 σ,
+    halved by the fit, is three quarters of its power removed, half of its RMS."""
+    t = np.arange(0.0, 20.0, 0.02)
+    Y = np.zeros((t.size, 2))
+    slow = 20.0 * np.sin(2 * np.pi * 0.2 * t)
+    Y0 = np.column_stack([slow, np.zeros_like(t)])
+    ns = SimpleNamespace(Y=Y, sig=np.ones(2), t=t, test=np.ones(t.size, bool))
+    share = TwinDiagnosis._share(ns, Y0, 0.5 * Y0)
+    assert share == pytest.approx(0.5, abs=2e-3)
+    assert TwinDiagnosis._share(ns, Y0, Y0) == 0.0
+    assert TwinDiagnosis._share(ns, Y, Y0) == 0.0     # nothing above noise to remove
+
+
 @pytest.mark.slow   # 7 s; the oil is named on 12 of 12 Exudyn recordings (discrepancy_twin_fresh3)
 def test_soft_oil_is_named(lab):
     beta = lab.spec.dynamics.bulk_modulus

@@ -90,14 +90,22 @@ from planner.calibration.twin_candidates import KINDS, TwinEffect, twin_candidat
 from planner.calibration.twin_fit import TwinFit
 from planner.calibration.twin_problem import DiagnosisProblem
 from planner.calibration.verdict import Evidence, judge, smoothed_excess
-
-#: the least share of the nominal twin's above-noise held-out residual a name must remove
-MIN_SHARE = 0.2
 from planner.calibration.where import locate
 
 if TYPE_CHECKING:
     from planner.model import Crane
     from planner.simulation.recording import Recording
+
+#: the least share of the nominal twin's above-noise held-out residual a name must remove
+MIN_SHARE = 0.2
+
+
+def _removed(ex0, ex1) -> float:
+    """The share of the above-noise residual removed: ``ex0`` before, ``ex1`` after (per
+    channel, :func:`smoothed_excess` clipped at 0), the square roots of their sums compared."""
+    tot0 = math.sqrt(ex0.sum())
+    return 1.0 - math.sqrt(ex1.sum()) / tot0 if tot0 > 0 else 0.0
+
 
 #: the ranking's secant step in the scaled parameter: (linear: one typical size, log: ×1.2)
 SECANT = {False: 1.0, True: 0.2}
@@ -419,10 +427,8 @@ class TwinDiagnosis:
 
     def _share(self, Y0, Yf) -> float:
         """The share of the above-noise held-out residual of ``Y0`` that ``Yf`` removes."""
-        ex0, ex1 = (np.maximum(smoothed_excess((self.Y - Y) / self.sig, self.t, self.test)[0],
-                               0.0) for Y in (Y0, Yf))
-        tot0 = math.sqrt(ex0.sum())
-        return 1.0 - math.sqrt(ex1.sum()) / tot0 if tot0 > 0 else 0.0
+        return _removed(*(np.maximum(smoothed_excess((self.Y - Y) / self.sig, self.t,
+                                                     self.test)[0], 0.0) for Y in (Y0, Yf)))
 
     def _conditions(self) -> dict:
         """joint -> extending / retracting / still (the logged commands), for where two
@@ -440,7 +446,7 @@ class TwinDiagnosis:
         R0, R1 = (self.Y - Y0) / sig, (self.Y - Yf) / sig
         ex0 = np.maximum(smoothed_excess(R0, self.t, te)[0], 0.0)
         ex1 = np.maximum(smoothed_excess(R1, self.t, te)[0], 0.0)
-        gap = self._share(Y0, Yf)
+        gap = _removed(ex0, ex1)
         per = {c: (1.0 - math.sqrt(b) / math.sqrt(a) if a > 0.05 else None)
                for c, a, b in zip(cols, ex0, ex1)}
         eff = joint = None

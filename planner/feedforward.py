@@ -21,6 +21,17 @@ each period [t_k, t_k + 1/rate). Two ways of choosing the held value:
   This lags the plan by about half a period: O(q̇·Δt/2) during the move, returning to ~0 at
   the end of a rest-to-rest move.
 
+``oil=True`` (the machine's feed-forward, where the crane has ``[dynamics]``): the flow a
+command asks for also fills each function's oil spring to the chamber pressures the plan needs
+(``evaluate()``'s p_a, p_b; :mod:`planner.model.twin.oil`), ẋ + ṗ_a/(κ_a·A_a) − ṗ_b/(κ_b·A_b).
+Without it both flow-controlled valve edges leave no oil for the pressure a plan's acceleration
+or load change needs: the function lags, overshoots and rings at its oil-spring frequency, and
+the pump pushes against the choked outlet. The correction is applied only where the plain
+command is open, in its direction: a valve the plan keeps closed is not cracked (a crept valve
+would set the load-sensing pump's pressure, see :mod:`planner.methods.nlp.idle`) and none is
+reversed (a reversal signals the other chamber). :func:`predict_motion` inverts the plain
+commands only.
+
 :func:`predict_motion` is the inverse: commands -> flows (inverting the dead band) -> stroke
 rates -> joint positions, integrated exactly per period (the held command gives a constant
 stroke rate, and q = joint_from_stroke(x)). It is purely kinematic: no pump sharing, no load
@@ -41,6 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import Polynomial
 
+from planner.model.twin.oil import oil_stroke
 from planner.model.valves import (command_to_stroke_rate, stroke_rate_to_command,
                                   valve_params)
 from planner.trajectory import Trajectory, evaluate
@@ -49,7 +61,7 @@ if TYPE_CHECKING:
     from planner.model import Crane
 
 __all__ = ["FeedForward", "SaturationInterval", "commands", "predict_motion", "round_trip",
-           "stored_commands", "on_command_grid", "with_settle",
+           "stored_commands", "on_command_grid", "with_settle", "fills_oil",
            "ProgressEstimator", "progress_estimator"]
 
 # ----------------------------------------------------------------------------- commands
@@ -123,6 +135,7 @@ class FeedForward:
                                      saturated={k: [str(s) for s in v]
                                                 for k, v in self.saturated.items()}))
         meta["feedforward"]["knots"] = bool(knots)
+        meta["feedforward"]["oil"] = bool(self.meta.get("oil", False))
         return Trajectory(t.copy(), q, qd, qdd, joint_names=names, method=traj.method,
                           objective=traj.objective, interpolation="quintic", limits=traj.limits,
                           u=self.u[held].copy(), meta=meta)
@@ -151,13 +164,41 @@ def _runs(mask):
     return list(zip(d[::2], d[1::2]))
 
 
+def fills_oil(crane: Crane) -> bool:
+    """True where ``commands(..., oil=True)`` can fill ``crane``'s oil springs: its spec has
+    ``[dynamics]`` (hose volumes, bulk modulus) and no enabled transformer (module doc)."""
+    spec = crane.spec
+    ht = spec.transformer
+    return spec.dynamics is not None and not (ht is not None and ht.enabled)
+
+
+def _oil_stroke_rate(crane: Crane, traj: Trajectory, t, hold: str) -> np.ndarray:
+    """The stroke rate (M, n) that fills the oil springs along ``traj`` at the control
+    instants ``t`` (:mod:`planner.model.twin.oil`): the plan's chamber pressures from
+    ``evaluate()`` (its 1 kHz grid), held per period like the plan's own rate."""
+    from planner.model.twin.params import twin_params
+    ev = evaluate(crane, traj)
+    params = twin_params(crane, crane.spec.dynamics, crane.spec.payload.total)
+    dx = oil_stroke(params, ev.hyd["x"], ev.hyd["p_a"], ev.hyd["p_b"])
+    if hold == "mean":      # past the plan's end np.interp holds δx: no flow asked there
+        dt = float(t[1] - t[0])
+        d = np.column_stack([np.interp(np.append(t, t[-1] + dt), ev.t, dx[:, i])
+                             for i in range(crane.n)])
+        return np.diff(d, axis=0) / dt
+    r = np.gradient(dx, ev.t, axis=0)
+    return np.column_stack([np.interp(t, ev.t, r[:, i], right=0.0) for i in range(crane.n)])
+
+
 def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
-             hold: str = "mean") -> FeedForward:
+             hold: str = "mean", oil: bool = False) -> FeedForward:
     """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
 
     The grid is t0 + k/rate, k = 0 … ceil(duration·rate) (the last instant may lie up to one
     period past the end; the trajectory then holds its final state). ``hold`` = "mean"
-    (stroke displacement per period, default) or "sample" (instantaneous rate at t_k)."""
+    (stroke displacement per period, default) or "sample" (instantaneous rate at t_k).
+    ``oil=True`` (cranes with ``[dynamics]``, :func:`fills_oil`) adds the flow that fills each
+    function's oil spring to the pressures the plan needs (module doc); a valve the plain
+    command keeps closed stays closed and none is reversed."""
     if traj.n != crane.n:
         raise ValueError(f"trajectory has {traj.n} joints, crane '{crane.spec.id}' has {crane.n}")
     if not (rate > 0 and math.isfinite(rate)):
@@ -177,7 +218,17 @@ def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
         if t[-1] > traj.t[-1]:         # past the end: hold the final state's rate (rest: 0)
             _, qd_end, _, _ = traj.sample(traj.t[-1:])
             xd[-1] = crane.stroke(q[-1])[1] * qd_end[0]
+    if oil:
+        if not fills_oil(crane):
+            raise ValueError(f"oil=True: crane '{crane.spec.id}' has no [dynamics] (hose "
+                             "volumes, bulk modulus) or an enabled transformer; allowed: "
+                             "oil=False")
+        plain, _ = stroke_rate_to_command(vp, xd)
+        xd = xd + _oil_stroke_rate(crane, traj, t, hold)
     u_raw, flow = stroke_rate_to_command(vp, xd)
+    if oil:       # never open a valve the plan keeps closed, never reverse one
+        keep = (np.sign(u_raw) == np.sign(plain)) & (plain != 0)
+        u_raw, flow = np.where(keep, u_raw, 0.0), np.where(keep, flow, 0.0)
     u = np.clip(u_raw, -1.0, 1.0)
     names = tuple(crane.names)
     sat = {}
@@ -190,7 +241,7 @@ def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
                 peak_command=float(abs(u_raw[k, i])), peak_flow=float(abs(flow[k, i])),
                 flow_gain=float(vp.flow_gain[i])))
     return FeedForward(t=t, u=u, saturated=sat, rate=float(rate), joint_names=names, hold=hold,
-                       u_raw=u_raw, flow=flow, meta=dict(crane=crane.spec.id))
+                       u_raw=u_raw, flow=flow, meta=dict(crane=crane.spec.id, oil=bool(oil)))
 
 
 def stored_commands(traj: Trajectory, rate: float = 50.0):

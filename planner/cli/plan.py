@@ -264,7 +264,7 @@ def write_outputs(args, crane: Crane, res, ev, walls, out: dict, refined=None) -
             from planner.library.export import write_trajectory_csv  # h5py: only when needed
             write_trajectory_csv(path, crane, traj, rate=args.out_rate, units_row=args.units_row)
     elif path:
-        from planner.feedforward import commands
+        from planner.feedforward import commands, fills_oil
         from planner.library.export import write_single_entry  # h5py: only when needed
         from planner.trajectory import evaluate
         # stored like a library entry: the plan on the control grid (50 Hz, plus its own
@@ -273,7 +273,8 @@ def write_outputs(args, crane: Crane, res, ev, walls, out: dict, refined=None) -
         if args.out_rate is not None:
             stored = commands(crane, traj, args.out_rate).attach(traj)
         elif traj.interpolation == "quintic":
-            stored = commands(crane, traj, CONTROL_RATE_HZ).attach(traj, knots=True)
+            stored = commands(crane, traj, CONTROL_RATE_HZ, oil=fills_oil(crane)).attach(
+                traj, knots=True)
         else:
             stored = traj
         entry = f"plan:{args.objective}"

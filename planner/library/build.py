@@ -216,7 +216,7 @@ def _failed(out: EntryResult, e: Exception, t0: float) -> EntryResult:
 def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -> EntryResult:
     """One entry of :func:`plan_move`: the plan ``res`` of its objective (``rt``, the move's
     minimum-time result, for the time entry) judged, with its feed-forward and robustness."""
-    from planner.feedforward import commands
+    from planner.feedforward import commands, fills_oil
     from planner.trajectory import evaluate
     if not res.ok:
         return replace(out, status=res.status, reason=res.reason,
@@ -237,7 +237,8 @@ def _entry(crane: Crane, st: BuildSettings, out: EntryResult, rt, res, t0, c0) -
     # the plan on the 50 Hz control grid plus its own nodes: the stored samples reproduce
     # the plan exactly (the jerk limit holds on the reconstruction, not only on the plan)
     swing = swing_attrs(crane, st.grapple, st.obstacles, traj)
-    traj_u = commands(crane, traj, 50.0).attach(traj, knots=True)
+    # the machine's feed-forward: the oil springs filled where the crane has [dynamics]
+    traj_u = commands(crane, traj, 50.0, oil=fills_oil(crane)).attach(traj, knots=True)
     ev = evaluate(crane, traj_u).at(traj_u.t)   # what the store keeps: small to ship
     rob = float("nan")
     if st.robustness:

@@ -15,7 +15,7 @@ import tomllib
 
 import numpy as np
 
-from planner.feedforward import commands
+from planner.feedforward import commands, fills_oil
 from planner.methods.ruckig import rest_to_rest
 from planner.model import Crane
 from planner.model.spec import parse_spec
@@ -129,4 +129,5 @@ def join_from(crane: Crane, q, traj: Trajectory,
     joined = Trajectory(t, cat(a.q, b.q), cat(a.qd, b.qd), cat(a.qdd, b.qdd),
                         joint_names=b.joint_names, method=f"ruckig+{b.method}",
                         objective=b.objective)
-    return commands(crane, joined, rate).attach(joined), float(a.duration)
+    return (commands(crane, joined, rate, oil=fills_oil(crane)).attach(joined),
+            float(a.duration))

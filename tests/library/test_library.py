@@ -166,10 +166,12 @@ def test_kill_and_resume_equals_a_clean_build(tmp_path, kill_after):
 
 def test_replay_with_gain_error_and_mismatch_stays_within_the_stored_envelope(tmp_path):
     """Issue acceptance: a from-rest library entry replayed open loop with a 2 % flow-gain error
-    and a 1° start mismatch (through the independent simulate path, using the entry's stored
-    commands) stays within the drift envelope its robustness field predicted."""
+    and a 1° start mismatch (through the independent simulate path) stays within the drift
+    envelope its robustness field predicted. The fast plant has no oil: it replays the plan's
+    plain feed-forward; the stored commands are the machine's (the oil springs filled)."""
     import math
 
+    from planner.feedforward import commands, stored_commands
     from planner.simulation.replay import Plant, replay
     lib = tmp_path / "lib.h5"
     build("s100f", "forwarder-cycle", lib, limit=2, objectives=("time",), robustness=True,
@@ -179,10 +181,14 @@ def test_replay_with_gain_error_and_mismatch_stays_within_the_stored_envelope(tm
         for row in db.index_rows():
             tr = db.trajectory(row["id"])
             assert np.allclose(tr.qd[[0, -1]], 0.0, atol=1e-9)   # from rest, to rest
+            assert tr.meta["feedforward"]["oil"]
+            plain = commands(crane, tr, 50.0)
+            stored = stored_commands(tr)[1]
+            assert stored.shape == plain.u.shape and np.max(np.abs(plain.u - stored)) > 0.01
             for joint in ("slew", "boom", "jib"):
                 off = np.zeros(crane.n)
                 off[crane.names.index(joint)] = math.radians(1.0)
-                sim = replay(crane, tr.t, tr.u, tr.q[0] + off,
+                sim = replay(crane, plain.t, plain.u, tr.q[0] + off,
                              Plant(q0_offset=None, flow_gain_scale=1.02))
                 err = np.linalg.norm(crane.fk(sim.q) - crane.fk(tr.sample(sim.t)[0]), axis=1)
                 assert 0 < err.max() <= row["robustness"] * (1 + 1e-6), (row["id"], joint)

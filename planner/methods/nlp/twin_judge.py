@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.feedforward import commands
+from planner.feedforward import commands, fills_oil
 from planner.model.twin import Twin
 
 if TYPE_CHECKING:
@@ -60,7 +60,7 @@ def twin_pump_energy(crane: Crane, traj: Trajectory, settle: float = SETTLE,
     (module doc), ``settle`` s past the end; None without a twin or when the run diverged."""
     if not has_twin(crane):
         return None
-    ff = commands(crane, traj, RATE)
+    ff = commands(crane, traj, RATE, oil=fills_oil(crane))   # what the library stores
     t_u = np.append(ff.t, ff.t[-1] + 1.0 / RATE)           # the valves closed after the end
     u = np.vstack([ff.u, np.zeros((1, crane.n))])
     return commands_pump_energy(crane, t_u, u, traj.q[0], float(t_u[-1]) + settle, twin)

@@ -55,8 +55,8 @@ import casadi as ca
 
 from planner.model.actuators import stroke_expr
 from planner.model.dynamics import rnea
-from planner.model.dynamics_spec import P_ATM
 from planner.model.twin.linsolve import sparse_lu
+from planner.model.twin.oil import BULK_MODULUS, oil_stiffness
 from planner.model.twin.params import PER_ACTUATOR, SCALARS
 from planner.model.valve_physics import OPEN_EPS
 from planner.model.valve_physics import function as valve_function
@@ -121,10 +121,6 @@ def build_rhs(crane: Crane, spec=None):
     per, sc = _params(P, n)
     s = unpack(X, n)
     q, qd, pa, pb, ps, sp = s["q"], s["qd"], s["p_a"], s["p_b"], s["p_s"], s["spool"]
-    def bulk(p):
-        """β(p)/β: the [dynamics] pressure law (1 when bulk_low = bulk_high = 1)."""
-        r = (p + P_ATM) / (sc["beta_pref"] + P_ATM)
-        return ca.fmin(ca.fmax(r, sc["beta_lo"]), sc["beta_hi"])
     f_open = valve_function("valve_opening")
     f_flows = valve_function("valve_flows")
     xs, dxdq = [], []
@@ -142,12 +138,9 @@ def build_rhs(crane: Crane, spec=None):
         q_a, q_b, q_in, q_out, _p_load, net_a, net_b = f_flows(
             pa[i], pb[i], ps, o, g["gain"], sc["margin"], g["area_a"], g["area_b"],
             g["single"], g["leak"], sc["p_tank"], sc["dp_c"], sc["dp_out"])
-        xc = ca.fmin(ca.fmax(x[i], g["x_lo"]), g["x_hi"])
-        va = g["hose_a"] + g["swept"] * g["area_a"] * (xc - g["x_lo"])
-        vb = g["hose_b"] + g["swept"] * g["area_b"] * (g["x_hi"] - xc)
-        dpa.append(sc["beta"] * bulk(pa[i]) / va * (net_a - g["area_a"] * xd[i]))
-        dpb.append((1.0 - g["single"]) * sc["beta"] * bulk(pb[i]) / vb
-                   * (net_b + g["area_b"] * xd[i]))
+        k_a, k_b = oil_stiffness(per, sc, i, x[i], pa[i], pb[i])
+        dpa.append(k_a * (net_a - g["area_a"] * xd[i]))
+        dpb.append((1.0 - g["single"]) * k_b * (net_b + g["area_b"] * xd[i]))
         pb_eff = ca.if_else(g["single"] > 0.5, sc["p_tank"], pb[i])
         F = (pa[i] * g["area_a"] - pb_eff * g["area_b"]
              - g["coulomb"] * ca.tanh(xd[i] / g["v_smooth"]) - g["viscous"] * xd[i]
@@ -171,7 +164,8 @@ def build_rhs(crane: Crane, spec=None):
     p_ls = ca.fmin(ca.fmax(sc["standby"], signal), sc["p_relief"])
     p_set = ca.if_else(sc["load_sensing"] > 0.5, p_ls, sc["p_const"])
     excess = ca.fmax(ca.sum1(ca.vertcat(*qin)) - sc["q_max"], 0.0)
-    dps = (p_set - ps) / sc["tau_pump"] - sc["beta"] * bulk(ps) / sc["v_pump"] * excess
+    beta_s = BULK_MODULUS(ps, *(sc[k] for k in ("beta", "beta_pref", "beta_lo", "beta_hi")))
+    dps = (p_set - ps) / sc["tau_pump"] - beta_s / sc["v_pump"] * excess
     Fv = ca.vertcat(*force)
     tau = d * Fv
     qdd_sym = ca.SX.sym("qdd", n)

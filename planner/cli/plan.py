@@ -223,7 +223,7 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
     from planner.feedforward import commands
     from planner.refine import SWING_WEIGHT, RefineOptions, for_objective, refine_commands
     from planner.simulation.twin_plant import twin_of
-    ff = commands(crane, traj, CONTROL_RATE_HZ)
+    ff = commands(crane, traj, CONTROL_RATE_HZ, oil=True)   # the machine's: the oil filled
     pend = grapple_of_args(args, crane)
     if pend is not None and not crane.spec.effects:   # the load at rest on its link too
         from planner.model.twin import Twin

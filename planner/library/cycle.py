@@ -87,7 +87,7 @@ def refine_cycle_library(path, ids, *, model=None, gap: float = 3.0, options=Non
             else:
                 cmd = stored_commands(tr, opts.rate)
                 if cmd is None:
-                    ff = commands(crane, tr, opts.rate)
+                    ff = commands(crane, tr, opts.rate, oil=fills_oil(crane))
                     cmd = (ff.t, ff.u)
                 c0 = _time.process_time()
                 r = refine_commands(crane, tr, cmd[0], cmd[1], twin=twin, options=o, x0=x)

@@ -58,10 +58,10 @@ def entry_grapple(attrs: dict) -> tuple | None:
 
 def entry_arrays(crane: Crane, tr, rate: float) -> dict:
     """An entry's trajectory and nominal commands, as a refinement task takes them."""
-    from planner.feedforward import commands, stored_commands
+    from planner.feedforward import commands, fills_oil, stored_commands
     cmd = stored_commands(tr, rate)
     if cmd is None:
-        ff = commands(crane, tr, rate)
+        ff = commands(crane, tr, rate, oil=fills_oil(crane))
         cmd = (ff.t, ff.u)
     return dict(t=tr.t, q=tr.q, qd=tr.qd, qdd=tr.qdd, joint_names=list(tr.joint_names),
                 t_u=cmd[0], u=cmd[1])

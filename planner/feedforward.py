@@ -189,6 +189,26 @@ def _oil_stroke_rate(crane: Crane, traj: Trajectory, t, hold: str) -> np.ndarray
     return np.column_stack([np.interp(t, ev.t, r[:, i], right=0.0) for i in range(crane.n)])
 
 
+def _filled(vp, xd, r):
+    """Commands (and flows) for the plan's stroke rates ``xd`` plus the oil's ``r`` (M, n),
+    per period (module doc). A period whose filled command would open a valve the plain one
+    keeps closed, or reverse it, is closed; the stroke it would have delivered (and the oil a
+    held joint's chambers take while its valve is closed, its sag) is spread over the joint's
+    open periods in proportion to their plain stroke, so that the move delivers the plan's
+    stroke plus all of its oil."""
+    plain, _ = stroke_rate_to_command(vp, xd)
+    want = xd + r
+    u, _ = stroke_rate_to_command(vp, want)
+    keep = (np.sign(u) == np.sign(plain)) & (plain != 0)
+    missed = np.where(keep, 0.0, want).sum(axis=0)
+    w = np.where(keep, np.abs(xd), 0.0)
+    total = w.sum(axis=0)
+    share = np.divide(missed, total, out=np.zeros_like(missed), where=total > 0)
+    u, flow = stroke_rate_to_command(vp, want + share * w)
+    keep &= np.sign(u) == np.sign(plain)
+    return np.where(keep, u, 0.0), np.where(keep, flow, 0.0)
+
+
 def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
              hold: str = "mean", oil: bool = False) -> FeedForward:
     """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
@@ -223,12 +243,9 @@ def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
             raise ValueError(f"oil=True: crane '{crane.spec.id}' has no [dynamics] (hose "
                              "volumes, bulk modulus) or an enabled transformer; allowed: "
                              "oil=False")
-        plain, _ = stroke_rate_to_command(vp, xd)
-        xd = xd + _oil_stroke_rate(crane, traj, t, hold)
-    u_raw, flow = stroke_rate_to_command(vp, xd)
-    if oil:       # never open a valve the plan keeps closed, never reverse one
-        keep = (np.sign(u_raw) == np.sign(plain)) & (plain != 0)
-        u_raw, flow = np.where(keep, u_raw, 0.0), np.where(keep, flow, 0.0)
+        u_raw, flow = _filled(vp, xd, _oil_stroke_rate(crane, traj, t, hold))
+    else:
+        u_raw, flow = stroke_rate_to_command(vp, xd)
     u = np.clip(u_raw, -1.0, 1.0)
     names = tuple(crane.names)
     sat = {}

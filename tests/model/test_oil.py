@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planner.feedforward import commands, fills_oil
+from planner.feedforward import commands, fills_oil, predict_motion
 from planner.model import Crane
 from planner.model.dynamics_spec import P_ATM
 from planner.model.twin import Twin
@@ -113,3 +113,23 @@ def test_no_dynamics_no_oil(s100f):
     assert not fills_oil(crane) and fills_oil(s100f)
     with pytest.raises(ValueError, match=r"oil=True: crane 's100f' has no \[dynamics\]"):
         commands(crane, _move(crane), 50.0, oil=True)
+
+
+def test_the_move_delivers_the_plans_stroke_and_all_its_oil(s100f):
+    """Kinematic oracle (the valve model's own inverse, predict_motion): over the whole move
+    the filled commands deliver each moving joint's planned stroke plus the oil its chambers
+    take from the plan's start to its end — also the oil of periods whose filled command was
+    closed (spread over the joint's open periods), so a joint lands where the plant's
+    compressed oil puts it on the plan."""
+    traj = _move(s100f)
+    ff = commands(s100f, traj, 50.0, oil=True)
+    assert ff.ok
+    pred = predict_motion(s100f, ff.t, ff.u, traj.q[0])
+    x_end = np.asarray(s100f.stroke(pred.q[-1:])[0]).ravel()
+    x_plan = np.asarray(s100f.stroke(traj.q[-1:])[0]).ravel()
+    ev = evaluate(s100f, traj)
+    oil = oil_stroke(Twin(s100f).params, ev.hyd["x"], ev.hyd["p_a"], ev.hyd["p_b"])[-1]
+    moving = np.ptp(traj.q, axis=0) > 0
+    assert np.any(np.abs(oil[moving]) > 1e-4)            # there is oil to deliver
+    np.testing.assert_allclose(x_end[moving] - x_plan[moving], oil[moving], rtol=1e-3,
+                               atol=1e-7)

@@ -287,17 +287,19 @@ def on_command_grid(traj: Trajectory, t_u, u) -> Trajectory:
     return replace(traj, t=t_u, q=q, qd=qd, qdd=qdd, u=np.asarray(u, float))
 
 
-def with_settle(crane: Crane, traj: Trajectory, settle: float, rate: float = 50.0) -> Trajectory:
+def with_settle(crane: Crane, traj: Trajectory, settle: float, rate: float = 50.0,
+                oil: bool = False) -> Trajectory:
     """The replay of ``traj``'s commands (its own ``u`` on a uniform grid, else the
-    feed-forward at ``rate``) followed by ``settle`` [s] with every valve closed, on one
-    uniform command grid (the plan held at its goal): the arrival and its ringing recorded."""
+    feed-forward at ``rate``, the oil filled with ``oil``) followed by ``settle`` [s] with every
+    valve closed, on one uniform command grid (the plan held at its goal): the arrival and its
+    ringing recorded."""
     if not (math.isfinite(settle) and 0.0 <= settle <= 600.0):
         raise ValueError(f"settle = {settle!r} s; allowed: 0 .. 600 s")
     if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
         t_u, u = np.asarray(traj.t, float), np.asarray(traj.u, float)
         dt = float(t_u[1] - t_u[0])
     else:
-        ff = commands(crane, traj, rate)
+        ff = commands(crane, traj, rate, oil=oil)
         t_u, u, dt = np.asarray(ff.t, float), np.asarray(ff.u, float), 1.0 / rate
     k = int(math.ceil(settle / dt - 1e-9))
     t_all = np.concatenate([t_u, t_u[-1] + dt * np.arange(1, k + 1)])

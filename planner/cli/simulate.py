@@ -104,7 +104,9 @@ def cmd_simulate(args):
     landing = args.settle > 0 or which == "refined"
     if args.settle > 0:
         from planner.feedforward import with_settle
-        traj = with_settle(crane, traj, args.settle, args.rate)
+        from planner.feedforward import fills_oil
+        traj = with_settle(crane, traj, args.settle, args.rate,   # a dynamic plant has oil
+                           oil=args.plant != "fast" and fills_oil(crane))
     args.landing = dict(plan=plan if landing else None, commands_used=which,
                         settle_s=args.settle)
     if args.plant != "fast":

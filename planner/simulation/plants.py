@@ -229,8 +229,9 @@ def load_swing(plant: BasePlant, rec: PlantRecord):
 def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 50.0, noise=None,
                  seed: int = 0, effects=(), plan=None, **run_kw) -> dict:
     """What ``crane-planner simulate --plant NAME`` does for a registered plant: replay
-    ``traj``'s commands (its own ``u`` on a uniform grid, else the feed-forward at ``rate``)
-    on the plant with the hidden ``effects``, and write the measured-data CSV at ``rate``.
+    ``traj``'s commands (its own ``u`` on a uniform grid, else the machine's feed-forward at
+    ``rate``: the oil springs filled where the crane has ``[dynamics]``) on the plant with the
+    hidden ``effects``, and write the measured-data CSV at ``rate``.
     Nothing is written when the run stops early: :class:`PlantDiverged` is raised. Returns a
     JSON-ready summary (``effects``: what each effect did, with its hooks; where the plant
     accounts for its pump, ``pump_energy_J`` beside ``evaluate_energy_J``, the quasi-static
@@ -244,14 +245,15 @@ def plant_to_csv(crane: Crane, traj, out, plant: str = "exudyn", rate: float = 5
     CSV columns ``swing_x``, ``swing_y`` [m] and ``residual_swing_m`` (the largest offset
     after the plan's end: over its tail when the commands run on, else at the record's
     last sample) and ``swing_peak_m`` (during the move)."""
-    from planner.feedforward import commands
+    from planner.feedforward import commands, fills_oil
     from planner.simulation.recording import noise_levels
     p = make_plant(plant, crane, effects)
     if traj.u is not None and len(traj.t) > 2 and np.ptp(np.diff(traj.t)) < 1e-9:
         t_u, u, src = np.asarray(traj.t, float), np.asarray(traj.u, float), "trajectory"
     else:
-        ff = commands(crane, traj, rate)
-        t_u, u, src = np.asarray(ff.t, float), np.asarray(ff.u, float), f"feedforward@{rate:g}Hz"
+        ff = commands(crane, traj, rate, oil=fills_oil(crane))     # the machine's: oil filled
+        t_u, u, src = (np.asarray(ff.t, float), np.asarray(ff.u, float),
+                       f"feedforward@{rate:g}Hz" + ("+oil" if ff.meta["oil"] else ""))
     rec = p.run(t_u, u, traj.q[0], t_end=float(max(traj.t[-1], t_u[-1])), rate=rate, **run_kw)
     if not rec.ok:
         raise PlantDiverged(rec.status, rec.t_fail, rec.reason, plant)

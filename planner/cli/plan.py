@@ -271,7 +271,7 @@ def write_outputs(args, crane: Crane, res, ev, walls, out: dict, refined=None) -
         # nodes: the quintic through the rows reproduces it) with its valve commands; at
         # --out-rate the fixed-rate rows; a piecewise-linear plan (DP, laws) at its own nodes
         if args.out_rate is not None:
-            stored = commands(crane, traj, args.out_rate).attach(traj)
+            stored = commands(crane, traj, args.out_rate, oil=fills_oil(crane)).attach(traj)
         elif traj.interpolation == "quintic":
             stored = commands(crane, traj, CONTROL_RATE_HZ, oil=fills_oil(crane)).attach(
                 traj, knots=True)

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.feedforward import commands
+from planner.feedforward import commands, fills_oil
 from planner.io import OutputError, atomic_write_bytes, atomic_write_text
 from planner.library.journal import WriteFailed
 from planner.library.store import FORMAT, LibraryStore, StoreError, as_str
@@ -179,11 +179,12 @@ def table_csv_text(cols, units, data, units_row: bool = False) -> str:
 def fixed_rate(crane: Crane, traj: Trajectory, rate: float):
     """``traj`` on the fixed control grid t0 + k/rate (k = 0 … ceil(duration·rate)) with the
     valve commands of :func:`planner.feedforward.commands` at that rate (zero-order hold, "mean"
-    hold) and the hydraulic channels of the crane model on the same rows.
+    hold; the machine's: the oil springs filled where the crane has ``[dynamics]``) and the
+    hydraulic channels of the crane model on the same rows.
     Returns (Trajectory with ``u``, hydraulics dict)."""
     if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
         raise ValueError(f"rate = {rate!r}: must be a positive number of Hz")
-    out = commands(crane, traj, float(rate)).attach(traj)
+    out = commands(crane, traj, float(rate), oil=fills_oil(crane)).attach(traj)
     return out, crane.hydraulics(out.q, out.qd, out.qdd)
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from planner import Crane
 from planner.cli import main
-from planner.feedforward import predict_motion
+from planner.feedforward import commands, predict_motion
 from planner.library.export import export, ros_time
 from planner.library.store import LibraryStore, StoreError
 from planner.methods.ruckig import rest_to_rest
@@ -45,8 +45,9 @@ def umea_lib(tmp_path_factory):
 
 
 def test_plan_fixed_rate_csv_replays_to_the_plan(tmp_path, capsys):
-    """--out-rate 25: rows at t0 + k/25 with u_*; replaying the commands through the valve
-    model's inverse (predict_motion) reproduces the planned positions at every row."""
+    """--out-rate 25: rows at t0 + k/25 with u_*, the machine's feed-forward (the oil springs
+    filled); the plain feed-forward at those rows, replayed through the valve model's inverse
+    (predict_motion), reproduces the planned positions at every row."""
     out = tmp_path / "m.csv"
     assert main(PLAN + ["--out", str(out), "--out-rate", "25", "--units-row", "--json", "-"]) == 0
     js = json.loads(capsys.readouterr().out)
@@ -65,8 +66,6 @@ def test_plan_fixed_rate_csv_replays_to_the_plan(tmp_path, capsys):
     q = data[:, [col[f"q_{j}"] for j in crane.names]]
     u = data[:, [col[f"u_{j}"] for j in crane.names]]
     assert np.abs(u).max() <= 1.0 and np.abs(u).max() > 0.05
-    qr = predict_motion(crane, t, u, q[0]).q
-    assert np.max(np.abs(qr - q)) < 1e-6  # exact up to the 10-digit CSV rounding
     # the trajectory-CSV reader takes the file, units row and all
     back = Trajectory.from_csv(out, joint_names=crane.names)
     np.testing.assert_allclose(back.q, q)
@@ -75,6 +74,11 @@ def test_plan_fixed_rate_csv_replays_to_the_plan(tmp_path, capsys):
     assert main(PLAN + ["--out", str(plain)]) == 0
     tr = Trajectory.from_csv(plain, joint_names=crane.names)
     np.testing.assert_allclose(tr.sample(np.minimum(t, tr.t[-1]))[0], q, atol=1e-8)
+    np.testing.assert_allclose(u, commands(crane, tr, 25.0, oil=True).u, atol=1e-4)
+    kin = commands(crane, tr, 25.0).u
+    assert np.max(np.abs(kin - u)) > 0.01
+    qr = predict_motion(crane, t, kin, q[0]).q
+    assert np.max(np.abs(qr - q)) < 1e-6  # exact up to the 10-digit CSV rounding
 
 
 def test_plan_plain_csv_is_unchanged(tmp_path, capsys):

@@ -111,10 +111,10 @@ def main(argv=None):
                summary={k: summary(rows, k) for k in KINDS}, rows=rows,
                wall_s=time.perf_counter() - t_start)
     args.out.mkdir(parents=True, exist_ok=True)
-    name = "oil_feedforward" + (f"_{args.tag}" if args.tag else "")
-    atomic_write_text(args.out / f"{name}.json", dumps(res))
-    atomic_write_text(args.out / f"{name}.md", "\n".join(markdown(res)) + "\n")
-    print(f"wrote {args.out / name}.md", file=sys.stderr)
+    stem = args.out / ("oil_feedforward" + (f"_{args.tag}" if args.tag else ""))
+    for suffix, text in ((".json", dumps(res)), (".md", "\n".join(markdown(res)) + "\n")):
+        atomic_write_text(Path(f"{stem}{suffix}"), text)
+    print(f"wrote {stem}.md", file=sys.stderr)
 
 
 def markdown(res) -> list:

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial import Polynomial
 
-from planner.model.twin.oil import oil_stroke
+from planner.model.twin.oil import filled_commands, fills_oil, oil_stroke_rate
 from planner.model.valves import (command_to_stroke_rate, stroke_rate_to_command,
                                   valve_params)
 from planner.trajectory import Trajectory, evaluate
@@ -164,51 +164,6 @@ def _runs(mask):
     return list(zip(d[::2], d[1::2]))
 
 
-def fills_oil(crane: Crane) -> bool:
-    """True where ``commands(..., oil=True)`` can fill ``crane``'s oil springs: its spec has
-    ``[dynamics]`` (hose volumes, bulk modulus) and no enabled transformer (module doc)."""
-    spec = crane.spec
-    ht = spec.transformer
-    return spec.dynamics is not None and not (ht is not None and ht.enabled)
-
-
-def _oil_stroke_rate(crane: Crane, traj: Trajectory, t, hold: str) -> np.ndarray:
-    """The stroke rate (M, n) that fills the oil springs along ``traj`` at the control
-    instants ``t`` (:mod:`planner.model.twin.oil`): the plan's chamber pressures from
-    ``evaluate()`` (its 1 kHz grid), held per period like the plan's own rate."""
-    from planner.model.twin.params import twin_params
-    ev = evaluate(crane, traj)
-    params = twin_params(crane, crane.spec.dynamics, crane.spec.payload.total)
-    dx = oil_stroke(params, ev.hyd["x"], ev.hyd["p_a"], ev.hyd["p_b"])
-    if hold == "mean":      # past the plan's end np.interp holds δx: no flow asked there
-        dt = float(t[1] - t[0])
-        d = np.column_stack([np.interp(np.append(t, t[-1] + dt), ev.t, dx[:, i])
-                             for i in range(crane.n)])
-        return np.diff(d, axis=0) / dt
-    r = np.gradient(dx, ev.t, axis=0)
-    return np.column_stack([np.interp(t, ev.t, r[:, i], right=0.0) for i in range(crane.n)])
-
-
-def _filled(vp, xd, r):
-    """Commands (and flows) for the plan's stroke rates ``xd`` plus the oil's ``r`` (M, n),
-    per period (module doc). A period whose filled command would open a valve the plain one
-    keeps closed, or reverse it, is closed; the stroke it would have delivered (and the oil a
-    held joint's chambers take while its valve is closed, its sag) is spread over the joint's
-    open periods in proportion to their plain stroke, so that the move delivers the plan's
-    stroke plus all of its oil."""
-    plain, _ = stroke_rate_to_command(vp, xd)
-    want = xd + r
-    u, _ = stroke_rate_to_command(vp, want)
-    keep = (np.sign(u) == np.sign(plain)) & (plain != 0)
-    missed = np.where(keep, 0.0, want).sum(axis=0)
-    w = np.where(keep, np.abs(xd), 0.0)
-    total = w.sum(axis=0)
-    share = np.divide(missed, total, out=np.zeros_like(missed), where=total > 0)
-    u, flow = stroke_rate_to_command(vp, want + share * w)
-    keep &= np.sign(u) == np.sign(plain)
-    return np.where(keep, u, 0.0), np.where(keep, flow, 0.0)
-
-
 def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
              hold: str = "mean", oil: bool = False) -> FeedForward:
     """Valve feed-forward of ``traj`` at the control ``rate`` [Hz] (see the module doc).
@@ -243,7 +198,9 @@ def commands(crane: Crane, traj: Trajectory, rate: float = 50.0,
             raise ValueError(f"oil=True: crane '{crane.spec.id}' has no [dynamics] (hose "
                              "volumes, bulk modulus) or an enabled transformer; allowed: "
                              "oil=False")
-        u_raw, flow = _filled(vp, xd, _oil_stroke_rate(crane, traj, t, hold))
+        ev = evaluate(crane, traj)      # the plan's chamber pressures, on its 1 kHz grid
+        r = oil_stroke_rate(crane, ev.t, ev.hyd["x"], ev.hyd["p_a"], ev.hyd["p_b"], t, hold)
+        u_raw, flow = filled_commands(vp, xd, r)
     else:
         u_raw, flow = stroke_rate_to_command(vp, xd)
     u = np.clip(u_raw, -1.0, 1.0)

@@ -18,16 +18,26 @@ pump work above the quasi-static price). The inflow that makes the chambers foll
 pressures is A_a·ẋ + ṗ_a/κ_a into side a and A_b·ẋ − ṗ_b/κ_b out of side b; one spool meters
 both, so the command asks for the stroke rate ẋ + ṗ_a/(κ_a·A_a) − ṗ_b/(κ_b·A_b) (a
 single-acting rod side is vented: no second term). :func:`oil_stroke` integrates that
-correction along a plan: the extra stroke δx(t) whose rate is added to the plan's.
+correction along a plan: the extra stroke δx(t) whose rate is added to the plan's;
+:func:`oil_stroke_rate` holds it per control period and :func:`filled_commands` turns the
+plan's rates plus it into valve commands (a closed valve stays closed, none is reversed, and
+the oil such periods would have taken is delivered in the joint's open periods).
 """
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from planner.model.dynamics_spec import P_ATM
+from planner.model.valves import stroke_rate_to_command
 
-__all__ = ["BULK_MODULUS", "OIL_STIFFNESS", "oil_stiffness", "oil_stroke"]
+if TYPE_CHECKING:
+    from planner.model import Crane
+
+__all__ = ["BULK_MODULUS", "OIL_STIFFNESS", "oil_stiffness", "oil_stroke", "fills_oil",
+           "oil_stroke_rate", "filled_commands"]
 
 
 _LAW = ("beta", "beta_pref", "beta_lo", "beta_hi")
@@ -98,3 +108,50 @@ def oil_stroke(params, x, p_a, p_b) -> np.ndarray:
                 - (1.0 - per["single"][i]) * np.diff(p_b[:, i]) * cb_ / per["area_b"][i])
         dx[1:, i] = np.cumsum(step)
     return dx
+
+
+def fills_oil(crane: Crane) -> bool:
+    """True where the feed-forward can fill ``crane``'s oil springs: its spec has
+    ``[dynamics]`` (hose volumes, bulk modulus) and no enabled transformer."""
+    spec = crane.spec
+    ht = spec.transformer
+    return spec.dynamics is not None and not (ht is not None and ht.enabled)
+
+
+def oil_stroke_rate(crane: Crane, t_plan, x, p_a, p_b, t, hold: str) -> np.ndarray:
+    """The stroke rate (M, n) that fills the oil springs at the control instants ``t`` (M,)
+    of a plan sampled at ``t_plan`` with strokes ``x`` and chamber pressures ``p_a``, ``p_b``
+    (the plan's, ``evaluate()``'s): :func:`oil_stroke` held per period like the plan's own
+    rate — ``hold`` "mean" (its change over the period; none past the plan's end) or
+    "sample" (its rate at t_k)."""
+    from planner.model.twin.params import twin_params
+    params = twin_params(crane, crane.spec.dynamics, crane.spec.payload.total)
+    dx = oil_stroke(params, x, p_a, p_b)
+    if hold == "mean":
+        dt = float(t[1] - t[0])
+        d = np.column_stack([np.interp(np.append(t, t[-1] + dt), t_plan, dx[:, i])
+                             for i in range(crane.n)])
+        return np.diff(d, axis=0) / dt
+    r = np.gradient(dx, t_plan, axis=0)
+    return np.column_stack([np.interp(t, t_plan, r[:, i], right=0.0) for i in range(crane.n)])
+
+
+def filled_commands(vp, xd, r):
+    """Commands and flows (M, n) for the plan's stroke rates ``xd`` plus the oil's ``r`` per
+    period (``vp``: :func:`planner.model.valves.valve_params`). A period whose filled command
+    would open a valve the plain one keeps closed (a crept valve sets the load-sensing pump's
+    pressure) or reverse it (a reversal signals the other chamber) is closed; the stroke it
+    would have delivered — and the oil a held joint's chambers take while its valve is closed,
+    its sag — is spread over the joint's open periods in proportion to their plain stroke, so
+    that the move delivers the plan's stroke plus all of its oil."""
+    plain, _ = stroke_rate_to_command(vp, xd)
+    want = xd + r
+    u, _ = stroke_rate_to_command(vp, want)
+    keep = (np.sign(u) == np.sign(plain)) & (plain != 0)
+    missed = np.where(keep, 0.0, want).sum(axis=0)
+    w = np.where(keep, np.abs(xd), 0.0)
+    total = w.sum(axis=0)
+    share = np.divide(missed, total, out=np.zeros_like(missed), where=total > 0)
+    u, flow = stroke_rate_to_command(vp, want + share * w)
+    keep &= np.sign(u) == np.sign(plain)
+    return np.where(keep, u, 0.0), np.where(keep, flow, 0.0)

@@ -220,10 +220,10 @@ def _twin_feedforward(args, crane: Crane, traj, out: dict):
     if crane.spec.dynamics is None:
         raise CLIError(f"--feedforward twin: crane '{crane.spec.id}' has no [dynamics] section "
                        "(the twin needs bulk modulus, hose volumes, …)")
-    from planner.feedforward import commands
+    from planner.feedforward import commands, fills_oil
     from planner.refine import SWING_WEIGHT, RefineOptions, for_objective, refine_commands
     from planner.simulation.twin_plant import twin_of
-    ff = commands(crane, traj, CONTROL_RATE_HZ, oil=True)   # the machine's: the oil filled
+    ff = commands(crane, traj, CONTROL_RATE_HZ, oil=fills_oil(crane))   # the machine's
     pend = grapple_of_args(args, crane)
     if pend is not None and not crane.spec.effects:   # the load at rest on its link too
         from planner.model.twin import Twin

@@ -18,8 +18,9 @@ specified is the plant's 1.094 and 1.271; the rest is mostly the closing spool's
 the pricing now carries) — and a move the NLP found cheap by the
 quasi-static price can ring more than its own time-optimal move, and cost more on the machine.
 
-:func:`twin_pump_energy` replays a plan's valve feed-forward (:func:`planner.feedforward.
-commands`, 50 Hz, the valves closed after the end, ``SETTLE`` s more) on the model's twin
+:func:`twin_pump_energy` replays a plan's valve feed-forward as the library stores it
+(:func:`planner.feedforward.commands`, 50 Hz, the oil springs filled, the valves closed after
+the end, ``SETTLE`` s more) on the model's twin
 (:class:`planner.model.twin.Twin`, its valve physics the model's one definition) and integrates
 the pump's work p_s·ΣQ_in (:meth:`Twin.pump_energy <planner.model.twin.Twin.pump_energy>`, the
 figure a refinement prices), divided by the pump efficiency like ``evaluate().energy_J``. None

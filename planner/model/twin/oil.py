@@ -76,6 +76,7 @@ def _build():
 #: and its data: hose_a, hose_b, swept, area_a, area_b, x_lo, x_hi, beta, beta_pref, beta_lo,
 #: beta_hi (the names of :mod:`planner.model.twin.params`)
 OIL_STIFFNESS = _build()
+_FACE = None
 
 
 def oil_stiffness(per: dict, sc: dict, i: int, x, p_a, p_b):
@@ -86,9 +87,13 @@ def oil_stiffness(per: dict, sc: dict, i: int, x, p_a, p_b):
     s = [sc[k] for k in _LAW]
     if isinstance(x, (ca.SX, ca.MX)):
         return OIL_STIFFNESS(x, p_a, p_b, *g, *s)
-    row = (lambda a: np.atleast_1d(np.asarray(a, float))[None, :])
-    ka, kb = OIL_STIFFNESS(row(x), row(p_a), row(p_b), *g, *s)
-    return np.asarray(ka, float).ravel(), np.asarray(kb, float).ravel()
+    global _FACE
+    if _FACE is None:          # the compiled elementwise face, built on first numeric use
+        from planner.model.numeric import Elementwise
+        _FACE = Elementwise(OIL_STIFFNESS, sizes=(1024, 8192))
+    ka, kb = _FACE(np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(p_a, float)),
+                   np.atleast_1d(np.asarray(p_b, float)), *(float(v) for v in (*g, *s)))
+    return ka, kb
 
 
 def oil_stroke(params, x, p_a, p_b) -> np.ndarray:

@@ -3,7 +3,7 @@
 on the Exudyn plant (issue 30).
 
     python benchmarks/bench_oil_feedforward.py --library LIB.h5 [--limit K] [--tag NAME]
-                                               [--out benchmarks/results]
+                                               [--machine mN] [--out benchmarks/results]
 
 For every ok entry of ``LIB.h5`` (an s100f library, e.g. the claims library that
 ``bench_energy_machine.py --work W`` builds), the stored plan's two 50 Hz feed-forwards —
@@ -13,6 +13,11 @@ Exudyn plant with the spec's parameters (valves closed after the last command, 3
 ``bench_energy_machine.py``). Judges, named on every number: **Exudyn** (the independent plant:
 pump work at the shaft from its energy balance, the tip's path and rest) and **evaluate()**
 (the quasi-static model's pump work for the plan, the machine pricing).
+
+``--machine mN``: the replays run on drawn machine mN of the calibration loop
+(``calibrate_loop_100t.json``: ``[dynamics]`` values drawn ±30 %, a command delay, one slower
+valve; ``bench_calibrate_loop.machine_plant``), whose parameters the planner and its
+feed-forward were not given; evaluate() keeps the spec's figures.
 
 Per entry and feed-forward: Exudyn / evaluate() pump work; the largest tip error during the
 move; the tip's rest offset from the goal (mean over the last 1.5 s) and its ringing (largest
@@ -35,8 +40,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for p in (str(ROOT), str(HERE)):
+    if p not in sys.path:
+        sys.path.insert(0, p)
 
 from planner import Crane, evaluate  # noqa: E402
 from planner.feedforward import commands  # noqa: E402
@@ -46,6 +52,17 @@ from planner.simulation.dynamic.claims import replay_move  # noqa: E402
 from planner.simulation.dynamic.exudyn_plant import ExudynPlant  # noqa: E402
 
 KINDS = ("plain", "oil")
+
+
+def drawn_plant(crane, name: str):
+    """The Exudyn plant of the calibration loop's drawn machine ``name`` (module doc)."""
+    import json
+    from bench_calibrate_loop import machine_plant
+    machines = json.loads((HERE / "results" / "calibrate_loop_100t.json").read_text())["machines"]
+    for m in machines:
+        if m["name"] == name:
+            return machine_plant(crane, m), m
+    raise SystemExit(f"--machine: {name!r}; allowed: {', '.join(m['name'] for m in machines)}")
 
 
 def replay(crane, plant, traj, oil: bool) -> dict:
@@ -68,6 +85,15 @@ def summary(rows, kind) -> dict:
                ratio_min=float(ratio.min()), ratio_max=float(ratio.max()),
                within_5pct=int(np.sum(np.abs(ratio - 1) <= 0.05)),
                sum_ratio=float(sum(r[kind]["pump_J"] for r in ok) / sum(r["eval_J"] for r in ok)))
+    by = {r["id"]: r[kind]["pump_J"] for r in ok}
+    moves = sorted({i.rsplit(":", 1)[0] for i in by if f"{i.rsplit(':', 1)[0]}:time" in by
+                    and f"{i.rsplit(':', 1)[0]}:energy" in by})
+    if moves:       # each move's energy entry against its own time entry, on this plant
+        e = np.array([by[f"{m}:energy"] for m in moves])
+        t = np.array([by[f"{m}:time"] for m in moves])
+        out["pairs"] = dict(n=len(moves), saving_median=float(np.median(1 - e / t)),
+                            saving_sum=float(1 - e.sum() / t.sum()),
+                            costlier=int(np.sum(e > t)))
     for k in ("track_m", "rest_m", "ring_m"):
         v = pick(k)
         out[k.replace("_m", "_mm")] = dict(median=float(np.median(v)),
@@ -80,6 +106,7 @@ def main(argv=None):
     ap.add_argument("--library", type=Path, required=True)
     ap.add_argument("--limit", type=int, default=0, help="first K entries only (0: all)")
     ap.add_argument("--tag", default="")
+    ap.add_argument("--machine", help="a drawn machine of the calibration loop (m1 … m6)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     args = ap.parse_args(argv)
     if not args.library.is_file():
@@ -88,7 +115,8 @@ def main(argv=None):
         raise SystemExit(f"--limit: {args.limit}; allowed: >= 0")
     t_start = time.perf_counter()
     crane = Crane.from_id("s100f")
-    plant = ExudynPlant(crane)
+    plant, drawn = (ExudynPlant(crane), None) if not args.machine else \
+        drawn_plant(crane, args.machine)
     rows = []
     with LibraryStore.open(args.library, "r") as db:
         ids = [r["id"] for r in db.index_rows() if r.get("status", "ok") == "ok"]
@@ -106,6 +134,7 @@ def main(argv=None):
                 file=sys.stderr, flush=True)
     res = dict(date=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                command=" ".join(["python", *sys.argv]), library=str(args.library),
+               machine_drawn=drawn,
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(),
                             load=list(os.getloadavg())),
                summary={k: summary(rows, k) for k in KINDS}, rows=rows,
@@ -124,7 +153,14 @@ def markdown(res) -> list:
          f"{res['date']}, {res['machine']['platform']}, {res['machine']['cpus']} CPUs, load "
          f"average {' / '.join(f'{x:.1f}' for x in res['machine']['load'])} at the end. "
          f"`{res['command']}` ({res['wall_s'] / 60:.1f} min). Library `{res['library']}`. "
-         "Judges: **Exudyn** = the independent plant (the spec's parameters; each entry's plan's "
+         + ("Judges: **Exudyn** = the independent plant (the spec's parameters; " if not
+            res.get("machine_drawn") else
+            f"Judges: **Exudyn** = the independent plant as drawn machine "
+            f"{res['machine_drawn']['name']} of `calibrate_loop_100t.json` (parameters the "
+            f"planner was not given: [dynamics] drawn ±30 %, a command delay of "
+            f"{1e3 * res['machine_drawn']['delay']:.1f} ms, the {res['machine_drawn']['lag_joint']}"
+            f" valve {1e3 * res['machine_drawn']['lag']:.1f} ms slower; ") +
+         "each entry's plan's "
          "50 Hz feed-forward replayed open loop, valves closed after the last command, 3 s "
          "settle; pump work at the shaft from its energy balance); **evaluate()** = the "
          "quasi-static model's pump work for the plan (machine pricing). *plain*: Q = A·ẋ; "
@@ -142,6 +178,14 @@ def markdown(res) -> list:
                  f"{s['track_mm']['p90']:.1f} | {s['rest_mm']['median']:.1f} / "
                  f"{s['rest_mm']['p90']:.1f} / {s['rest_mm']['max']:.1f} | "
                  f"{s['ring_mm']['median']:.1f} / {s['ring_mm']['p90']:.1f} |")
+    if all("pairs" in S[k] for k in KINDS):
+        L += ["", "Energy entries against their own time entries, pump work on this plant:", "",
+              "| feed-forward | moves | saving, median | over the sums | energy entry costlier |",
+              "| --- | ---: | ---: | ---: | ---: |"]
+        for k in KINDS:
+            p = S[k]["pairs"]
+            L.append(f"| {k} | {p['n']} | {100 * p['saving_median']:.1f} % | "
+                     f"{100 * p['saving_sum']:.1f} % | {p['costlier']} |")
     L += ["", "## Per entry", "",
           "| entry | evaluate() [kJ] | plain: Exudyn / evaluate(), rest, ringing [mm] | oil: "
           "Exudyn / evaluate(), rest, ringing [mm] |", "| --- | ---: | --- | --- |"]

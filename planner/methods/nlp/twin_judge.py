@@ -49,10 +49,9 @@ RATE = 50.0
 
 
 def has_twin(crane: Crane) -> bool:
-    """True where the model has a dynamic twin of ``crane`` ([dynamics], no transformer)."""
-    spec = crane.spec
-    ht = spec.transformer
-    return spec.dynamics is not None and not (ht is not None and ht.enabled)
+    """True where the model has a dynamic twin of ``crane`` ([dynamics], no transformer): the
+    cranes whose oil springs the feed-forward fills (:func:`planner.feedforward.fills_oil`)."""
+    return fills_oil(crane)
 
 
 def twin_pump_energy(crane: Crane, traj: Trajectory, settle: float = SETTLE,

@@ -32,6 +32,7 @@ from planner.model.commands import delayed_steps, held_commands
 from planner.model.twin.integrator import Stepper
 from planner.model.twin.ode import build_rhs, state_size, unpack
 from planner.model.twin.coupled import coupled_stepper
+from planner.model.twin.oil import oil_stiffness
 from planner.model.twin.params import param_index, twin_params
 from planner.model.twin.pendulum import grapple_of
 
@@ -265,11 +266,10 @@ class Twin:
         g = np.asarray(crane.f_id(q, zero, zero, self.payload), float).ravel()
         M = np.array([float(np.asarray(crane.f_id(q, zero, np.eye(n)[j], self.payload)
                                        ).ravel()[j]) - g[j] for j in range(n)])
-        xc = np.clip(x, per["x_lo"], per["x_hi"])
-        va = per["hose_a"] + per["swept"] * per["area_a"] * (xc - per["x_lo"])
-        vb = per["hose_b"] + per["swept"] * per["area_b"] * (per["x_hi"] - xc)
-        k = self.params.scalar["beta"] * (per["area_a"] ** 2 / va
-                                          + (1.0 - per["single"]) * per["area_b"] ** 2 / vb)
+        sc = self.params.scalar
+        p = sc["beta_pref"]     # the bulk law's reference pressure: β(p) = β
+        kab = np.array([np.concatenate(oil_stiffness(per, sc, i, x[i], p, p)) for i in range(n)])
+        k = per["area_a"] ** 2 * kab[:, 0] + (1.0 - per["single"]) * per["area_b"] ** 2 * kab[:, 1]
         return np.sqrt(k * dxdq ** 2 / M) / (2.0 * np.pi)
 
     def rest_pump_pressure(self) -> float:

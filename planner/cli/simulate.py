@@ -103,8 +103,7 @@ def cmd_simulate(args):
     args.rate = args.rate or DEFAULT_RATE
     landing = args.settle > 0 or which == "refined"
     if args.settle > 0:
-        from planner.feedforward import with_settle
-        from planner.feedforward import fills_oil
+        from planner.feedforward import fills_oil, with_settle
         traj = with_settle(crane, traj, args.settle, args.rate,   # a dynamic plant has oil
                            oil=args.plant != "fast" and fills_oil(crane))
     args.landing = dict(plan=plan if landing else None, commands_used=which,
